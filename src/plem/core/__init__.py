@@ -1,0 +1,1 @@
+"""Core services shared by every part of plem: configuration, package paths, files."""

@@ -1,0 +1,124 @@
+"""ConfigLoader: typed values from YAML files by dotted key, cached per file until the file changes."""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any, TypeVar, get_args, overload
+
+from pydantic import TypeAdapter, ValidationError
+
+from plem.core.config.yaml_document import YamlDocument, read_yaml, to_plain
+from plem.core.paths import resolve_resource
+from plem.errors import ConfigError
+
+T = TypeVar("T")
+_MISSING: Any = object()
+
+
+def _type_name(as_type: Any) -> str:
+    return str(as_type).replace("typing.", "") if get_args(as_type) else getattr(as_type, "__name__", str(as_type))
+
+
+class ConfigLoader:
+    """Loads YAML configuration; one shared instance caches parsed files keyed by path and stat."""
+
+    _instance: ConfigLoader | None = None
+    _instance_lock = threading.Lock()
+
+    def __init__(self) -> None:
+        self._cache: dict[Path, tuple[tuple[int, int, int], YamlDocument]] = {}
+        self._lock = threading.Lock()
+
+    @classmethod
+    def get_instance(cls) -> ConfigLoader:
+        """The process-wide loader (its cache is shared by every caller)."""
+        with cls._instance_lock:
+            if cls._instance is None:
+                cls._instance = cls()
+            return cls._instance
+
+    def document(self, path: str | os.PathLike[str]) -> YamlDocument:
+        """The parsed file at `path` (absolute, relative, or package/relative), re-read if it changed."""
+        resolved = resolve_resource(path).resolve()
+        try:
+            st = resolved.stat()
+        except OSError:
+            st = None
+        signature = (st.st_mtime_ns, st.st_size, st.st_ino) if st else (0, 0, 0)
+        with self._lock:
+            cached = self._cache.get(resolved)
+            if cached and cached[0] == signature:
+                return cached[1]
+        document = read_yaml(resolved)
+        with self._lock:
+            self._cache[resolved] = (signature, document)
+        return document
+
+    def invalidate(self, path: str | os.PathLike[str] | None = None) -> None:
+        """Forget one cached file, or all of them."""
+        with self._lock:
+            if path is None:
+                self._cache.clear()
+            else:
+                self._cache.pop(Path(path).resolve(), None)
+
+    def load(self, path: str | os.PathLike[str], key: str = "", as_type: Any = Any) -> Any:
+        """The value at dotted `key` (whole document when empty), checked against `as_type`."""
+        document = self.document(path)
+        node, line = document.lookup(key)
+        return _check_type(document, key, line, to_plain(node), as_type)
+
+    def load_optional(self, path: str | os.PathLike[str], key: str, as_type: Any = Any) -> Any | None:
+        """Like `load`, but None when the key is absent. A missing file or a wrong type is still an error."""
+        return self.load_or_default(path, None, key, as_type)
+
+    def load_or_default(self, path: str | os.PathLike[str], default: T, key: str = "", as_type: Any = _MISSING) -> T:
+        """The value at `key`, or `default` when the key is absent; the type defaults to the default's type."""
+        document = self.document(path)
+        if as_type is _MISSING:
+            as_type = Any if default is None else type(default)
+        try:
+            node, line = document.lookup(key)
+        except ConfigError:
+            return default
+        return _check_type(document, key, line, to_plain(node), as_type)
+
+
+def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, as_type: Any) -> Any:
+    if as_type is Any:
+        return value
+    try:
+        return TypeAdapter(as_type).validate_python(value, strict=True)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        location = ".".join(str(p) for p in first["loc"])
+        item_key = f"{key}.{location}" if location else key
+        item_line = line
+        if location:
+            try:
+                item_line = document.lookup(item_key)[1]
+            except ConfigError:
+                pass
+        shown = repr(first.get("input", value))
+        raise ConfigError(
+            f"Wrong type for '{key or '(document)'}' in {document.path.name}",
+            what=f"'{key or '(document)'}' as {_type_name(as_type)}",
+            why=f"{document.path}:{item_line}: '{item_key or '(document)'}' is {shown} ({first['msg'].lower()})",
+            how=f"change the value at {document.path}:{item_line} to a {_type_name(as_type)}",
+        ) from None
+
+
+@overload
+def load_config(path: str | os.PathLike[str], key: str = "", as_type: type[T] = ...) -> T: ...
+@overload
+def load_config(path: str | os.PathLike[str], key: str = "", as_type: Any = ...) -> Any: ...
+def load_config(path: str | os.PathLike[str], key: str = "", as_type: Any = Any) -> Any:
+    """The value at `key` in the YAML file at `path`, e.g. `load_config("c.yaml", "rt_priority", int)`."""
+    return ConfigLoader.get_instance().load(path, key, as_type)
+
+
+def load_config_optional(path: str | os.PathLike[str], key: str, as_type: Any = Any) -> Any | None:
+    """The value at `key`, or None when the key is absent."""
+    return ConfigLoader.get_instance().load_optional(path, key, as_type)

@@ -1,0 +1,111 @@
+"""The package search path: find packages by name and resolve `pkg/relative/path` without ROS.
+
+Search order: `PLEM_PACKAGE_PATH` entries, then `share/` of every `AMENT_PREFIX_PATH` prefix, then the
+description packages shipped inside plem. A package is a directory holding `package.xml`; its name is
+the directory name. A `PLEM_PACKAGE_PATH` entry may be a package itself or a folder of packages.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+from plem.errors import ConfigError, PackageNotFoundError
+
+BUILTIN_PACKAGES_DIR = Path(__file__).resolve().parent.parent / "description" / "builtin"
+PACKAGE_MARKER = "package.xml"
+
+
+def _environ(environ: Mapping[str, str] | None) -> Mapping[str, str]:
+    return os.environ if environ is None else environ
+
+
+def search_roots(environ: Mapping[str, str] | None = None) -> list[Path]:
+    """Folders searched for packages, highest priority first."""
+    env = _environ(environ)
+    roots: list[Path] = []
+    for entry in env.get("PLEM_PACKAGE_PATH", "").split(os.pathsep):
+        if entry:
+            roots.append(Path(entry).expanduser())
+    for prefix in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        if prefix:
+            roots.append(Path(prefix).expanduser() / "share")
+    roots.append(BUILTIN_PACKAGES_DIR)
+    return roots
+
+
+def _packages_in(root: Path) -> dict[str, Path]:
+    if (root / PACKAGE_MARKER).is_file():
+        return {root.name: root}
+    if not root.is_dir():
+        return {}
+    return {child.name: child for child in sorted(root.iterdir()) if (child / PACKAGE_MARKER).is_file()}
+
+
+def list_packages(environ: Mapping[str, str] | None = None) -> dict[str, Path]:
+    """Every package on the search path by name; an earlier root shadows a later one."""
+    found: dict[str, Path] = {}
+    for root in search_roots(environ):
+        for name, path in _packages_in(root).items():
+            found.setdefault(name, path)
+    return found
+
+
+def _search_path_description(environ: Mapping[str, str] | None) -> str:
+    env = _environ(environ)
+    return (
+        f"PLEM_PACKAGE_PATH={env.get('PLEM_PACKAGE_PATH', '') or '(unset)'}, "
+        f"AMENT_PREFIX_PATH={env.get('AMENT_PREFIX_PATH', '') or '(unset)'}, "
+        f"built-in packages in {BUILTIN_PACKAGES_DIR}"
+    )
+
+
+def find_package(name: str, environ: Mapping[str, str] | None = None) -> Path:
+    """The directory of package `name`, or a PackageNotFoundError that says where plem looked."""
+    for root in search_roots(environ):
+        candidate = root if root.name == name else root / name
+        if (candidate / PACKAGE_MARKER).is_file():
+            return candidate
+    raise PackageNotFoundError(
+        f"Package '{name}' not found",
+        what=f"a directory named '{name}' holding {PACKAGE_MARKER} on the package search path",
+        why=f"no such package in: {_search_path_description(environ)}",
+        how=f"export PLEM_PACKAGE_PATH=/path/to/folder/containing/{name} (or give the package by path)",
+    )
+
+
+def resolve_resource(spec: str | os.PathLike[str], environ: Mapping[str, str] | None = None) -> Path:
+    """Resolve an absolute path, a path relative to the working directory, or `package_name/relative/path`.
+
+    A relative path that exists under the working directory wins over a package of the same first name.
+    """
+    path = Path(spec).expanduser()
+    if path.is_absolute():
+        if path.exists():
+            return path
+        raise _not_found(str(spec), [path], None)
+    local = Path.cwd() / path
+    if local.exists():
+        return local
+    package, _, rest = path.as_posix().partition("/")
+    try:
+        package_dir = find_package(package, environ)
+    except PackageNotFoundError:
+        raise _not_found(str(spec), [local], f"no package named '{package}' ({_search_path_description(environ)})")
+    in_package = package_dir / rest
+    if in_package.exists():
+        return in_package
+    raise _not_found(str(spec), [local, in_package], None)
+
+
+def _not_found(spec: str, tried: list[Path], extra: str | None) -> ConfigError:
+    why = "tried " + ", ".join(str(p) for p in tried) + "; none exists"
+    if extra:
+        why += f"; {extra}"
+    return ConfigError(
+        f"File not found: {spec}",
+        what="an absolute path, a path relative to the working directory, or package_name/relative/path",
+        why=why,
+        how="check the spelling, or add the package's folder to PLEM_PACKAGE_PATH",
+    )

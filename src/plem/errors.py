@@ -1,0 +1,98 @@
+"""Errors a user can cause, each rendered as ERROR/WHAT/WHY/HOW.
+
+One renderer serves the CLI and the logs, so a message reads the same wherever it shows up.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+
+def _indent_continuation(text: str) -> str:
+    """Indent every line after the first so multi-line fields stay readable under their label."""
+    return text.replace("\n", "\n      ")
+
+
+class PlemError(Exception):
+    """A problem the user can fix: a one-line summary plus what was expected, what was found and the fix."""
+
+    exit_code = 1
+
+    def __init__(self, summary: str, *, what: str, why: str, how: str) -> None:
+        super().__init__(summary)
+        self.summary = summary
+        self.what = what
+        self.why = why
+        self.how = how
+
+    def render(self) -> str:
+        """The four-line WHAT/WHY/HOW form printed by the CLI and written to logs."""
+        return (
+            f"ERROR: {self.summary}\n"
+            f"WHAT: {_indent_continuation(self.what)}\n"
+            f"WHY: {_indent_continuation(self.why)}\n"
+            f"HOW: {_indent_continuation(self.how)}"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready form for `--format json` output."""
+        return {
+            "error": type(self).__name__,
+            "summary": self.summary,
+            "what": self.what,
+            "why": self.why,
+            "how": self.how,
+        }
+
+    def __str__(self) -> str:
+        return self.render()
+
+
+class UsageError(PlemError):
+    """The command line itself is wrong (unknown argument, malformed `name:=value`)."""
+
+    exit_code = 2
+
+
+class ConfigError(PlemError):
+    """A configuration value, file or environment variable is invalid."""
+
+
+class ProfileError(PlemError):
+    """A robot profile is missing, unreadable or invalid."""
+
+
+class PackageNotFoundError(PlemError):
+    """A package named by the user is not on the package search path."""
+
+
+class MultipleErrors(PlemError):
+    """Several problems found by one validation pass, reported together rather than one at a time."""
+
+    def __init__(self, errors: Sequence[PlemError], context: str = "") -> None:
+        self.errors = list(errors)
+        summary = f"{len(self.errors)} problems" + (f" in {context}" if context else "")
+        super().__init__(
+            summary,
+            what="; ".join(e.what for e in self.errors),
+            why="; ".join(e.why for e in self.errors),
+            how="; ".join(e.how for e in self.errors),
+        )
+        self.exit_code = max(e.exit_code for e in self.errors)
+
+    def render(self) -> str:
+        header = f"ERROR: {self.summary}"
+        return header + "\n\n" + "\n\n".join(e.render() for e in self.errors)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"error": "MultipleErrors", "summary": self.summary, "errors": [e.to_dict() for e in self.errors]}
+
+
+def raise_collected(errors: Iterable[PlemError], context: str = "") -> None:
+    """Raise nothing, the one error, or all of them together, so validators can collect before reporting."""
+    errors = list(errors)
+    if len(errors) == 1:
+        raise errors[0]
+    if errors:
+        raise MultipleErrors(errors, context)

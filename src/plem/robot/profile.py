@@ -1,0 +1,174 @@
+"""RobotProfile: per-unit calibration (encoder offsets) stored as JSON in ~/.plem/profiles/<serial>.json."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, StrictStr, ValidationError, model_validator
+
+from plem.core.config.environment import plem_home
+from plem.core.files import write_atomic
+from plem.errors import ProfileError
+from plem.robot.config import SUPPORTED_DOF, offsets_problem
+from plem.robot.serial import serial_problem
+
+PROFILE_SUFFIX = ".json"
+
+
+def _create_hint(serial: str, dof: int = 6) -> str:
+    return f"plem profile create --serial {serial} --offsets {','.join(['0'] * dof)}  (one offset per joint)"
+
+
+class RobotProfile(BaseModel):
+    """Calibration of one robot unit: its serial, one encoder offset per joint, and when it was made."""
+
+    model_config = ConfigDict(extra="ignore")
+
+    robot_serial: StrictStr = ""
+    joint_offsets: list[StrictInt] = Field(default_factory=list)
+    profile_date: StrictStr | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _migrate_calibration_date(cls, data: Any) -> Any:
+        """Old profiles said `calibration_date`; they load as `profile_date`."""
+        if isinstance(data, dict) and "calibration_date" in data and "profile_date" not in data:
+            data = dict(data)
+            data["profile_date"] = data.pop("calibration_date")
+        return data
+
+    def problems(self, dof: int | None = None) -> list[str]:
+        """Every reason this profile is unusable (for `dof` joints when given), empty when valid."""
+        found: list[str] = []
+        serial = serial_problem(self.robot_serial)
+        if serial:
+            found.append(f"robot_serial {self.robot_serial!r}: {serial}")
+        if dof is not None:
+            offsets = offsets_problem(self.joint_offsets, dof)
+        elif len(self.joint_offsets) in SUPPORTED_DOF:
+            offsets = offsets_problem(self.joint_offsets, len(self.joint_offsets))
+        else:
+            offsets = f"joint_offsets has {len(self.joint_offsets)} elements; an arm has 6 or 7 joints"
+        if offsets:
+            found.append(offsets)
+        if self.profile_date is not None:
+            try:
+                datetime.fromisoformat(self.profile_date)
+            except (TypeError, ValueError):
+                found.append(f"profile_date {self.profile_date!r} is not an ISO 8601 time such as 2026-01-22T10:30:00Z")
+        return found
+
+    def is_valid(self, dof: int | None = None) -> bool:
+        """True when the profile can be used (with `dof` joints when given)."""
+        return not self.problems(dof)
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write atomically (temp file, fsync, rename); an invalid profile is refused, not written."""
+        problems = self.problems()
+        if problems:
+            raise ProfileError(
+                "Refusing to save an invalid profile",
+                what="a profile with a safe robot_serial, 6 or 7 int32 joint_offsets and an optional ISO 8601 date",
+                why="; ".join(problems),
+                how="fix the listed fields and save again",
+            )
+        document = self.model_dump(exclude_none=True)
+        write_atomic(Path(path).expanduser(), json.dumps(document, indent=2) + "\n", mode=0o600)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> RobotProfile:
+        """Read and check a profile file; every failure is a ProfileError naming the path."""
+        path = Path(path).expanduser()
+        serial_hint = path.stem or "<serial>"
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ProfileError(
+                f"Failed to open profile file: {path}",
+                what=f"a robot profile (JSON) at {path}",
+                why="the file does not exist",
+                how=f"create it: {_create_hint(serial_hint)}",
+            ) from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ProfileError(
+                f"Failed to open profile file: {path}",
+                what=f"a readable UTF-8 JSON file at {path}",
+                why=str(exc),
+                how="check the file's permissions, or recreate it with `plem profile create`",
+            ) from None
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ProfileError(
+                f"Profile file is not valid JSON: {path}",
+                what='a JSON object such as {"robot_serial": "...", "joint_offsets": [...]}',
+                why=f"{path}:{exc.lineno}:{exc.colno}: {exc.msg}",
+                how=f"fix the JSON at that line, or recreate it: {_create_hint(serial_hint)}",
+            ) from None
+        if not isinstance(data, dict):
+            raise ProfileError(
+                f"Profile file has the wrong shape: {path}",
+                what="a JSON object with robot_serial and joint_offsets",
+                why=f"the file holds a JSON {type(data).__name__}",
+                how=f"recreate it: {_create_hint(serial_hint)}",
+            )
+        missing = [name for name in ("robot_serial", "joint_offsets") if name not in data]
+        try:
+            profile = cls.model_validate(data)
+        except ValidationError as exc:
+            details = "; ".join(
+                f"{'.'.join(str(p) for p in error['loc'])}: {error['msg'].lower()} (found {error.get('input')!r})"
+                for error in exc.errors()
+            )
+            raise ProfileError(
+                f"Invalid profile file: {path}",
+                what="robot_serial as text, joint_offsets as a list of whole numbers, profile_date as text",
+                why=f"{path}: {details}",
+                how="correct those fields in the file",
+            ) from None
+        problems = [f"missing required field '{name}'" for name in missing] + (profile.problems() if not missing else [])
+        if problems:
+            raise ProfileError(
+                f"Invalid profile file: {path}",
+                what="a safe robot_serial, 6 or 7 int32 joint_offsets, optional ISO 8601 profile_date",
+                why=f"{path}: " + "; ".join(problems),
+                how="correct those fields in the file, or recreate it with `plem profile create`",
+            )
+        return profile
+
+    @classmethod
+    def load_from_serial(cls, serial: str, environ: Mapping[str, str] | None = None) -> RobotProfile:
+        """Load `<profiles dir>/<serial>.json` and check it belongs to `serial`."""
+        path = cls.default_path(serial, environ)
+        profile = cls.load(path)
+        if profile.robot_serial != serial:
+            raise ProfileError(
+                f"Profile file {path.name} belongs to another robot",
+                what=f"a profile whose robot_serial is {serial!r}",
+                why=f"{path} says robot_serial is {profile.robot_serial!r}",
+                how=f"rename the file to {profile.robot_serial}{PROFILE_SUFFIX}, or fix robot_serial inside it",
+            )
+        return profile
+
+    @staticmethod
+    def default_directory(environ: Mapping[str, str] | None = None) -> Path:
+        """`$PLEM_HOME/profiles`, normally `~/.plem/profiles`."""
+        return plem_home(environ) / "profiles"
+
+    @staticmethod
+    def default_path(serial: str, environ: Mapping[str, str] | None = None) -> Path:
+        """Where the profile of `serial` lives; a serial that is not a safe file name is refused."""
+        problem = serial_problem(serial)
+        if problem:
+            raise ProfileError(
+                f"Invalid robot serial {serial!r}",
+                what="a serial usable as a file name: letters, digits, '.', '_' or '-' (e.g. PE07I7E0E001)",
+                why=f"{serial!r}: {problem}",
+                how="use the serial printed on the robot's label",
+            )
+        return RobotProfile.default_directory(environ) / f"{serial}{PROFILE_SUFFIX}"
