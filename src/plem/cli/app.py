@@ -11,6 +11,7 @@ import typer
 from typer._click import exceptions as click_exceptions
 
 from plem.cli import config as config_commands
+from plem.cli import description as description_commands
 from plem.cli import profile as profile_commands
 from plem.cli.output import print_error
 from plem.errors import PlemError, UsageError
@@ -24,6 +25,8 @@ app = typer.Typer(
 )
 app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
+app.command("validate")(description_commands.validate)
+app.command("create-description")(description_commands.create_description)
 
 
 def _usage_error(error: click_exceptions.UsageError) -> UsageError:

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import os
-from enum import Enum
 from typing import Annotated
 
 import typer
-from plem.cli.output import new_table, print_json, print_warnings, stdout
+from plem.cli.output import OutputFormat, new_table, print_json, print_warnings, stdout
 from plem.core.config.environment import middleware_environment, plem_home
 from plem.core.config.launch_args import parse_launch_arguments
 from plem.robot.config import ARM_SETTINGS
@@ -19,11 +18,6 @@ app = typer.Typer(help="Show the effective configuration.", no_args_is_help=True
 CONFIG_ARGUMENTS = ("robot_type", *(setting.launch for setting in ARM_SETTINGS if setting.launch))
 EXTRA_ARGS = {"allow_extra_args": True, "ignore_unknown_options": True}
 HIDDEN_FIELDS = ("custom_bus",)
-
-
-class OutputFormat(str, Enum):
-    text = "text"
-    json = "json"
 
 
 @app.command("show", context_settings=EXTRA_ARGS)

@@ -4,12 +4,20 @@ from __future__ import annotations
 
 import json
 import sys
+from enum import Enum
 from typing import Any
 
 from rich.console import Console
 from rich.table import Table
 
 from plem.errors import PlemError
+
+class OutputFormat(str, Enum):
+    """`--format` choices shared by every command that can print JSON."""
+
+    text = "text"
+    json = "json"
+
 
 PIPE_WIDTH = 200  # when output goes to a file or pipe, do not squeeze tables to 80 columns
 

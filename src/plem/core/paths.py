@@ -7,14 +7,30 @@ the directory name. A `PLEM_PACKAGE_PATH` entry may be a package itself or a fol
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextvars import ContextVar
 from pathlib import Path
 
 from plem.errors import ConfigError, PackageNotFoundError
 
 BUILTIN_PACKAGES_DIR = Path(__file__).resolve().parent.parent / "description" / "builtin"
 PACKAGE_MARKER = "package.xml"
+
+
+_pinned: ContextVar[Mapping[str, Path]] = ContextVar("pinned_packages", default={})
+
+
+@contextlib.contextmanager
+def pinned_packages(packages: Mapping[str, Path]) -> Iterator[None]:
+    """Within the block, these names resolve to these directories before any search (a package given by path
+    must find itself through `$(find its_name)` even when it is not on the search path)."""
+    token = _pinned.set({**_pinned.get(), **packages})
+    try:
+        yield
+    finally:
+        _pinned.reset(token)
 
 
 def _environ(environ: Mapping[str, str] | None) -> Mapping[str, str]:
@@ -63,6 +79,9 @@ def _search_path_description(environ: Mapping[str, str] | None) -> str:
 
 def find_package(name: str, environ: Mapping[str, str] | None = None) -> Path:
     """The directory of package `name`, or a PackageNotFoundError that says where plem looked."""
+    pinned = _pinned.get().get(name)
+    if pinned is not None:
+        return pinned
     for root in search_roots(environ):
         candidate = root if root.name == name else root / name
         if (candidate / PACKAGE_MARKER).is_file():
@@ -109,3 +128,22 @@ def _not_found(spec: str, tried: list[Path], extra: str | None) -> ConfigError:
         why=why,
         how="check the spelling, or add the package's folder to PLEM_PACKAGE_PATH",
     )
+
+
+def resolve_package_uri(uri: str, base: Path | None = None, environ: Mapping[str, str] | None = None) -> Path:
+    """The file behind a URDF resource reference: `package://pkg/rel`, `file:///abs`, or a path relative to `base`."""
+    if uri.startswith("package://"):
+        package, _, rest = uri.removeprefix("package://").partition("/")
+        path = find_package(package, environ) / rest
+    elif uri.startswith("file://"):
+        path = Path(uri.removeprefix("file://"))
+    else:
+        path = (base or Path.cwd()) / uri
+    if not path.is_file():
+        raise ConfigError(
+            f"Resource not found: {uri}",
+            what="a mesh or resource file that exists",
+            why=f"{uri} resolves to {path}, which does not exist",
+            how="fix the file name, or add the file to the package",
+        )
+    return path

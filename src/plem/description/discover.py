@@ -1,0 +1,164 @@
+"""Finding a description package and its files by the protocol's conventions.
+
+`urdf/` holds exactly one `*.urdf.xacro`, `srdf/` at most one SRDF, `config/` the exact names
+`joint_limits.yaml`, `controllers.yaml`, `kinematics.yaml`; `urdf_file`/`srdf_file` override discovery.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from plem.core.paths import PACKAGE_MARKER, find_package
+from plem.description.problems import Findings
+from plem.errors import PackageNotFoundError
+from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
+
+URDF_SUFFIX = ".urdf.xacro"
+ROS2_CONTROL_SUFFIX = ".ros2_control.xacro"
+SRDF_SUFFIXES = (".srdf", ".srdf.xacro")
+COMPAT_FILE = "PLEM_COMPAT_VERSION"
+CONFIG_NAMES = ("joint_limits.yaml", "controllers.yaml", "kinematics.yaml")
+LEGACY_PACKAGE = "wim_description"
+
+
+@dataclass
+class DescriptionFiles:
+    """The files of one package as discovery found them; missing ones are None."""
+
+    name: str
+    root: Path
+    urdf: Path | None = None
+    ros2_control: Path | None = None
+    srdf: Path | None = None
+    joint_limits: Path | None = None
+    controllers: Path | None = None
+    kinematics: Path | None = None
+    compat_version: Path | None = None
+    findings: Findings = field(default_factory=Findings)
+
+
+def locate_package(package: str | os.PathLike[str]) -> Path:
+    """A package given by path (a directory) or by name through the package search path."""
+    path = Path(package).expanduser()
+    if path.is_dir():
+        return path.resolve()
+    if os.sep in str(package) or str(package).startswith("."):
+        raise PackageNotFoundError(
+            f"Package directory not found: {package}",
+            what="a description package directory, or a package name on the package search path",
+            why=f"{path.resolve()} does not exist or is not a directory",
+            how="check the path, or give the package name and add its folder to PLEM_PACKAGE_PATH",
+        )
+    return find_package(str(package))
+
+
+def package_for_launch(description_package: str | None, robot_type: str | None) -> str:
+    """The package `plem launch` uses: `wim_description` (or none) means the built-in `<robot_type>_description`."""
+    if description_package and description_package != LEGACY_PACKAGE:
+        return description_package
+    return model_for(robot_type or DEFAULT_ROBOT_TYPE).MODEL.description_package
+
+
+def _override(root: Path, given: str | os.PathLike[str]) -> Path:
+    path = Path(given).expanduser()
+    return path if path.is_absolute() else root / path
+
+
+def discover(package: str | os.PathLike[str], urdf_file: str | os.PathLike[str] | None = None,
+             srdf_file: str | os.PathLike[str] | None = None) -> DescriptionFiles:
+    """Find the package's files; problems (none, several, wrong names) are collected, not raised."""
+    root = locate_package(package)
+    files = DescriptionFiles(name=root.name, root=root)
+    found = files.findings
+    if not (root / PACKAGE_MARKER).is_file():
+        found.warning("package.xml_missing", f"No package.xml in '{root.name}'",
+                      what="a ROS 2 package with package.xml (so colcon and the package search path see it)",
+                      why=f"{root / PACKAGE_MARKER} does not exist", how="create package.xml (ament_cmake)",
+                      file=root)
+    _discover_urdf(files, urdf_file)
+    _discover_srdf(files, srdf_file)
+    for name in CONFIG_NAMES:
+        path = root / "config" / name
+        if path.is_file():
+            setattr(files, name.removesuffix(".yaml"), path)
+    _near_misses(files)
+    compat = root / COMPAT_FILE
+    files.compat_version = compat if compat.is_file() else None
+    return files
+
+
+def _discover_urdf(files: DescriptionFiles, urdf_file: str | os.PathLike[str] | None) -> None:
+    root, found = files.root, files.findings
+    urdf_dir = root / "urdf"
+    controls = sorted(urdf_dir.glob(f"*{ROS2_CONTROL_SUFFIX}")) if urdf_dir.is_dir() else []
+    files.ros2_control = controls[0] if len(controls) == 1 else None
+    if urdf_file:
+        path = _override(root, urdf_file)
+        if path.is_file():
+            files.urdf = path
+        else:
+            found.error("urdf.override_missing", f"URDF override not found: {urdf_file}",
+                        what="urdf_file:= naming an existing .urdf.xacro (absolute, or relative to the package)",
+                        why=f"{path} does not exist", how="fix the urdf_file:= path, or drop it to use discovery")
+        return
+    candidates = sorted(urdf_dir.glob(f"*{URDF_SUFFIX}")) if urdf_dir.is_dir() else []
+    if len(candidates) == 1:
+        files.urdf = candidates[0]
+        return
+    others = sorted(p.name for p in urdf_dir.iterdir()) if urdf_dir.is_dir() else []
+    if not candidates:
+        found.error("urdf.missing", f"No URDF file found in package '{root.name}'",
+                    what=f"Auto-discovery expected exactly one {URDF_SUFFIX} file in urdf/ directory",
+                    why="Found 0 matching files" + (f" (urdf/ holds: {', '.join(others)})" if others else
+                                                   (" (urdf/ is empty)" if urdf_dir.is_dir() else " (no urdf/ directory)")),
+                    how=f"Create urdf/{_base_name(root)}{URDF_SUFFIX} or use urdf_file:=/path launch argument",
+                    file=urdf_dir)
+    else:
+        found.error("urdf.multiple", f"Several URDF files found in package '{root.name}'",
+                    what=f"Auto-discovery expected exactly one {URDF_SUFFIX} file in urdf/ directory",
+                    why=f"Found {len(candidates)} matching files: {', '.join(p.name for p in candidates)}",
+                    how=f"keep one, rename the others (e.g. to .xacro), or pick one with urdf_file:=urdf/{candidates[0].name}",
+                    file=urdf_dir)
+
+
+def _discover_srdf(files: DescriptionFiles, srdf_file: str | os.PathLike[str] | None) -> None:
+    root, found = files.root, files.findings
+    if srdf_file:
+        path = _override(root, srdf_file)
+        if path.is_file():
+            files.srdf = path
+        else:
+            found.error("srdf.override_missing", f"SRDF override not found: {srdf_file}",
+                        what="srdf_file:= naming an existing SRDF (absolute, or relative to the package)",
+                        why=f"{path} does not exist", how="fix the srdf_file:= path, or drop it to use discovery")
+        return
+    srdf_dir = root / "srdf"
+    candidates = sorted(p for p in srdf_dir.iterdir() if p.name.endswith(SRDF_SUFFIXES)) if srdf_dir.is_dir() else []
+    if len(candidates) == 1:
+        files.srdf = candidates[0]
+    elif len(candidates) > 1:
+        found.error("srdf.multiple", f"Several SRDF files found in package '{root.name}'",
+                    what="at most one .srdf or .srdf.xacro file in srdf/",
+                    why=f"Found {len(candidates)}: {', '.join(p.name for p in candidates)}",
+                    how=f"keep one, or pick one with srdf_file:=srdf/{candidates[0].name}", file=srdf_dir)
+
+
+def _near_misses(files: DescriptionFiles) -> None:
+    """Config files with almost the right name are ignored by discovery; say so rather than stay silent."""
+    config_dir = files.root / "config"
+    if not config_dir.is_dir():
+        return
+    for path in sorted(config_dir.iterdir()):
+        stem = path.name.split(".")[0]
+        for expected in CONFIG_NAMES:
+            if path.name != expected and stem == expected.split(".")[0]:
+                files.findings.warning(
+                    "config.misnamed", f"config/{path.name} is ignored",
+                    what=f"the exact file name config/{expected}", why=f"found config/{path.name}",
+                    how=f"rename it to config/{expected}", file=path)
+
+
+def _base_name(root: Path) -> str:
+    return root.name.removesuffix("_description")

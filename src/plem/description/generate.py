@@ -1,0 +1,135 @@
+"""Auto-generation of missing config files, into a fresh temp directory (never into the package).
+
+`controllers.yaml` is generated from joint_limits.yaml; `kinematics.yaml` only when an SRDF exists.
+The same text builders serve `plem create-description`, so generated and scaffolded files agree.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import logging
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ruamel.yaml import YAML
+
+from plem.core.files import write_atomic
+from plem.description.validate import Stage, ValidationReport, require_valid
+
+log = logging.getLogger("plem.launch")
+
+DEFAULT_SOLVER = "kdl_kinematics_plugin/KDLKinematicsPlugin"
+SOLVER_DEFAULTS = {"kinematics_solver_search_resolution": 0.005, "kinematics_solver_timeout": 0.05,
+                   "kinematics_solver_attempts": 3}
+STOPPED_VELOCITY_TOLERANCE = 0.01
+GOAL_TOLERANCE = 0.01
+GENERATED_DIR_PREFIX = "wim_launch_"
+
+
+def _dump(data: dict, header: str) -> str:
+    yaml = YAML()
+    yaml.default_flow_style = False
+    buffer = io.StringIO()
+    yaml.dump(data, buffer)
+    return "".join(f"# {line}\n" for line in header.splitlines()) + buffer.getvalue()
+
+
+def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:
+    """A joint_trajectory_controller for `joints` and a state broadcaster, at the loop's rate."""
+    data = {
+        "controller_manager": {"ros__parameters": {
+            "update_rate": round(1_000_000 / cycle_time_us),
+            "joint_state_broadcaster": {"type": "joint_state_broadcaster/JointStateBroadcaster"},
+            "arm_controller": {"type": "joint_trajectory_controller/JointTrajectoryController"},
+        }},
+        "arm_controller": {"ros__parameters": {
+            "type": "joint_trajectory_controller/JointTrajectoryController",
+            "joints": list(joints),
+            "command_interfaces": ["position"],
+            "state_interfaces": ["position", "velocity"],
+            "constraints": {
+                "stopped_velocity_tolerance": STOPPED_VELOCITY_TOLERANCE,
+                "goal_time": 0.0,
+                **{joint: {"trajectory": 0.0, "goal": GOAL_TOLERANCE} for joint in joints},
+            },
+        }},
+    }
+    return _dump(data, "Controllers: a joint trajectory controller over every joint in joint_limits.yaml.\n"
+                       "Tolerances in rad; 0.0 disables a check (ros2_control semantics).")
+
+
+def kinematics_yaml(groups: list[str]) -> str:
+    """The KDL solver with conservative defaults for each planning group."""
+    return _dump({group: {"kinematics_solver": DEFAULT_SOLVER, **SOLVER_DEFAULTS} for group in groups},
+                 "Inverse kinematics per planning group (KDL solver, conservative defaults).")
+
+
+@dataclass
+class ResolvedDescription:
+    """The files launch uses, each from the package or generated, and whether planning can start."""
+
+    report: ValidationReport
+    urdf: Path
+    srdf: Path | None
+    joint_limits: Path
+    controllers: Path
+    kinematics: Path | None
+    generated_dir: Path | None = None
+    generated: list[Path] = field(default_factory=list)
+    log_lines: list[str] = field(default_factory=list)
+
+    @property
+    def planner_enabled(self) -> bool:
+        return self.srdf is not None
+
+
+def _fresh_directory(temp_root: Path | None) -> Path:
+    root = Path(temp_root or tempfile.gettempdir())
+    stamp = time.strftime("%Y%m%d_%H%M%S")
+    for attempt in itertools.count():
+        path = root / f"{GENERATED_DIR_PREFIX}{stamp}" if attempt == 0 else root / f"{GENERATED_DIR_PREFIX}{stamp}_{attempt}"
+        try:
+            path.mkdir(parents=True)
+            return path
+        except FileExistsError:
+            continue
+    raise AssertionError("unreachable")
+
+
+def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.PathLike[str] | None = None,
+                        srdf_file: str | os.PathLike[str] | None = None, cycle_time_us: int = 1000,
+                        stage: Stage = Stage.STARTUP, temp_root: Path | None = None) -> ResolvedDescription:
+    """Validate for `stage`, then generate the missing optional files; the package is never written."""
+    report = require_valid(package, stage=stage, urdf_file=urdf_file, srdf_file=srdf_file)
+    files = report.files
+    resolved = ResolvedDescription(report=report, urdf=files.urdf, srdf=files.srdf, joint_limits=files.joint_limits,
+                                   controllers=files.controllers, kinematics=files.kinematics)
+    pending: dict[str, str] = {}
+    if files.srdf is None:
+        _say(resolved, "SRDF not found - MoveIt will not be started")
+    elif files.kinematics is None:
+        _say(resolved, "Auto-generating kinematics.yaml (KDL solver)")
+        pending["kinematics.yaml"] = kinematics_yaml([g for g, body in report.srdf.groups.items() if body.chains])
+    if files.controllers is None:
+        _say(resolved, "Auto-generating controllers.yaml from joint_limits.yaml")
+        actuated = [j.name for j in report.urdf.actuated_joints]
+        pending["controllers.yaml"] = controllers_yaml([j for j in actuated if j in report.limits] or actuated,
+                                                       cycle_time_us)
+    if pending:
+        resolved.generated_dir = _fresh_directory(temp_root)
+        for name, text in pending.items():
+            path = resolved.generated_dir / name
+            write_atomic(path, text)
+            resolved.generated.append(path)
+            setattr(resolved, name.removesuffix(".yaml"), path)
+        _say(resolved, f"Generated files are in {resolved.generated_dir}; copy them into config/ to keep them")
+    return resolved
+
+
+def _say(resolved: ResolvedDescription, line: str) -> None:
+    resolved.log_lines.append(line)
+    log.info(line)

@@ -1,0 +1,115 @@
+"""joint_limits.yaml: per-joint position, velocity, acceleration, jerk and effort limits (SI units)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from plem.core.config.loader import ConfigLoader
+from plem.description.problems import Findings
+from plem.errors import ConfigError
+
+MAXIMA = ("max_velocity", "max_acceleration", "max_jerk", "max_effort")
+FLAGS = {"max_velocity": "has_velocity_limits", "max_acceleration": "has_acceleration_limits",
+         "max_jerk": "has_jerk_limits", "max_effort": "has_effort_limits"}
+KNOWN_KEYS = {"has_position_limits", "min_position", "max_position", *MAXIMA, *FLAGS.values()}
+UNITS = {"max_velocity": "rad/s", "max_acceleration": "rad/s²", "max_jerk": "rad/s³", "max_effort": "N·m"}
+
+
+@dataclass(frozen=True)
+class JointLimit:
+    """Active limits of one joint; None where the file sets no such limit (or disables it)."""
+
+    name: str
+    min_position: float | None = None
+    max_position: float | None = None
+    max_velocity: float | None = None
+    max_acceleration: float | None = None
+    max_jerk: float | None = None
+    max_effort: float | None = None
+    line: int | None = None
+
+
+def _number(value: Any) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
+def read_joint_limits(path: Path, found: Findings) -> dict[str, JointLimit]:
+    """Parse and check the file on its own (cross-checks with the URDF live in the validator)."""
+    try:
+        document = ConfigLoader.get_instance().document(path)
+    except ConfigError as error:
+        found.error("limits.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
+        return {}
+    root = document.root
+    section = root.get("joint_limits") if isinstance(root, dict) else None
+    if not isinstance(section, dict):
+        found.error("limits.structure", "joint_limits.yaml has no joint_limits mapping",
+                    what="a top-level key joint_limits: with one entry per joint",
+                    why="the file's top level is " + (f"keys {', '.join(map(str, root))}" if isinstance(root, dict)
+                                                      else type(root).__name__),
+                    how="put the per-joint entries under joint_limits:", file=path, line=1)
+        return {}
+    limits: dict[str, JointLimit] = {}
+    for name, entry in section.items():
+        line = section.lc.key(name)[0] + 1
+        if not isinstance(entry, dict):
+            found.error("limits.structure", f"Limits of {name} are not a mapping",
+                        what=f"joint_limits.{name} with keys such as max_velocity", why=f"found {entry!r}",
+                        how="give the joint's limits as key: value pairs", file=path, line=line)
+            continue
+        limits[str(name)] = _read_joint(str(name), entry, line, path, found)
+    return limits
+
+
+def _read_joint(name: str, entry: dict, line: int, path: Path, found: Findings) -> JointLimit:
+    def line_of(key: str) -> int:
+        return entry.lc.key(key)[0] + 1 if hasattr(entry, "lc") and key in entry else line
+
+    values: dict[str, float | None] = {}
+    for key, raw in entry.items():
+        if key not in KNOWN_KEYS:
+            found.warning("limits.unknown_key", f"Unknown key {key} for {name}",
+                          what=f"keys among {', '.join(sorted(KNOWN_KEYS))}", why=f"joint_limits.{name}.{key} is not one",
+                          how="remove it or fix its spelling", file=path, line=line_of(key))
+        elif key.startswith("has_"):
+            if not isinstance(raw, bool):
+                found.error("limits.type", f"{key} of {name} must be true or false",
+                            what=f"joint_limits.{name}.{key}: true or false", why=f"found {raw!r}",
+                            how="write true or false", file=path, line=line_of(key))
+        else:
+            number = _number(raw)
+            if number is None or not math.isfinite(number):
+                found.error("limits.type", f"{key} of {name} is not a number",
+                            what=f"joint_limits.{name}.{key} as a finite number", why=f"found {raw!r}",
+                            how="write a plain number (radians, rad/s, rad/s², rad/s³, N·m)", file=path, line=line_of(key))
+            else:
+                values[key] = number
+    for key in MAXIMA:
+        if entry.get(FLAGS[key]) is False:
+            values.pop(key, None)
+        elif key in values and values[key] <= 0:
+            found.error("limits.nonpositive", f"{key} of {name} must be positive",
+                        what=f"joint_limits.{name}.{key} > 0 ({UNITS[key]})", why=f"found {values[key]:g}",
+                        how=f"set a positive {key}, or has_{key.removeprefix('max_')}_limits: false", file=path,
+                        line=line_of(key))
+            values.pop(key)
+    lower, upper = values.get("min_position"), values.get("max_position")
+    position_on = entry.get("has_position_limits", lower is not None or upper is not None)
+    if position_on is True and (lower is None or upper is None):
+        found.error("limits.position_missing", f"Position limits of {name} are incomplete",
+                    what=f"min_position and max_position for {name} (has_position_limits is true)",
+                    why=f"missing {'min_position' if lower is None else 'max_position'}",
+                    how="add both, or set has_position_limits: false for an unlimited joint", file=path, line=line)
+    if position_on is True and lower is not None and upper is not None and not lower < upper:
+        found.error("limits.min_max", f"min_position of {name} is not below max_position",
+                    what="min_position < max_position", why=f"min_position {lower:g} >= max_position {upper:g}",
+                    how="swap or correct the two values", file=path, line=line_of("min_position"))
+    if position_on is not True:
+        lower = upper = None
+    return JointLimit(name, lower, upper, values.get("max_velocity"), values.get("max_acceleration"),
+                      values.get("max_jerk"), values.get("max_effort"), line)

@@ -1,0 +1,83 @@
+"""Problems found in a description package: errors and warnings, each a WHAT/WHY/HOW with a place."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+from plem.errors import PlemError, raise_collected
+
+
+class DescriptionError(PlemError):
+    """A description package cannot be used as it is."""
+
+
+class Severity(str, Enum):
+    ERROR = "error"
+    WARNING = "warning"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One finding. `code` is a stable identifier (e.g. `limits.missing_joint`) for tools and tests."""
+
+    severity: Severity
+    code: str
+    summary: str
+    what: str
+    why: str
+    how: str
+    file: Path | None = None
+    line: int | None = None
+
+    @property
+    def location(self) -> str:
+        if self.file is None:
+            return ""
+        return f"{self.file}:{self.line}" if self.line else str(self.file)
+
+    def as_error(self) -> DescriptionError:
+        known = self.location and (str(self.file) in self.why)
+        why = f"{self.location}: {self.why}" if self.location and not known else self.why
+        return DescriptionError(self.summary, what=self.what, why=why, how=self.how)
+
+    def render(self) -> str:
+        """WHAT/WHY/HOW text headed ERROR or WARNING by severity."""
+        text = self.as_error().render()
+        return text if self.severity is Severity.ERROR else "WARNING" + text.removeprefix("ERROR")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"severity": self.severity.value, "code": self.code, "file": str(self.file) if self.file else None,
+                "line": self.line, **{k: v for k, v in self.as_error().to_dict().items() if k != "error"}}
+
+
+@dataclass
+class Findings:
+    """Problems collected by the checks, in the order they were found."""
+
+    problems: list[Problem] = field(default_factory=list)
+
+    def error(self, code: str, summary: str, *, what: str, why: str, how: str,
+              file: Path | None = None, line: int | None = None) -> None:
+        self.problems.append(Problem(Severity.ERROR, code, summary, what, why, how, file, line))
+
+    def warning(self, code: str, summary: str, *, what: str, why: str, how: str,
+                file: Path | None = None, line: int | None = None) -> None:
+        self.problems.append(Problem(Severity.WARNING, code, summary, what, why, how, file, line))
+
+    @property
+    def errors(self) -> list[Problem]:
+        return [p for p in self.problems if p.severity is Severity.ERROR]
+
+    @property
+    def warnings(self) -> list[Problem]:
+        return [p for p in self.problems if p.severity is Severity.WARNING]
+
+    def codes(self) -> list[str]:
+        return [p.code for p in self.problems]
+
+    def raise_errors(self, context: str) -> None:
+        """Raise every error together (a single one as itself); warnings never raise."""
+        raise_collected([p.as_error() for p in self.errors], context)

@@ -1,0 +1,315 @@
+"""`plem create-description`: a complete, valid description package for a generic 6- or 7-axis arm.
+
+The generated arm is a real one: joint axes alternate roll and pitch, links have lengths, masses and
+cylinder inertias, and the limits are those of a mid-size cobot, so kinematics and simulation work on it.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from plem.core.files import write_atomic
+from plem.description.compat import PROTOCOL_VERSION
+from plem.description.discover import COMPAT_FILE
+from plem.description.generate import controllers_yaml, kinematics_yaml
+from plem.description.problems import DescriptionError
+from plem.robot.config import SUPPORTED_DOF
+
+PACKAGE_NAME = re.compile(r"[a-z][a-z0-9_]*")
+SEGMENT_RADIUS = 0.05
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """One actuated joint of the generated arm and the link it moves."""
+
+    axis: str          # "z" (roll) or "y" (pitch)
+    offset: float      # distance from the previous joint along the parent's z axis [m]
+    length: float      # length of the link this joint drives [m]
+    mass: float        # [kg]
+    limit: float       # symmetric position limit [rad]
+    velocity: float    # [rad/s]
+    acceleration: float
+    jerk: float
+    effort: float      # [N·m]
+    home: float        # home position [rad]
+
+
+ARMS: dict[int, tuple[JointSpec, ...]] = {
+    6: (
+        JointSpec("z", 0.15, 0.10, 4.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.0),
+        JointSpec("y", 0.10, 0.40, 6.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.5),
+        JointSpec("y", 0.40, 0.35, 3.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0),
+        JointSpec("z", 0.35, 0.10, 1.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0),
+        JointSpec("y", 0.10, 0.10, 1.2, 3.05, 3.0, 8.0, 80.0, 30.0, 1.0),
+        JointSpec("z", 0.10, 0.05, 0.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0),
+    ),
+    7: (
+        JointSpec("z", 0.15, 0.10, 4.0, 2.9, 2.0, 5.0, 50.0, 150.0, 0.0),
+        JointSpec("y", 0.10, 0.20, 4.0, 1.75, 2.0, 5.0, 50.0, 150.0, 0.5),
+        JointSpec("z", 0.20, 0.20, 3.0, 2.9, 2.0, 5.0, 50.0, 100.0, 0.0),
+        JointSpec("y", 0.20, 0.20, 2.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0),
+        JointSpec("z", 0.20, 0.20, 1.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0),
+        JointSpec("y", 0.20, 0.10, 1.2, 2.9, 3.0, 8.0, 80.0, 30.0, 1.0),
+        JointSpec("z", 0.10, 0.05, 0.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0),
+    ),
+}
+BASE_MASS = 5.0
+BASE_HEIGHT = 0.15
+TOOL_OFFSET = 0.05
+
+
+def _cylinder_inertia(mass: float, length: float, radius: float = SEGMENT_RADIUS) -> str:
+    side = mass * (3 * radius**2 + length**2) / 12
+    axial = mass * radius**2 / 2
+    return f'ixx="{side:.6g}" iyy="{side:.6g}" izz="{axial:.6g}" ixy="0" ixz="0" iyz="0"'
+
+
+def _link(name: str, mass: float, length: float) -> str:
+    return f"""  <link name="${{pfx}}{name}">
+    <inertial>
+      <origin xyz="0 0 {length / 2:.6g}" rpy="0 0 0"/>
+      <mass value="{mass:g}"/>
+      <inertia {_cylinder_inertia(mass, length)}/>
+    </inertial>
+    <xacro:segment length="{length:g}"/>
+  </link>
+"""
+
+
+def urdf_xacro(name: str, dof: int) -> str:
+    joints = ARMS[dof]
+    parts = [f"""<?xml version="1.0"?>
+<!-- {name}: a generic {dof}-axis arm made by `plem create-description`. Units: m, kg, rad, rad/s, N·m.
+     Renders with no arguments; prefix:=left_ renames every link and joint for multi-robot setups. -->
+<robot name="{name}" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:arg name="prefix" default=""/>
+  <xacro:property name="pfx" value="$(arg prefix)"/>
+
+  <!-- a cylinder along the link's z axis, used for visual and collision -->
+  <xacro:macro name="segment" params="length">
+    <visual>
+      <origin xyz="0 0 ${{length / 2}}" rpy="0 0 0"/>
+      <geometry><cylinder radius="{SEGMENT_RADIUS}" length="${{length}}"/></geometry>
+    </visual>
+    <collision>
+      <origin xyz="0 0 ${{length / 2}}" rpy="0 0 0"/>
+      <geometry><cylinder radius="{SEGMENT_RADIUS}" length="${{length}}"/></geometry>
+    </collision>
+  </xacro:macro>
+
+{_link("base_link", BASE_MASS, BASE_HEIGHT)}"""]
+    parent = "base_link"
+    for index, joint in enumerate(joints, start=1):
+        axis = "0 0 1" if joint.axis == "z" else "0 1 0"
+        parts.append(f"""  <joint name="${{pfx}}joint{index}" type="revolute">
+    <parent link="${{pfx}}{parent}"/>
+    <child link="${{pfx}}link{index}"/>
+    <origin xyz="0 0 {joint.offset:g}" rpy="0 0 0"/>
+    <axis xyz="{axis}"/>
+    <limit lower="{-joint.limit:g}" upper="{joint.limit:g}" velocity="{joint.velocity:g}" effort="{joint.effort:g}"/>
+  </joint>
+{_link(f"link{index}", joint.mass, joint.length)}""")
+        parent = f"link{index}"
+    parts.append(f"""  <joint name="${{pfx}}tool_joint" type="fixed">
+    <parent link="${{pfx}}{parent}"/>
+    <child link="${{pfx}}tool0"/>
+    <origin xyz="0 0 {joints[-1].length + TOOL_OFFSET:g}" rpy="0 0 0"/>
+  </joint>
+  <link name="${{pfx}}tool0"/>
+
+  <xacro:include filename="$(find {name}_description)/urdf/{name}.ros2_control.xacro"/>
+  <xacro:{name}_ros2_control prefix="$(arg prefix)"/>
+</robot>
+""")
+    return "".join(parts)
+
+
+def ros2_control_xacro(name: str, dof: int) -> str:
+    joints = "".join(f"""      <joint name="${{prefix}}joint{i}">
+        <command_interface name="position"/>
+        <command_interface name="velocity"/>
+        <command_interface name="acceleration"/>
+        <command_interface name="effort"/>
+        <state_interface name="position"/>
+        <state_interface name="velocity"/>
+        <state_interface name="effort"/>
+      </joint>
+""" for i in range(1, dof + 1))
+    return f"""<?xml version="1.0"?>
+<!-- Hardware interface of {name}: plem's RT driver, every actuated joint with its interfaces. -->
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:macro name="{name}_ros2_control" params="prefix:=''">
+    <ros2_control name="${{prefix}}{name}_hardware" type="system">
+      <hardware>
+        <plugin>hardware/HardwareInterface</plugin>
+      </hardware>
+{joints}    </ros2_control>
+  </xacro:macro>
+</robot>
+"""
+
+
+def joint_limits_yaml(dof: int) -> str:
+    lines = ["# Joint limits. Units: rad, rad/s, rad/s^2, rad/s^3, N·m. They must stay within the URDF <limit>.",
+             "joint_limits:"]
+    for index, joint in enumerate(ARMS[dof], start=1):
+        lines += [f"  joint{index}:", "    has_position_limits: true", f"    min_position: {-joint.limit:g}",
+                  f"    max_position: {joint.limit:g}", "    has_velocity_limits: true",
+                  f"    max_velocity: {joint.velocity:g}", "    has_acceleration_limits: true",
+                  f"    max_acceleration: {joint.acceleration:g}", "    has_jerk_limits: true",
+                  f"    max_jerk: {joint.jerk:g}", "    has_effort_limits: true", f"    max_effort: {joint.effort:g}"]
+    return "\n".join(lines) + "\n"
+
+
+def srdf(name: str, dof: int) -> str:
+    home = "".join(f'    <joint name="joint{i}" value="{j.home:g}"/>\n' for i, j in enumerate(ARMS[dof], start=1))
+    zero = "".join(f'    <joint name="joint{i}" value="0"/>\n' for i in range(1, dof + 1))
+    links = ["base_link", *(f"link{i}" for i in range(1, dof + 1)), "tool0"]
+    adjacent = "".join(f'  <disable_collisions link1="{a}" link2="{b}" reason="Adjacent"/>\n'
+                       for a, b in zip(links, links[1:]))
+    return f"""<?xml version="1.0"?>
+<!-- Semantic description of {name} for planning: the arm group, named poses, collision filter. -->
+<robot name="{name}">
+  <group name="arm">
+    <chain base_link="base_link" tip_link="tool0"/>
+  </group>
+  <group_state name="home" group="arm">
+{home}  </group_state>
+  <group_state name="zero" group="arm">
+{zero}  </group_state>
+{adjacent}</robot>
+"""
+
+
+def launch_file(name: str) -> str:
+    return f'''"""Bring-up of {name}: switch components on or off, then run `plem launch {name}_description/launch/bringup.launch.py`."""
+
+from plem.launch import bringup
+
+
+def generate_launch_description():
+    return bringup(
+        "{name}_description",
+        rt_driver=True,   # the real-time loop; every other component needs it
+        bridge=True,      # ROS 2 topics and actions over DDS
+        recorder=True,    # rosbag2 flight recorder
+        planner=True,     # motion planning (starts only when srdf/ exists)
+    )
+'''
+
+
+def package_xml(name: str) -> str:
+    return f"""<?xml version="1.0"?>
+<package format="3">
+  <name>{name}_description</name>
+  <version>0.1.0</version>
+  <description>Description package of {name} (URDF, ros2_control, limits) for plem.</description>
+  <maintainer email="todo@example.com">TODO</maintainer>
+  <license>BSD-3-Clause</license>
+  <buildtool_depend>ament_cmake</buildtool_depend>
+  <exec_depend>xacro</exec_depend>
+  <export>
+    <build_type>ament_cmake</build_type>
+  </export>
+</package>
+"""
+
+
+def cmakelists(name: str) -> str:
+    return f"""cmake_minimum_required(VERSION 3.8)
+project({name}_description)
+find_package(ament_cmake REQUIRED)
+foreach(dir urdf srdf config launch meshes)
+  if(EXISTS ${{CMAKE_CURRENT_SOURCE_DIR}}/${{dir}})
+    install(DIRECTORY ${{dir}} DESTINATION share/${{PROJECT_NAME}})
+  endif()
+endforeach()
+install(FILES {COMPAT_FILE} DESTINATION share/${{PROJECT_NAME}})
+ament_package()
+"""
+
+
+def readme(name: str, dof: int, with_moveit: bool, launch: bool) -> str:
+    lines = [f"# {name}_description", "", f"A {dof}-axis arm described for plem.", "",
+             "- `urdf/` — the arm (`" + name + ".urdf.xacro`, renders with no arguments) and its hardware interface",
+             "- `config/joint_limits.yaml` — safety limits; `config/controllers.yaml` — trajectory controller"]
+    if with_moveit:
+        lines.append("- `srdf/` and `config/kinematics.yaml` — planning group `arm` and IK settings")
+    if launch:
+        lines.append("- `launch/bringup.launch.py` — choose which components start")
+    lines += ["", "Check it with `plem validate " + name + "_description --strict`.", ""]
+    return "\n".join(lines)
+
+
+def plan_package(name: str, dof: int, *, with_moveit: bool = False, launch: bool = True) -> dict[str, str]:
+    """Every file of the package by relative path, with its content."""
+    _check_arguments(name, dof)
+    files = {
+        f"urdf/{name}.urdf.xacro": urdf_xacro(name, dof),
+        f"urdf/{name}.ros2_control.xacro": ros2_control_xacro(name, dof),
+        "config/joint_limits.yaml": joint_limits_yaml(dof),
+        "config/controllers.yaml": controllers_yaml([f"joint{i}" for i in range(1, dof + 1)]),
+        "meshes/.gitkeep": "",
+        COMPAT_FILE: PROTOCOL_VERSION + "\n",
+        "package.xml": package_xml(name),
+        "CMakeLists.txt": cmakelists(name),
+        "README.md": readme(name, dof, with_moveit, launch),
+    }
+    if with_moveit:
+        files[f"srdf/{name}.srdf"] = srdf(name, dof)
+        files["config/kinematics.yaml"] = kinematics_yaml(["arm"])
+    if launch:
+        files["launch/bringup.launch.py"] = launch_file(name)
+    return files
+
+
+def _check_arguments(name: str, dof: int) -> None:
+    problems = []
+    if not PACKAGE_NAME.fullmatch(name or "") or "__" in name:
+        problems.append(f"name {name!r} is not a ROS package name (lowercase letters, digits, single '_', "
+                        "starting with a letter)")
+    if dof not in SUPPORTED_DOF:
+        problems.append(f"dof {dof} is not 6 or 7")
+    if problems:
+        raise DescriptionError("Cannot create the description package", what="--name NAME (e.g. my_robot) and "
+                               "--dof 6 or 7", why="; ".join(problems), how="e.g. plem create-description "
+                               "--name my_robot --dof 6")
+
+
+@dataclass
+class ScaffoldResult:
+    root: Path
+    created: list[str] = field(default_factory=list)
+    identical: list[str] = field(default_factory=list)
+    overwritten: list[str] = field(default_factory=list)
+
+
+def create_package(output: Path, name: str, dof: int, *, with_moveit: bool = False, launch: bool = True,
+                   force: bool = False) -> ScaffoldResult:
+    """Write the package under `output/NAME_description`; differing files need `force`, or nothing is written."""
+    root = output / f"{name}_description"
+    planned = plan_package(name, dof, with_moveit=with_moveit, launch=launch)
+    result = ScaffoldResult(root=root)
+    changed = []
+    for relative, text in planned.items():
+        path = root / relative
+        if not path.exists():
+            result.created.append(relative)
+        elif path.read_bytes() == text.encode("utf-8"):
+            result.identical.append(relative)
+        else:
+            changed.append(relative)
+    if changed and not force:
+        raise DescriptionError(
+            f"{len(changed)} file(s) in {root} differ from what would be generated",
+            what="an empty target, identical files, or --force to overwrite",
+            why="these files differ: " + ", ".join(changed),
+            how="rerun with --force to overwrite them (your edits are lost), or choose another --output",
+        )
+    result.overwritten = changed
+    for relative in result.created + changed:
+        write_atomic(root / relative, planned[relative])
+    return result

@@ -1,0 +1,514 @@
+"""Validation of a description package: every rule of the protocol, all problems reported at once.
+
+The same checks serve three stages, as the protocol's timing table says: LAUNCH (files exist, YAML and
+XML parse, the URDF renders), STARTUP (adds ros2_control tags, joint count and types) and FULL (adds
+every cross-file consistency check; what `plem validate` runs).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from enum import IntEnum
+from functools import cache
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from plem.core.config.loader import ConfigLoader
+from plem.core.paths import pinned_packages, resolve_package_uri
+from plem.description.compat import check_compat_version
+from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
+from plem.description.limits import JointLimit, read_joint_limits
+from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
+from plem.description.problems import DescriptionError, Findings
+from plem.description.render import XacroArgumentsError, render_xacro
+from plem.errors import ConfigError, PlemError
+from plem.robot.config import SUPPORTED_DOF
+
+BUILTIN_PLUGIN = "hardware/HardwareInterface"
+HARDWARE_ENTRY_POINTS = "plem.hardware"
+KNOWN_INTERFACES = ("position", "velocity", "acceleration", "effort")
+KNOWN_SOLVERS = ("kdl_kinematics_plugin/KDLKinematicsPlugin", "trac_ik_kinematics_plugin/TRAC_IKKinematicsPlugin",
+                 "pick_ik/PickIkPlugin", "bio_ik/BioIKKinematicsPlugin",
+                 "cached_ik_kinematics_plugin/CachedKDLKinematicsPlugin")
+JOINT_TYPES = ("revolute", "prismatic", "continuous", "fixed", "floating", "planar")
+PREFIX_SENTINEL = "plemprefix_"
+
+
+class Stage(IntEnum):
+    LAUNCH = 1
+    STARTUP = 2
+    FULL = 3
+
+
+@dataclass
+class ValidationReport:
+    """What validation found, plus the parsed pieces so launch need not parse them again."""
+
+    files: DescriptionFiles
+    findings: Findings
+    stage: Stage
+    urdf_xml: str | None = None
+    urdf: UrdfModel | None = None
+    srdf: SrdfModel | None = None
+    limits: dict[str, JointLimit] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def dof(self) -> int | None:
+        return len(self.urdf.actuated_joints) if self.urdf else None
+
+    def passed(self, strict: bool = False) -> bool:
+        """No errors (and, when strict, no warnings)."""
+        return not self.findings.errors and not (strict and self.findings.warnings)
+
+
+def validate_package(package: str | os.PathLike[str], *, stage: Stage = Stage.FULL,
+                     urdf_file: str | os.PathLike[str] | None = None,
+                     srdf_file: str | os.PathLike[str] | None = None) -> ValidationReport:
+    """Run every check up to `stage` and collect all problems; raises only when the package is not found."""
+    files = discover(package, urdf_file, srdf_file)
+    with pinned_packages({files.name: files.root}):
+        return _validate(files, stage)
+
+
+def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
+    report = ValidationReport(files=files, findings=files.findings, stage=stage)
+    found = report.findings
+    check_compat_version(files.compat_version, files.root, found)
+    _render_urdf(report)
+    _check_limits_file(report)
+    _check_srdf(report)
+    if report.urdf is not None and stage >= Stage.STARTUP:
+        _check_tree(report.urdf, files.urdf, found)
+        _check_joint_types(report.urdf, files.urdf, found)
+        _check_ros2_control(report)
+    if report.urdf is not None and stage >= Stage.FULL:
+        _check_limits_against_urdf(report)
+        _check_meshes(report.urdf, files.urdf, found)
+        _check_controllers(report)
+        if report.srdf is not None:
+            _check_srdf_against_urdf(report)
+        _check_kinematics(report)
+    return report
+
+
+def _render_urdf(report: ValidationReport) -> None:
+    files, found = report.files, report.findings
+    if files.urdf is None:
+        return
+    try:
+        report.urdf_xml = render_xacro(files.urdf)
+        report.urdf = parse_urdf(report.urdf_xml, files.urdf)
+    except XacroArgumentsError as error:
+        found.error("urdf.xacro_args", error.summary, what=error.what, why=error.why, how=error.how, file=files.urdf)
+    except PlemError as error:
+        code = "urdf.xml" if error.summary.startswith("Invalid XML") else "urdf.render"
+        found.error(code, error.summary, what=error.what, why=error.why, how=error.how, file=files.urdf)
+
+
+def _check_limits_file(report: ValidationReport) -> None:
+    files = report.files
+    if files.joint_limits is None:
+        report.findings.error(
+            "limits.missing_file", f"config/joint_limits.yaml is missing in '{files.name}'",
+            what="config/joint_limits.yaml with position, velocity, acceleration (and jerk, effort) limits per joint",
+            why=f"{files.root / 'config' / 'joint_limits.yaml'} does not exist",
+            how="create it (see `plem create-description` for the format)", file=files.root / "config")
+        return
+    report.limits = read_joint_limits(files.joint_limits, report.findings)
+
+
+def _check_srdf(report: ValidationReport) -> None:
+    files = report.files
+    if files.srdf is None:
+        report.notes.append("SRDF not found - MoveIt will not be started")
+        return
+    try:
+        text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else files.srdf.read_text("utf-8")
+        report.srdf = parse_srdf(text, files.srdf)
+    except PlemError as error:
+        report.findings.error("srdf.xml", error.summary, what=error.what, why=error.why, how=error.how,
+                              file=files.srdf)
+
+
+def _check_tree(urdf: UrdfModel, source: Path, found: Findings) -> None:
+    """One root, every joint's links exist, each link has at most one parent, no cycles."""
+    for joint in urdf.joints.values():
+        for role, link in (("parent", joint.parent), ("child", joint.child)):
+            if link not in urdf.links:
+                found.error("urdf.joint_link_missing", f"Joint {joint.name} names a missing {role} link",
+                            what=f"the {role} link of {joint.name} defined as a <link>",
+                            why=f"{role} link {link!r} does not exist", how=f"add <link name=\"{link}\"/> or fix the name",
+                            file=source)
+    parents: dict[str, list[str]] = {}
+    for joint in urdf.joints.values():
+        parents.setdefault(joint.child or "", []).append(joint.name)
+    for child, joints in parents.items():
+        if len(joints) > 1:
+            found.error("urdf.tree.multiple_parents", f"Link {child} has {len(joints)} parent joints",
+                        what="a tree: every link is the child of at most one joint",
+                        why=f"{child} is the child of {', '.join(joints)}", how="remove or re-parent the extra joints",
+                        file=source)
+    roots = urdf.roots()
+    if len(roots) != 1 and urdf.links:
+        found.error("urdf.tree.roots", f"The URDF has {len(roots)} root links",
+                    what="exactly one root link (a single kinematic tree)",
+                    why=f"root links: {', '.join(roots) or 'none (the joints form a cycle)'}",
+                    how="connect every part to the base with a joint", file=source)
+    for link in urdf.links:
+        walked, current = set(), link
+        while (joint := urdf.parent_of(current)) is not None and current not in walked:
+            walked.add(current)
+            current = joint.parent or ""
+        if current in walked:
+            found.error("urdf.tree.cycle", "The URDF joints form a cycle",
+                        what="a tree with no closed loops", why=f"following parents from {link} returns to {current}",
+                        how="break the loop (URDF cannot describe closed chains)", file=source)
+            return
+
+
+def _check_joint_types(urdf: UrdfModel, source: Path, found: Findings) -> None:
+    for joint in urdf.joints.values():
+        if joint.type not in JOINT_TYPES:
+            found.error("urdf.joint_type", f"Joint {joint.name} has unknown type {joint.type!r}",
+                        what=f"one of {', '.join(JOINT_TYPES)}", why=f"type is {joint.type!r}",
+                        how="use revolute, prismatic, continuous or fixed", file=source)
+        elif joint.type in ("floating", "planar"):
+            found.error("urdf.joint_type", f"Joint {joint.name} is {joint.type}",
+                        what="actuated joints of type revolute, prismatic or continuous (fixed joints are ignored)",
+                        why=f"{joint.name} is a {joint.type} joint, which a serial arm driver cannot actuate",
+                        how="model it as fixed, or as revolute/prismatic joints", file=source)
+        elif joint.type in LESS_TESTED_TYPES:
+            found.warning("joint.less_tested", f"Joint {joint.name} is {joint.type}",
+                          what="revolute joints, which the RT driver is tuned for",
+                          why=f"{joint.name} is {joint.type}: supported but less tested",
+                          how="test motions of this joint carefully before production use", file=source)
+        if joint.type in ("revolute", "prismatic") and joint.mimic is None and (
+                joint.lower is None or joint.upper is None or joint.velocity is None):
+            found.error("urdf.limit_missing", f"Joint {joint.name} has no complete <limit>",
+                        what=f"<limit lower upper velocity effort> on every {joint.type} joint",
+                        why=f"{joint.name} lacks " + ", ".join(
+                            n for n, v in (("lower", joint.lower), ("upper", joint.upper), ("velocity", joint.velocity))
+                            if v is None), how="add the missing attributes to its <limit>", file=source)
+    dof = len(urdf.actuated_joints)
+    if dof not in SUPPORTED_DOF:
+        found.error("dof.unsupported", f"The arm has {dof} actuated joints",
+                    what=f"{' or '.join(map(str, SUPPORTED_DOF))} actuated joints (revolute, prismatic, continuous)",
+                    why=f"counted {dof}: {', '.join(j.name for j in urdf.actuated_joints) or 'none'}",
+                    how="describe a 6- or 7-axis arm; other joint counts are outside plem's supported set",
+                    file=source)
+
+
+@cache
+def _registered_plugins() -> frozenset[str]:
+    return frozenset(ep.name for ep in entry_points(group=HARDWARE_ENTRY_POINTS))
+
+
+def _check_ros2_control(report: ValidationReport) -> None:
+    urdf, files, found = report.urdf, report.files, report.findings
+    source = files.urdf
+    if not urdf.ros2_control:
+        found.error("ros2_control.missing", "No <ros2_control> tag in the URDF",
+                    what="a <ros2_control> block declaring the hardware plugin and every actuated joint",
+                    why=f"the rendered {source.name} has none" + (
+                        f"; {files.ros2_control.name} exists but is not included or its macro is not called"
+                        if files.ros2_control else ""),
+                    how="include the macro and call it in the URDF:\n"
+                        f'<xacro:include filename="$(find {files.name})/urdf/NAME{ROS2_CONTROL_SUFFIX}"/>\n'
+                        '<xacro:NAME_ros2_control prefix="$(arg prefix)"/>', file=source)
+        return
+    declared: dict[str, object] = {}
+    for block in urdf.ros2_control:
+        plugin = block.plugin
+        if plugin != BUILTIN_PLUGIN and plugin not in _registered_plugins():
+            found.error("ros2_control.plugin", f"Unknown hardware plugin in <ros2_control name=\"{block.name}\">",
+                        what=f"<plugin>{BUILTIN_PLUGIN}</plugin> or a plugin registered under the "
+                             f"'{HARDWARE_ENTRY_POINTS}' entry-point group",
+                        why=f"plugin is {plugin!r}", how=f"use {BUILTIN_PLUGIN}, or install the package that provides "
+                                                         f"{plugin!r} as a {HARDWARE_ENTRY_POINTS} entry point",
+                        file=source)
+        for hw in block.joints:
+            declared[hw.name] = hw
+            if hw.name not in urdf.joints:
+                found.error("ros2_control.unknown_joint", f"<ros2_control> declares unknown joint {hw.name}",
+                            what="joints in <ros2_control> that exist in the URDF", why=f"no URDF joint {hw.name!r}",
+                            how="fix the joint name (check the prefix)", file=source)
+            if not hw.command_interfaces or "position" not in hw.state_interfaces:
+                found.error("ros2_control.interfaces", f"Joint {hw.name} lacks interfaces in <ros2_control>",
+                            what="at least one command_interface and a position state_interface per joint",
+                            why=f"command: {hw.command_interfaces or 'none'}, state: {hw.state_interfaces or 'none'}",
+                            how='add <command_interface name="position"/> and <state_interface name="position"/>',
+                            file=source)
+            unknown = [i for i in hw.command_interfaces + hw.state_interfaces if i not in KNOWN_INTERFACES]
+            if unknown:
+                found.warning("ros2_control.unknown_interface", f"Joint {hw.name} has unknown interfaces",
+                              what=f"interfaces among {', '.join(KNOWN_INTERFACES)}", why=f"found {', '.join(unknown)}",
+                              how="remove them or fix their names; plem ignores them", file=source)
+    for joint in urdf.actuated_joints:
+        if joint.name not in declared:
+            found.error("ros2_control.joint_missing", f"Actuated joint {joint.name} is not in <ros2_control>",
+                        what="every actuated joint declared in <ros2_control> with its interfaces",
+                        why=f"{joint.name} ({joint.type}) is missing", how=f'add <joint name="{joint.name}"> with '
+                                                                           "command and state interfaces", file=source)
+    _check_prefix(report)
+
+
+def _check_prefix(report: ValidationReport) -> None:
+    """The URDF declares a `prefix` argument and the ros2_control macro renames every joint with it."""
+    files, found = report.files, report.findings
+    source_text = files.urdf.read_text(encoding="utf-8", errors="replace")
+    if not re.search(r"<xacro:arg\s+name=\"prefix\"", source_text):
+        found.error("ros2_control.prefix", "The URDF has no prefix argument",
+                    what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name, so several "
+                         "robots can share one namespace",
+                    why=f"{files.urdf.name} declares no xacro:arg named prefix",
+                    how='add <xacro:arg name="prefix" default=""/> and pass prefix="$(arg prefix)" to the '
+                        "ros2_control macro", file=files.urdf)
+        return
+    if files.ros2_control is None:
+        return
+    try:
+        root = parse_xml(files.ros2_control.read_bytes(), files.ros2_control)
+    except PlemError as error:
+        found.error("ros2_control.xml", error.summary, what=error.what, why=error.why, how=error.how,
+                    file=files.ros2_control)
+        return
+    macros = [m for m in root.iter("{http://www.ros.org/wiki/xacro}macro") if m.find(".//ros2_control") is not None]
+    if not macros or "prefix" not in (macros[0].get("params") or ""):
+        found.error("ros2_control.prefix", f"The ros2_control macro in {files.ros2_control.name} takes no prefix",
+                    what="a xacro:macro with a prefix parameter (params=\"prefix:=''\") used in every joint name",
+                    why="no macro with a prefix parameter wraps <ros2_control>" if macros else "no xacro:macro wraps <ros2_control>",
+                    how="declare <xacro:macro name=\"NAME_ros2_control\" params=\"prefix:=''\"> and use ${prefix} "
+                        "in the joint names", file=files.ros2_control)
+        return
+    if files.ros2_control.name not in source_text:
+        found.error("ros2_control.not_included", f"{files.ros2_control.name} is not included by the URDF",
+                    what="the URDF includes its ros2_control xacro", why=f"{files.urdf.name} never names it",
+                    how=f'<xacro:include filename="$(find {files.name})/urdf/{files.ros2_control.name}"/>',
+                    file=files.urdf)
+    name = macros[0].get("name")
+    probe = (f'<robot name="probe" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+             f'<xacro:include filename="{files.ros2_control}"/><xacro:{name} prefix="{PREFIX_SENTINEL}"/></robot>')
+    try:
+        joints = [hw.name for block in parse_urdf(_render_text(probe), files.ros2_control).ros2_control
+                  for hw in block.joints]
+    except PlemError as error:
+        found.error("ros2_control.prefix", "The ros2_control macro fails with a prefix", what="the macro to render "
+                    "with prefix:=" + PREFIX_SENTINEL, why=error.why, how=error.how, file=files.ros2_control)
+        return
+    unprefixed = [j for j in joints if not j.startswith(PREFIX_SENTINEL)]
+    if unprefixed:
+        found.error("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",
+                    what="every joint name in the macro written as ${prefix}NAME",
+                    why=f"with prefix {PREFIX_SENTINEL!r} these stay unchanged: {', '.join(unprefixed)}",
+                    how="write the joint names as ${prefix}joint1 and so on", file=files.ros2_control)
+
+
+def _render_text(xml: str) -> str:
+    """Render an in-memory xacro document (its include uses an absolute path, so it may live anywhere)."""
+    with tempfile.NamedTemporaryFile("w", suffix=".xacro", delete=False, encoding="utf-8") as handle:
+        handle.write(xml)
+    try:
+        return render_xacro(Path(handle.name))
+    finally:
+        os.unlink(handle.name)
+
+
+def _check_limits_against_urdf(report: ValidationReport) -> None:
+    urdf, files, found, limits = report.urdf, report.files, report.findings, report.limits
+    if files.joint_limits is None or not limits and found.codes().count("limits.yaml"):
+        return
+    path = files.joint_limits
+    actuated = {j.name: j for j in urdf.actuated_joints}
+    for name, joint in actuated.items():
+        if name not in limits:
+            found.error("limits.missing_joint", f"joint_limits.yaml has no entry for {name}",
+                        what="an entry for every actuated URDF joint", why=f"{name} is missing",
+                        how=f"add joint_limits.{name} with min/max_position, max_velocity, max_acceleration",
+                        file=path, line=1)
+            continue
+        _compare_with_urdf(limits[name], joint, path, found)
+    for name, limit in limits.items():
+        if name not in actuated:
+            found.error("limits.extra_joint", f"joint_limits.yaml names {name}, which is not an actuated joint",
+                        what="entries only for the URDF's actuated joints",
+                        why=f"{name} is " + ("a fixed or mimic joint" if name in urdf.joints else "not in the URDF"),
+                        how=f"remove joint_limits.{name} or fix the name", file=path, line=limit.line)
+
+
+def _compare_with_urdf(limit: JointLimit, joint, path: Path, found: Findings) -> None:
+    exceeded = []
+    if joint.lower is not None and limit.min_position is not None and limit.min_position < joint.lower - 1e-12:
+        exceeded.append(f"min_position {limit.min_position:g} < URDF lower {joint.lower:g}")
+    if joint.upper is not None and limit.max_position is not None and limit.max_position > joint.upper + 1e-12:
+        exceeded.append(f"max_position {limit.max_position:g} > URDF upper {joint.upper:g}")
+    if joint.velocity is not None and limit.max_velocity is not None and limit.max_velocity > joint.velocity + 1e-12:
+        exceeded.append(f"max_velocity {limit.max_velocity:g} > URDF velocity {joint.velocity:g}")
+    if joint.effort is not None and limit.max_effort is not None and limit.max_effort > joint.effort + 1e-12:
+        exceeded.append(f"max_effort {limit.max_effort:g} > URDF effort {joint.effort:g}")
+    if exceeded:
+        found.warning("limits.exceeds_urdf", f"Limits of {joint.name} exceed the URDF",
+                      what="joint_limits.yaml within the URDF <limit> (the YAML narrows, never widens)",
+                      why="; ".join(exceeded), how="lower the YAML values or correct the URDF", file=path,
+                      line=limit.line)
+    missing = [k for k in ("max_velocity", "max_acceleration", "max_jerk") if getattr(limit, k) is None]
+    if limit.max_velocity is None and joint.velocity is not None:
+        missing.remove("max_velocity")
+    if missing:
+        found.warning("limits.incomplete", f"{joint.name} has no {', '.join(missing)}",
+                      what="velocity, acceleration and jerk limits for jerk-limited motion",
+                      why=f"joint_limits.{joint.name} lacks {', '.join(missing)}",
+                      how="add them; until then plem plans with conservative defaults", file=path, line=limit.line)
+
+
+def _check_meshes(urdf: UrdfModel, source: Path, found: Findings) -> None:
+    for uri, _ in urdf.meshes:
+        try:
+            resolve_package_uri(uri, base=source.parent)
+        except PlemError as error:
+            found.error("urdf.mesh_missing", error.summary, what=error.what, why=error.why, how=error.how, file=source)
+
+
+def _check_controllers(report: ValidationReport) -> None:
+    path, found, urdf = report.files.controllers, report.findings, report.urdf
+    if path is None:
+        return
+    try:
+        document = ConfigLoader.get_instance().document(path)
+    except ConfigError as error:
+        found.error("controllers.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
+        return
+    if not isinstance(document.root, dict):
+        found.error("controllers.structure", "controllers.yaml is not a mapping", what="controller names as top-level "
+                    "keys", why=f"the file holds {type(document.root).__name__}", how="see the protocol's example",
+                    file=path, line=1)
+        return
+    for controller, body in document.root.items():
+        params = body.get("ros__parameters") if isinstance(body, dict) else None
+        joints = params.get("joints") if isinstance(params, dict) else None
+        if not isinstance(joints, list):
+            continue
+        for index, joint in enumerate(joints):
+            if joint not in urdf.joints:
+                found.error("controllers.unknown_joint", f"Controller {controller} names unknown joint {joint}",
+                            what="controller joints that exist in the URDF", why=f"{joint!r} is not a URDF joint",
+                            how="fix the name or remove it", file=path, line=joints.lc.item(index)[0] + 1)
+
+
+def _check_srdf_against_urdf(report: ValidationReport) -> None:
+    srdf, urdf, path, found = report.srdf, report.urdf, report.files.srdf, report.findings
+    lines = path.suffix == ".srdf"
+
+    def at(line: int | None) -> int | None:
+        return line if lines else None
+
+    if srdf.name and srdf.name != urdf.name:
+        found.warning("srdf.robot_name", "SRDF and URDF robot names differ", what="the same <robot name>",
+                      why=f"SRDF {srdf.name!r}, URDF {urdf.name!r}", how="use the URDF's name in the SRDF", file=path)
+    for group in srdf.groups.values():
+        for link, line in group.links:
+            if link not in urdf.links:
+                found.error("srdf.unknown_link", f"Group {group.name} names unknown link {link}",
+                            what="SRDF links that exist in the URDF", why=f"no URDF link {link!r}",
+                            how="fix the name", file=path, line=at(line))
+        for joint, line in group.joints:
+            if joint not in urdf.joints:
+                found.error("srdf.unknown_joint", f"Group {group.name} names unknown joint {joint}",
+                            what="SRDF joints that exist in the URDF", why=f"no URDF joint {joint!r}",
+                            how="fix the name", file=path, line=at(line))
+        for sub, line in group.subgroups:
+            if sub not in srdf.groups:
+                found.error("srdf.unknown_group", f"Group {group.name} names unknown subgroup {sub}",
+                            what="subgroups defined in the SRDF", why=f"no group {sub!r}", how="fix the name",
+                            file=path, line=at(line))
+        for base, tip, line in group.chains:
+            missing = [name for name in (base, tip) if name not in urdf.links]
+            if missing:
+                found.error("srdf.chain", f"Chain of group {group.name} names unknown links",
+                            what="base_link and tip_link that exist in the URDF", why=f"missing: {', '.join(missing)}",
+                            how="fix the link names", file=path, line=at(line))
+            elif urdf.chain(base, tip) is None:
+                found.error("srdf.chain", f"Chain of group {group.name} is not connected",
+                            what=f"tip_link {tip} below base_link {base} in the URDF tree",
+                            why=f"{tip} does not hang below {base}", how="swap them or pick links on one branch",
+                            file=path, line=at(line))
+    for state in srdf.group_states:
+        if state.group not in srdf.groups:
+            found.error("srdf.unknown_group", f"group_state {state.name} names unknown group {state.group}",
+                        what="group states of defined groups", why=f"no group {state.group!r}", how="fix the name",
+                        file=path, line=at(state.line))
+        for joint, value, line in state.values:
+            if joint not in urdf.joints:
+                found.error("srdf.state_unknown_joint", f"group_state {state.name} names unknown joint {joint}",
+                            what="joints that exist in the URDF", why=f"no URDF joint {joint!r}", how="fix the name",
+                            file=path, line=at(line))
+                continue
+            low, high = _position_bounds(joint, report)
+            if value is None or (low is not None and value < low) or (high is not None and value > high):
+                found.error("srdf.state_out_of_limits", f"group_state {state.name}: {joint} is outside its limits",
+                            what=f"a value within [{low:g}, {high:g}]" if low is not None and high is not None
+                            else "a numeric value", why=f"{joint} = {value!r}", how="choose a value inside the limits",
+                            file=path, line=at(line))
+    for link1, link2, line in srdf.disabled_collisions:
+        missing = [name for name in (link1, link2) if name not in urdf.links]
+        if missing:
+            found.error("srdf.collision_unknown_link", "disable_collisions names unknown links",
+                        what="link1 and link2 that exist in the URDF", why=f"missing: {', '.join(missing)}",
+                        how="fix or remove the entry", file=path, line=at(line))
+
+
+def _position_bounds(joint: str, report: ValidationReport) -> tuple[float | None, float | None]:
+    """The tighter of the YAML and URDF position limits."""
+    urdf_joint = report.urdf.joints[joint]
+    limit = report.limits.get(joint)
+    lows = [v for v in (urdf_joint.lower, limit.min_position if limit else None) if v is not None]
+    highs = [v for v in (urdf_joint.upper, limit.max_position if limit else None) if v is not None]
+    if urdf_joint.type == "continuous" and not (limit and limit.min_position is not None):
+        return None, None
+    return (max(lows) if lows else None), (min(highs) if highs else None)
+
+
+def _check_kinematics(report: ValidationReport) -> None:
+    path, found, srdf = report.files.kinematics, report.findings, report.srdf
+    if path is None:
+        return
+    try:
+        document = ConfigLoader.get_instance().document(path)
+    except ConfigError as error:
+        found.error("kinematics.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
+        return
+    if srdf is None:
+        found.warning("kinematics.without_srdf", "kinematics.yaml is unused without an SRDF",
+                      what="an SRDF defining the groups kinematics.yaml configures",
+                      why="the package has no SRDF, so planning will not start", how="add srdf/NAME.srdf or remove it",
+                      file=path)
+        return
+    if not isinstance(document.root, dict):
+        found.error("kinematics.structure", "kinematics.yaml is not a mapping", what="group names as top-level keys",
+                    why=f"the file holds {type(document.root).__name__}", how="see the protocol's example", file=path)
+        return
+    for group, body in document.root.items():
+        line = document.root.lc.key(group)[0] + 1
+        if group not in srdf.groups:
+            found.error("kinematics.unknown_group", f"kinematics.yaml configures unknown group {group}",
+                        what=f"groups defined in the SRDF ({', '.join(srdf.groups) or 'none'})",
+                        why=f"no SRDF group {group!r}", how="rename it to an SRDF group", file=path, line=line)
+        solver = body.get("kinematics_solver") if isinstance(body, dict) else None
+        if solver is not None and solver not in KNOWN_SOLVERS:
+            found.warning("kinematics.solver_unknown", f"Unknown kinematics solver for {group}",
+                          what=f"one of {', '.join(KNOWN_SOLVERS)}",
+                          why=f"kinematics_solver is {solver!r}; plem solves IK with pinocchio and records the name",
+                          how="check the plugin name", file=path, line=line)
+
+
+def require_valid(package: str | os.PathLike[str], *, stage: Stage, urdf_file=None, srdf_file=None) -> ValidationReport:
+    """Validate and raise every error together (for launch and start-up), returning the report otherwise."""
+    report = validate_package(package, stage=stage, urdf_file=urdf_file, srdf_file=srdf_file)
+    report.findings.raise_errors(f"description package '{report.files.name}'")
+    return report
+
+
+__all__ = ["DescriptionError", "Stage", "ValidationReport", "require_valid", "validate_package"]

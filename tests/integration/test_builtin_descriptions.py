@@ -1,0 +1,39 @@
+import pytest
+
+from plem.core.paths import BUILTIN_PACKAGES_DIR
+from plem.description.discover import package_for_launch
+from plem.description.model import parse_urdf
+from plem.description.render import render_xacro
+from plem.description.validate import validate_package
+from plem.robot import MODELS
+from tests.integration.packages import BUILTIN_TYPES
+
+
+@pytest.mark.parametrize("robot_type", BUILTIN_TYPES)
+def test_builtin_package_passes_strict(robot_type):
+    report = validate_package(f"{robot_type}_description")
+    assert report.findings.problems == []
+    assert report.passed(strict=True)
+    assert report.dof == MODELS[robot_type].MODEL.dof
+    assert [j.name for j in report.urdf.actuated_joints] == list(MODELS[robot_type].MODEL.joint_names)
+    assert report.srdf is not None and "arm" in report.srdf.groups
+
+
+@pytest.mark.parametrize("robot_type", BUILTIN_TYPES)
+def test_prefix_renames_every_link_and_joint(robot_type):
+    urdf = next((BUILTIN_PACKAGES_DIR / f"{robot_type}_description" / "urdf").glob("*.urdf.xacro"))
+    plain = parse_urdf(render_xacro(urdf), urdf)
+    prefixed = parse_urdf(render_xacro(urdf, {"prefix": "left_"}), urdf)
+    assert sorted(prefixed.joints) == sorted(f"left_{name}" for name in plain.joints)
+    assert sorted(prefixed.links) == sorted(f"left_{name}" for name in plain.links)
+    assert [j.name for b in prefixed.ros2_control for j in b.joints] == [f"left_{j.name}" for j in plain.actuated_joints]
+
+
+@pytest.mark.parametrize("description_package, robot_type, expected", [
+    (None, None, "indy7_v2_description"),
+    ("wim_description", "indy12", "indy12_description"),
+    (None, "indyrp2_v2", "indyrp2_v2_description"),
+    ("my_robot_description", "indy12", "my_robot_description"),
+])
+def test_launch_package_selection(description_package, robot_type, expected):
+    assert package_for_launch(description_package, robot_type) == expected
