@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from plem.core.config.loader import ConfigLoader
+from plem.core.config.yaml_document import YamlDocument
 from plem.description.problems import Findings
 from plem.errors import ConfigError
 
@@ -56,19 +57,21 @@ def read_joint_limits(path: Path, found: Findings) -> dict[str, JointLimit]:
         return {}
     limits: dict[str, JointLimit] = {}
     for name, entry in section.items():
-        line = section.lc.key(name)[0] + 1
+        line = document.line("joint_limits", name)
         if not isinstance(entry, dict):
             found.error("limits.structure", f"Limits of {name} are not a mapping",
                         what=f"joint_limits.{name} with keys such as max_velocity", why=f"found {entry!r}",
                         how="give the joint's limits as key: value pairs", file=path, line=line)
             continue
-        limits[str(name)] = _read_joint(str(name), entry, line, path, found)
+        limits[str(name)] = _read_joint(str(name), entry, document, path, found)
     return limits
 
 
-def _read_joint(name: str, entry: dict, line: int, path: Path, found: Findings) -> JointLimit:
+def _read_joint(name: str, entry: dict, document: YamlDocument, path: Path, found: Findings) -> JointLimit:
+    line = document.line("joint_limits", name)
+
     def line_of(key: str) -> int:
-        return entry.lc.key(key)[0] + 1 if hasattr(entry, "lc") and key in entry else line
+        return document.line("joint_limits", name, key) if key in entry else line
 
     values: dict[str, float | None] = {}
     for key, raw in entry.items():

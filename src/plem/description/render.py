@@ -5,7 +5,9 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+from collections.abc import Callable
 from pathlib import Path
+from xml.dom.minidom import Document
 from xml.parsers.expat import ExpatError
 
 import xacro
@@ -36,11 +38,25 @@ substitution_args._eval_find = _find_share
 
 def render_xacro(path: Path, mappings: dict[str, str] | None = None) -> str:
     """The XML that `xacro PATH [name:=value ...]` prints; failures are DescriptionErrors with the fix."""
+    return _render(path, lambda: xacro.process_file(os.fspath(path), mappings=dict(mappings or {})))
+
+
+def render_xacro_string(text: str, origin: Path, mappings: dict[str, str] | None = None) -> str:
+    """Render an in-memory xacro document as if it were the file `origin` (no temp file needed)."""
+    def process() -> Document:
+        xacro.init_stacks(os.fspath(origin))
+        document = xacro.parse(text)
+        xacro.process_doc(document, mappings=dict(mappings or {}))
+        return document
+
+    return _render(origin, process)
+
+
+def _render(path: Path, process: Callable[[], Document]) -> str:
     stack_before = list(xacro.filestack or [])
     try:
         with contextlib.redirect_stderr(io.StringIO()), pinned_packages(_owning_package(path)):
-            document = xacro.process_file(os.fspath(path), mappings=dict(mappings or {}))
-        return document.toxml()
+            return process().toxml()
     except PlemError as error:
         raise error from None
     except xacro.XacroException as error:

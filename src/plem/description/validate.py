@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cache
@@ -23,7 +22,7 @@ from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, dis
 from plem.description.limits import JointLimit, read_joint_limits
 from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings
-from plem.description.render import XacroArgumentsError, render_xacro
+from plem.description.render import XacroArgumentsError, render_xacro, render_xacro_string
 from plem.errors import ConfigError, PlemError
 from plem.robot.config import SUPPORTED_DOF
 
@@ -293,7 +292,7 @@ def _check_prefix(report: ValidationReport) -> None:
     probe = (f'<robot name="probe" xmlns:xacro="http://www.ros.org/wiki/xacro">'
              f'<xacro:include filename="{files.ros2_control}"/><xacro:{name} prefix="{PREFIX_SENTINEL}"/></robot>')
     try:
-        joints = [hw.name for block in parse_urdf(_render_text(probe), files.ros2_control).ros2_control
+        joints = [hw.name for block in parse_urdf(render_xacro_string(probe, files.ros2_control), files.ros2_control).ros2_control
                   for hw in block.joints]
     except PlemError as error:
         found.error("ros2_control.prefix", "The ros2_control macro fails with a prefix", what="the macro to render "
@@ -305,16 +304,6 @@ def _check_prefix(report: ValidationReport) -> None:
                     what="every joint name in the macro written as ${prefix}NAME",
                     why=f"with prefix {PREFIX_SENTINEL!r} these stay unchanged: {', '.join(unprefixed)}",
                     how="write the joint names as ${prefix}joint1 and so on", file=files.ros2_control)
-
-
-def _render_text(xml: str) -> str:
-    """Render an in-memory xacro document (its include uses an absolute path, so it may live anywhere)."""
-    with tempfile.NamedTemporaryFile("w", suffix=".xacro", delete=False, encoding="utf-8") as handle:
-        handle.write(xml)
-    try:
-        return render_xacro(Path(handle.name))
-    finally:
-        os.unlink(handle.name)
 
 
 def _check_limits_against_urdf(report: ValidationReport) -> None:
@@ -395,7 +384,8 @@ def _check_controllers(report: ValidationReport) -> None:
             if joint not in urdf.joints:
                 found.error("controllers.unknown_joint", f"Controller {controller} names unknown joint {joint}",
                             what="controller joints that exist in the URDF", why=f"{joint!r} is not a URDF joint",
-                            how="fix the name or remove it", file=path, line=joints.lc.item(index)[0] + 1)
+                            how="fix the name or remove it", file=path,
+                            line=document.line(controller, "ros__parameters", "joints", index))
 
 
 def _check_srdf_against_urdf(report: ValidationReport) -> None:
@@ -491,7 +481,7 @@ def _check_kinematics(report: ValidationReport) -> None:
                     why=f"the file holds {type(document.root).__name__}", how="see the protocol's example", file=path)
         return
     for group, body in document.root.items():
-        line = document.root.lc.key(group)[0] + 1
+        line = document.line(group)
         if group not in srdf.groups:
             found.error("kinematics.unknown_group", f"kinematics.yaml configures unknown group {group}",
                         what=f"groups defined in the SRDF ({', '.join(srdf.groups) or 'none'})",

@@ -9,7 +9,7 @@ from typing import Any, TypeVar, get_args, overload
 
 from pydantic import TypeAdapter, ValidationError
 
-from plem.core.config.yaml_document import YamlDocument, read_yaml, to_plain
+from plem.core.config.yaml_document import YamlDocument, read_yaml
 from plem.core.paths import resolve_resource
 from plem.errors import ConfigError
 
@@ -68,7 +68,7 @@ class ConfigLoader:
         """The value at dotted `key` (whole document when empty), checked against `as_type`."""
         document = self.document(path)
         node, line = document.lookup(key)
-        return _check_type(document, key, line, to_plain(node), as_type)
+        return _check_type(document, key, line, node, as_type)
 
     def load_optional(self, path: str | os.PathLike[str], key: str, as_type: Any = Any) -> Any | None:
         """Like `load`, but None when the key is absent. A missing file or a wrong type is still an error."""
@@ -83,7 +83,7 @@ class ConfigLoader:
             node, line = document.lookup(key)
         except ConfigError:
             return default
-        return _check_type(document, key, line, to_plain(node), as_type)
+        return _check_type(document, key, line, node, as_type)
 
 
 def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, as_type: Any) -> Any:
