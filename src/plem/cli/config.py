@@ -11,7 +11,6 @@ from plem.core.config.environment import middleware_environment, plem_home
 from plem.core.config.launch_args import parse_launch_arguments
 from plem.robot.config import ARM_SETTINGS
 from plem.robot.models import DEFAULT_ROBOT_TYPE
-from plem.robot.resolution import LAUNCH_DEFAULTS, resolve_arm_config
 
 app = typer.Typer(help="Show the effective configuration.", no_args_is_help=True)
 
@@ -28,6 +27,8 @@ def show(
     output_format: Annotated[OutputFormat, typer.Option("--format", help="Output format.")] = OutputFormat.text,
 ) -> None:
     """Print every effective field with its value and source, as `plem launch` would resolve them."""
+    from plem.robot.resolution import LAUNCH_DEFAULTS, resolve_arm_config  # deferred: pulls in pydantic
+
     launch = parse_launch_arguments(arguments or [], CONFIG_ARGUMENTS)
     resolved = resolve_arm_config(launch_args=launch, launch_defaults=LAUNCH_DEFAULTS)
     middleware = middleware_environment()

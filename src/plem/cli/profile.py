@@ -1,4 +1,7 @@
-"""`plem profile create|show|list`: per-unit calibration files in ~/.plem/profiles."""
+"""`plem profile create|show|list`: per-unit calibration files in ~/.plem/profiles.
+
+The profile model (pydantic) is imported inside the commands so other commands start fast.
+"""
 
 from __future__ import annotations
 
@@ -6,11 +9,16 @@ from datetime import datetime, timezone
 from typing import Annotated
 
 import typer
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 from plem.cli.output import new_table, print_json, stdout
 from plem.core.config.settings import parse_int_list
 from plem.errors import PlemError, ProfileError, UsageError
 from plem.robot.config import SUPPORTED_DOF
-from plem.robot.profile import PROFILE_SUFFIX, RobotProfile
+
+if TYPE_CHECKING:
+    from plem.robot.profile import RobotProfile
 
 app = typer.Typer(help="Create and inspect robot profiles (calibration offsets).", no_args_is_help=True)
 
@@ -36,6 +44,8 @@ def create(
     force: Annotated[bool, typer.Option("--force", help="Replace an existing, different profile.")] = False,
 ) -> None:
     """Create (atomically) the profile of one robot unit."""
+    from plem.robot.profile import RobotProfile
+
     values = _parse_offsets(offsets)
     if dof is not None and dof not in SUPPORTED_DOF:
         raise UsageError(
@@ -67,7 +77,9 @@ def create(
     stdout.print(f"Saved profile {serial} ({len(values)} joints) to {path}", markup=False)
 
 
-def _load_or_none(path) -> RobotProfile | None:
+def _load_or_none(path: Path) -> RobotProfile | None:
+    from plem.robot.profile import RobotProfile
+
     try:
         return RobotProfile.load(path)
     except PlemError:
@@ -80,6 +92,8 @@ def show(
     output_format: Annotated[str, typer.Option("--format", help="text or json.")] = "text",
 ) -> None:
     """Print one profile."""
+    from plem.robot.profile import RobotProfile
+
     path = RobotProfile.default_path(serial)
     profile = RobotProfile.load_from_serial(serial)
     if output_format == "json":
@@ -94,6 +108,8 @@ def show(
 @app.command("list")
 def list_profiles() -> None:
     """List every profile in the profiles folder; unreadable files are listed with their problem."""
+    from plem.robot.profile import PROFILE_SUFFIX, RobotProfile
+
     directory = RobotProfile.default_directory()
     files = sorted(directory.glob(f"*{PROFILE_SUFFIX}")) if directory.is_dir() else []
     if not files:

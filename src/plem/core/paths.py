@@ -51,12 +51,28 @@ def search_roots(environ: Mapping[str, str] | None = None) -> list[Path]:
     return roots
 
 
+def is_file(path: Path) -> bool:
+    """`path.is_file()` that answers False for names the OS rejects (too long, NUL bytes)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def is_dir(path: Path) -> bool:
+    """`path.is_dir()` that answers False for names the OS rejects."""
+    try:
+        return path.is_dir()
+    except (OSError, ValueError):
+        return False
+
+
 def _packages_in(root: Path) -> dict[str, Path]:
-    if (root / PACKAGE_MARKER).is_file():
+    if is_file(root / PACKAGE_MARKER):
         return {root.name: root}
     if not root.is_dir():
         return {}
-    return {child.name: child for child in sorted(root.iterdir()) if (child / PACKAGE_MARKER).is_file()}
+    return {child.name: child for child in sorted(root.iterdir()) if is_file(child / PACKAGE_MARKER)}
 
 
 def list_packages(environ: Mapping[str, str] | None = None) -> dict[str, Path]:
@@ -84,7 +100,7 @@ def find_package(name: str, environ: Mapping[str, str] | None = None) -> Path:
         return pinned
     for root in search_roots(environ):
         candidate = root if root.name == name else root / name
-        if (candidate / PACKAGE_MARKER).is_file():
+        if name and is_file(candidate / PACKAGE_MARKER):
             return candidate
     raise PackageNotFoundError(
         f"Package '{name}' not found",
@@ -139,7 +155,7 @@ def resolve_package_uri(uri: str, base: Path | None = None, environ: Mapping[str
         path = Path(uri.removeprefix("file://"))
     else:
         path = (base or Path.cwd()) / uri
-    if not path.is_file():
+    if not is_file(path):
         raise ConfigError(
             f"Resource not found: {uri}",
             what="a mesh or resource file that exists",

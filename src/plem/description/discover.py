@@ -10,7 +10,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from plem.core.paths import PACKAGE_MARKER, find_package
+from plem.core.paths import PACKAGE_MARKER, find_package, is_dir, is_file
 from plem.description.problems import Findings
 from plem.errors import PackageNotFoundError
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
@@ -42,9 +42,9 @@ class DescriptionFiles:
 def locate_package(package: str | os.PathLike[str]) -> Path:
     """A package given by path (a directory) or by name through the package search path."""
     path = Path(package).expanduser()
-    if path.is_dir():
+    if str(package) and is_dir(path):
         return path.resolve()
-    if os.sep in str(package) or str(package).startswith("."):
+    if not str(package) or os.sep in str(package) or str(package).startswith("."):
         raise PackageNotFoundError(
             f"Package directory not found: {package}",
             what="a description package directory, or a package name on the package search path",
@@ -61,9 +61,16 @@ def package_for_launch(description_package: str | None, robot_type: str | None) 
     return model_for(robot_type or DEFAULT_ROBOT_TYPE).MODEL.description_package
 
 
-def _override(root: Path, given: str | os.PathLike[str]) -> Path:
+def _override(files: DescriptionFiles, kind: str, given: str | os.PathLike[str]) -> Path | None:
+    """The file named by a `urdf_file`/`srdf_file` argument (absolute or package-relative), or a problem."""
     path = Path(given).expanduser()
-    return path if path.is_absolute() else root / path
+    path = path if path.is_absolute() else files.root / path
+    if is_file(path):
+        return path
+    files.findings.error(f"{kind}.override_missing", f"{kind.upper()} override not found: {given}",
+                         what=f"{kind}_file:= naming an existing file (absolute, or relative to the package)",
+                         why=f"{path} does not exist", how=f"fix the {kind}_file:= path, or drop it to use discovery")
+    return None
 
 
 def discover(package: str | os.PathLike[str], urdf_file: str | os.PathLike[str] | None = None,
@@ -95,13 +102,7 @@ def _discover_urdf(files: DescriptionFiles, urdf_file: str | os.PathLike[str] | 
     controls = sorted(urdf_dir.glob(f"*{ROS2_CONTROL_SUFFIX}")) if urdf_dir.is_dir() else []
     files.ros2_control = controls[0] if len(controls) == 1 else None
     if urdf_file:
-        path = _override(root, urdf_file)
-        if path.is_file():
-            files.urdf = path
-        else:
-            found.error("urdf.override_missing", f"URDF override not found: {urdf_file}",
-                        what="urdf_file:= naming an existing .urdf.xacro (absolute, or relative to the package)",
-                        why=f"{path} does not exist", how="fix the urdf_file:= path, or drop it to use discovery")
+        files.urdf = _override(files, "urdf", urdf_file)
         return
     candidates = sorted(urdf_dir.glob(f"*{URDF_SUFFIX}")) if urdf_dir.is_dir() else []
     if len(candidates) == 1:
@@ -126,13 +127,7 @@ def _discover_urdf(files: DescriptionFiles, urdf_file: str | os.PathLike[str] | 
 def _discover_srdf(files: DescriptionFiles, srdf_file: str | os.PathLike[str] | None) -> None:
     root, found = files.root, files.findings
     if srdf_file:
-        path = _override(root, srdf_file)
-        if path.is_file():
-            files.srdf = path
-        else:
-            found.error("srdf.override_missing", f"SRDF override not found: {srdf_file}",
-                        what="srdf_file:= naming an existing SRDF (absolute, or relative to the package)",
-                        why=f"{path} does not exist", how="fix the srdf_file:= path, or drop it to use discovery")
+        files.srdf = _override(files, "srdf", srdf_file)
         return
     srdf_dir = root / "srdf"
     candidates = sorted(p for p in srdf_dir.iterdir() if p.name.endswith(SRDF_SUFFIXES)) if srdf_dir.is_dir() else []

@@ -6,7 +6,6 @@ The same text builders serve `plem create-description`, so generated and scaffol
 
 from __future__ import annotations
 
-import io
 import itertools
 import logging
 import os
@@ -15,7 +14,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ruamel.yaml import YAML
+import yaml
 
 from plem.core.files import write_atomic
 from plem.description.validate import Stage, ValidationReport, require_valid
@@ -31,11 +30,8 @@ GENERATED_DIR_PREFIX = "wim_launch_"
 
 
 def _dump(data: dict, header: str) -> str:
-    yaml = YAML()
-    yaml.default_flow_style = False
-    buffer = io.StringIO()
-    yaml.dump(data, buffer)
-    return "".join(f"# {line}\n" for line in header.splitlines()) + buffer.getvalue()
+    body = yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
+    return "".join(f"# {line}\n" for line in header.splitlines()) + body
 
 
 def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:

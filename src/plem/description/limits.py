@@ -44,7 +44,7 @@ def read_joint_limits(path: Path, found: Findings) -> dict[str, JointLimit]:
     try:
         document = ConfigLoader.get_instance().document(path)
     except ConfigError as error:
-        found.error("limits.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
+        found.add("limits.yaml", error, path)
         return {}
     root = document.root
     section = root.get("joint_limits") if isinstance(root, dict) else None

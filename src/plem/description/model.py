@@ -116,13 +116,13 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
             what="a <robot> root element", why=f"{source}: the root element is <{root.tag}>",
             how="make <robot name=\"...\"> the top element",
         )
-    links = {el.get("name"): el.sourceline for el in root.findall("link")}
+    links = {el.get("name") or "": el.sourceline for el in root.findall("link")}
     joints: dict[str, Joint] = {}
     for el in root.findall("joint"):
         limit = el.find("limit")
         parent, child, mimic = el.find("parent"), el.find("child"), el.find("mimic")
-        joints[el.get("name")] = Joint(
-            name=el.get("name"), type=el.get("type") or "", line=el.sourceline,
+        joints[el.get("name") or ""] = Joint(
+            name=el.get("name") or "", type=el.get("type") or "", line=el.sourceline,
             parent=parent.get("link") if parent is not None else None,
             child=child.get("link") if child is not None else None,
             lower=_float(limit.get("lower")) if limit is not None else None,
@@ -135,8 +135,8 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
         Ros2ControlBlock(
             name=block.get("name") or "", line=block.sourceline,
             plugin=(block.findtext("hardware/plugin") or "").strip() or None,
-            joints=[HardwareJoint(j.get("name"), [c.get("name") for c in j.findall("command_interface")],
-                                  [s.get("name") for s in j.findall("state_interface")], j.sourceline)
+            joints=[HardwareJoint(j.get("name") or "", [c.get("name") or "" for c in j.findall("command_interface")],
+                                  [s.get("name") or "" for s in j.findall("state_interface")], j.sourceline)
                     for j in block.findall("joint")],
         )
         for block in root.findall("ros2_control")
@@ -171,7 +171,7 @@ class SrdfModel:
     disabled_collisions: list[tuple[str, str, int | None]]
 
 
-def parse_srdf(text: str, source: Path) -> SrdfModel:
+def parse_srdf(text: str | bytes, source: Path) -> SrdfModel:
     root = parse_xml(text, source)
     groups: dict[str, SrdfGroup] = {}
     for el in root.findall("group"):

@@ -63,6 +63,11 @@ class Findings:
               file: Path | None = None, line: int | None = None) -> None:
         self.problems.append(Problem(Severity.ERROR, code, summary, what, why, how, file, line))
 
+    def add(self, code: str, error: PlemError, file: Path | None = None) -> None:
+        """Record a PlemError raised by a reader as an error problem, keeping the line it carries."""
+        self.error(code, error.summary, what=error.what, why=error.why, how=error.how, file=file,
+                   line=getattr(error, "line", None))
+
     def warning(self, code: str, summary: str, *, what: str, why: str, how: str,
                 file: Path | None = None, line: int | None = None) -> None:
         self.problems.append(Problem(Severity.WARNING, code, summary, what, why, how, file, line))

@@ -41,17 +41,6 @@ def render_xacro(path: Path, mappings: dict[str, str] | None = None) -> str:
     return _render(path, lambda: xacro.process_file(os.fspath(path), mappings=dict(mappings or {})))
 
 
-def render_xacro_string(text: str, origin: Path, mappings: dict[str, str] | None = None) -> str:
-    """Render an in-memory xacro document as if it were the file `origin` (no temp file needed)."""
-    def process() -> Document:
-        xacro.init_stacks(os.fspath(origin))
-        document = xacro.parse(text)
-        xacro.process_doc(document, mappings=dict(mappings or {}))
-        return document
-
-    return _render(origin, process)
-
-
 def _render(path: Path, process: Callable[[], Document]) -> str:
     stack_before = list(xacro.filestack or [])
     try:

@@ -7,22 +7,24 @@ every cross-file consistency check; what `plem validate` runs).
 
 from __future__ import annotations
 
+import math
 import os
-import re
 from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cache
-from importlib.metadata import entry_points
 from pathlib import Path
 
+from lxml import etree
+
 from plem.core.config.loader import ConfigLoader
+from plem.core.config.yaml_document import YamlDocument
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
 from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
 from plem.description.limits import JointLimit, read_joint_limits
 from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings
-from plem.description.render import XacroArgumentsError, render_xacro, render_xacro_string
+from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
 from plem.robot.config import SUPPORTED_DOF
 
@@ -51,6 +53,7 @@ class ValidationReport:
     stage: Stage
     urdf_xml: str | None = None
     urdf: UrdfModel | None = None
+    prefixed: UrdfModel | None = None
     srdf: SrdfModel | None = None
     limits: dict[str, JointLimit] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
@@ -95,17 +98,40 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
 
 
 def _render_urdf(report: ValidationReport) -> None:
+    """Render once with a probe prefix; the no-argument URDF is that text with the probe replaced by the
+    declared default, and the probe shows which names the prefix reaches (checked at start-up)."""
     files, found = report.files, report.findings
     if files.urdf is None:
         return
     try:
-        report.urdf_xml = render_xacro(files.urdf)
+        default = _declared_prefix_default(files.urdf)
+        probed = render_xacro(files.urdf, {"prefix": PREFIX_SENTINEL})
+        if PREFIX_SENTINEL not in probed:
+            report.urdf_xml = probed  # the prefix is unused: this is the no-argument rendering
+        elif default is not None:
+            report.urdf_xml = probed.replace(PREFIX_SENTINEL, default)
+            report.prefixed = parse_urdf(probed, files.urdf)
+        else:  # prefix used but declared elsewhere: render once more without arguments to be sure it can
+            report.urdf_xml = render_xacro(files.urdf)
+            report.prefixed = parse_urdf(probed, files.urdf)
         report.urdf = parse_urdf(report.urdf_xml, files.urdf)
     except XacroArgumentsError as error:
-        found.error("urdf.xacro_args", error.summary, what=error.what, why=error.why, how=error.how, file=files.urdf)
+        found.add("urdf.xacro_args", error, files.urdf)
     except PlemError as error:
-        code = "urdf.xml" if error.summary.startswith("Invalid XML") else "urdf.render"
-        found.error(code, error.summary, what=error.what, why=error.why, how=error.how, file=files.urdf)
+        found.add("urdf.xml" if error.summary.startswith("Invalid XML") else "urdf.render", error, files.urdf)
+
+
+def _declared_prefix_default(urdf: Path) -> str | None:
+    """The default of `<xacro:arg name="prefix">` in the top-level file, or None when it is not declared there."""
+    try:
+        root = parse_xml(urdf.read_bytes(), urdf)
+    except PlemError:
+        return None  # the render reports the XML problem
+    for element in root.iter():
+        if (isinstance(element.tag, str) and element.prefix == "xacro"
+                and etree.QName(element).localname == "arg" and element.get("name") == "prefix"):
+            return element.get("default")
+    return None
 
 
 def _check_limits_file(report: ValidationReport) -> None:
@@ -126,15 +152,19 @@ def _check_srdf(report: ValidationReport) -> None:
         report.notes.append("SRDF not found - MoveIt will not be started")
         return
     try:
-        text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else files.srdf.read_text("utf-8")
+        text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else files.srdf.read_bytes()
         report.srdf = parse_srdf(text, files.srdf)
     except PlemError as error:
-        report.findings.error("srdf.xml", error.summary, what=error.what, why=error.why, how=error.how,
-                              file=files.srdf)
+        report.findings.add("srdf.xml", error, files.srdf)
 
 
 def _check_tree(urdf: UrdfModel, source: Path, found: Findings) -> None:
-    """One root, every joint's links exist, each link has at most one parent, no cycles."""
+    """Every element named, one root, every joint's links exist, each link has one parent at most, no cycles."""
+    for kind, names in (("link", urdf.links), ("joint", urdf.joints)):
+        if "" in names:
+            found.error("urdf.name_missing", f"A <{kind}> has no name", what=f'every <{kind}> with a name="..."',
+                        why=f"the rendered URDF has a <{kind}> without a name", how="add the missing name",
+                        file=source)
     for joint in urdf.joints.values():
         for role, link in (("parent", joint.parent), ("child", joint.child)):
             if link not in urdf.links:
@@ -203,6 +233,9 @@ def _check_joint_types(urdf: UrdfModel, source: Path, found: Findings) -> None:
 
 @cache
 def _registered_plugins() -> frozenset[str]:
+    """Names of hardware plugins installed as entry points (scanned only when a package names one)."""
+    from importlib.metadata import entry_points
+
     return frozenset(ep.name for ep in entry_points(group=HARDWARE_ENTRY_POINTS))
 
 
@@ -256,54 +289,36 @@ def _check_ros2_control(report: ValidationReport) -> None:
 
 
 def _check_prefix(report: ValidationReport) -> None:
-    """The URDF declares a `prefix` argument and the ros2_control macro renames every joint with it."""
-    files, found = report.files, report.findings
-    source_text = files.urdf.read_text(encoding="utf-8", errors="replace")
-    if not re.search(r"<xacro:arg\s+name=\"prefix\"", source_text):
-        found.error("ros2_control.prefix", "The URDF has no prefix argument",
-                    what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name, so several "
-                         "robots can share one namespace",
-                    why=f"{files.urdf.name} declares no xacro:arg named prefix",
-                    how='add <xacro:arg name="prefix" default=""/> and pass prefix="$(arg prefix)" to the '
-                        "ros2_control macro", file=files.urdf)
+    """Rendering with prefix:=PROBE must rename every link, joint and ros2_control joint."""
+    files, found, prefixed = report.files, report.findings, report.prefixed
+    if prefixed is None:
+        found.error("ros2_control.prefix", "The URDF ignores the prefix argument",
+                    what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name and passed "
+                         "to the ros2_control macro, so several robots can share one namespace",
+                    why=f"rendering {files.urdf.name} with prefix:={PREFIX_SENTINEL} changes no name",
+                    how='declare <xacro:arg name="prefix" default=""/>, write names as $(arg prefix)NAME and pass '
+                        'prefix="$(arg prefix)" to the ros2_control macro', file=files.urdf)
         return
-    if files.ros2_control is None:
-        return
-    try:
-        root = parse_xml(files.ros2_control.read_bytes(), files.ros2_control)
-    except PlemError as error:
-        found.error("ros2_control.xml", error.summary, what=error.what, why=error.why, how=error.how,
-                    file=files.ros2_control)
-        return
-    macros = [m for m in root.iter("{http://www.ros.org/wiki/xacro}macro") if m.find(".//ros2_control") is not None]
-    if not macros or "prefix" not in (macros[0].get("params") or ""):
-        found.error("ros2_control.prefix", f"The ros2_control macro in {files.ros2_control.name} takes no prefix",
-                    what="a xacro:macro with a prefix parameter (params=\"prefix:=''\") used in every joint name",
-                    why="no macro with a prefix parameter wraps <ros2_control>" if macros else "no xacro:macro wraps <ros2_control>",
-                    how="declare <xacro:macro name=\"NAME_ros2_control\" params=\"prefix:=''\"> and use ${prefix} "
-                        "in the joint names", file=files.ros2_control)
-        return
-    if files.ros2_control.name not in source_text:
+    names = [*prefixed.links, *prefixed.joints]
+    unchanged = [name for name in names if not name.startswith(PREFIX_SENTINEL)]
+    if unchanged:
+        found.error("urdf.prefix", "Some link or joint names ignore the prefix argument",
+                    what="every link and joint name written as $(arg prefix)NAME",
+                    why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
+                    how="prefix those names too, or two robots with different prefixes will clash", file=files.urdf)
+    hardware = [hw.name for block in prefixed.ros2_control for hw in block.joints]
+    unchanged = [name for name in hardware if not name.startswith(PREFIX_SENTINEL)]
+    if unchanged:
+        found.error("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",
+                    what="a macro with params=\"prefix:=''\" writing every joint as ${prefix}NAME",
+                    why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
+                    how="write the joint names as ${prefix}joint1 and so on, and call the macro with "
+                        'prefix="$(arg prefix)"', file=files.ros2_control or files.urdf)
+    if files.ros2_control and files.ros2_control.name not in files.urdf.read_text(encoding="utf-8", errors="replace"):
         found.error("ros2_control.not_included", f"{files.ros2_control.name} is not included by the URDF",
                     what="the URDF includes its ros2_control xacro", why=f"{files.urdf.name} never names it",
                     how=f'<xacro:include filename="$(find {files.name})/urdf/{files.ros2_control.name}"/>',
                     file=files.urdf)
-    name = macros[0].get("name")
-    probe = (f'<robot name="probe" xmlns:xacro="http://www.ros.org/wiki/xacro">'
-             f'<xacro:include filename="{files.ros2_control}"/><xacro:{name} prefix="{PREFIX_SENTINEL}"/></robot>')
-    try:
-        joints = [hw.name for block in parse_urdf(render_xacro_string(probe, files.ros2_control), files.ros2_control).ros2_control
-                  for hw in block.joints]
-    except PlemError as error:
-        found.error("ros2_control.prefix", "The ros2_control macro fails with a prefix", what="the macro to render "
-                    "with prefix:=" + PREFIX_SENTINEL, why=error.why, how=error.how, file=files.ros2_control)
-        return
-    unprefixed = [j for j in joints if not j.startswith(PREFIX_SENTINEL)]
-    if unprefixed:
-        found.error("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",
-                    what="every joint name in the macro written as ${prefix}NAME",
-                    why=f"with prefix {PREFIX_SENTINEL!r} these stay unchanged: {', '.join(unprefixed)}",
-                    how="write the joint names as ${prefix}joint1 and so on", file=files.ros2_control)
 
 
 def _check_limits_against_urdf(report: ValidationReport) -> None:
@@ -317,7 +332,7 @@ def _check_limits_against_urdf(report: ValidationReport) -> None:
             found.error("limits.missing_joint", f"joint_limits.yaml has no entry for {name}",
                         what="an entry for every actuated URDF joint", why=f"{name} is missing",
                         how=f"add joint_limits.{name} with min/max_position, max_velocity, max_acceleration",
-                        file=path, line=1)
+                        file=path, line=ConfigLoader.get_instance().document(path).line("joint_limits"))
             continue
         _compare_with_urdf(limits[name], joint, path, found)
     for name, limit in limits.items():
@@ -358,22 +373,30 @@ def _check_meshes(urdf: UrdfModel, source: Path, found: Findings) -> None:
         try:
             resolve_package_uri(uri, base=source.parent)
         except PlemError as error:
-            found.error("urdf.mesh_missing", error.summary, what=error.what, why=error.why, how=error.how, file=source)
+            found.add("urdf.mesh_missing", error, source)
+
+
+def _read_mapping(path: Path | None, area: str, found: Findings) -> YamlDocument | None:
+    """An optional YAML config file whose top level must be a mapping; problems are recorded under `area`."""
+    if path is None:
+        return None
+    try:
+        document = ConfigLoader.get_instance().document(path)
+    except ConfigError as error:
+        found.add(f"{area}.yaml", error, path)
+        return None
+    if not isinstance(document.root, dict):
+        found.error(f"{area}.structure", f"{area}.yaml is not a mapping", what="names as top-level keys",
+                    why=f"the file holds {type(document.root).__name__}", how="see the protocol's example",
+                    file=path, line=1)
+        return None
+    return document
 
 
 def _check_controllers(report: ValidationReport) -> None:
     path, found, urdf = report.files.controllers, report.findings, report.urdf
-    if path is None:
-        return
-    try:
-        document = ConfigLoader.get_instance().document(path)
-    except ConfigError as error:
-        found.error("controllers.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
-        return
-    if not isinstance(document.root, dict):
-        found.error("controllers.structure", "controllers.yaml is not a mapping", what="controller names as top-level "
-                    "keys", why=f"the file holds {type(document.root).__name__}", how="see the protocol's example",
-                    file=path, line=1)
+    document = _read_mapping(path, "controllers", found)
+    if document is None:
         return
     for controller, body in document.root.items():
         params = body.get("ros__parameters") if isinstance(body, dict) else None
@@ -381,7 +404,7 @@ def _check_controllers(report: ValidationReport) -> None:
         if not isinstance(joints, list):
             continue
         for index, joint in enumerate(joints):
-            if joint not in urdf.joints:
+            if not isinstance(joint, str) or joint not in urdf.joints:
                 found.error("controllers.unknown_joint", f"Controller {controller} names unknown joint {joint}",
                             what="controller joints that exist in the URDF", why=f"{joint!r} is not a URDF joint",
                             how="fix the name or remove it", file=path,
@@ -437,7 +460,8 @@ def _check_srdf_against_urdf(report: ValidationReport) -> None:
                             file=path, line=at(line))
                 continue
             low, high = _position_bounds(joint, report)
-            if value is None or (low is not None and value < low) or (high is not None and value > high):
+            if value is None or not math.isfinite(value) or (low is not None and value < low) or (
+                    high is not None and value > high):
                 found.error("srdf.state_out_of_limits", f"group_state {state.name}: {joint} is outside its limits",
                             what=f"a value within [{low:g}, {high:g}]" if low is not None and high is not None
                             else "a numeric value", why=f"{joint} = {value!r}", how="choose a value inside the limits",
@@ -463,22 +487,16 @@ def _position_bounds(joint: str, report: ValidationReport) -> tuple[float | None
 
 def _check_kinematics(report: ValidationReport) -> None:
     path, found, srdf = report.files.kinematics, report.findings, report.srdf
-    if path is None:
+    document = _read_mapping(path, "kinematics", found)
+    if document is None:
         return
-    try:
-        document = ConfigLoader.get_instance().document(path)
-    except ConfigError as error:
-        found.error("kinematics.yaml", error.summary, what=error.what, why=error.why, how=error.how, file=path)
-        return
+    if srdf is None and report.files.srdf is not None:
+        return  # the SRDF itself is broken and already reported
     if srdf is None:
         found.warning("kinematics.without_srdf", "kinematics.yaml is unused without an SRDF",
                       what="an SRDF defining the groups kinematics.yaml configures",
                       why="the package has no SRDF, so planning will not start", how="add srdf/NAME.srdf or remove it",
                       file=path)
-        return
-    if not isinstance(document.root, dict):
-        found.error("kinematics.structure", "kinematics.yaml is not a mapping", what="group names as top-level keys",
-                    why=f"the file holds {type(document.root).__name__}", how="see the protocol's example", file=path)
         return
     for group, body in document.root.items():
         line = document.line(group)

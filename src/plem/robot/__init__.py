@@ -1,11 +1,25 @@
-"""Robot configuration: SerialArmConfig, the model presets, profiles and layered resolution."""
+"""Robot configuration: SerialArmConfig, the model presets, profiles and layered resolution.
+
+Profiles and resolution are imported on first use (they pull in pydantic), so commands that only need
+the models start faster.
+"""
+
+from importlib import import_module
+from typing import Any
 
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import MODELS, ArmModel, Indy7, Indy7V2, Indy12, Indy12V2, IndyRP2, IndyRP2V2, model_for
-from plem.robot.profile import RobotProfile
-from plem.robot.resolution import ResolvedConfig, resolve_arm_config
+
+_LAZY = {"RobotProfile": "plem.robot.profile", "ResolvedConfig": "plem.robot.resolution",
+         "resolve_arm_config": "plem.robot.resolution"}
 
 __all__ = [
     "MODELS", "ArmModel", "Indy7", "Indy7V2", "Indy12", "Indy12V2", "IndyRP2", "IndyRP2V2", "ResolvedConfig",
     "RobotProfile", "SerialArmConfig", "model_for", "resolve_arm_config",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'plem.robot' has no attribute {name!r}")

@@ -7,8 +7,6 @@ import threading
 from pathlib import Path
 from typing import Any, TypeVar, get_args, overload
 
-from pydantic import TypeAdapter, ValidationError
-
 from plem.core.config.yaml_document import YamlDocument, read_yaml
 from plem.core.paths import resolve_resource
 from plem.errors import ConfigError
@@ -89,6 +87,8 @@ class ConfigLoader:
 def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, as_type: Any) -> Any:
     if as_type is Any:
         return value
+    from pydantic import TypeAdapter, ValidationError  # deferred: costs 70 ms and only typed loads need it
+
     try:
         return TypeAdapter(as_type).validate_python(value, strict=True)
     except ValidationError as exc:

@@ -99,13 +99,21 @@ class YamlDocument:
         )
 
 
-def _syntax_error(path: Path, where: str, problem: str) -> ConfigError:
-    return ConfigError(
+class YamlSyntaxError(ConfigError):
+    """A YAML file that does not parse; `line` is 1-based when known."""
+
+    line: int | None = None
+
+
+def _syntax_error(path: Path, where: str, problem: str, line: int | None = None) -> YamlSyntaxError:
+    error = YamlSyntaxError(
         f"YAML syntax error in {path.name}",
         what=f"valid YAML in {path}",
         why=f"{where}: {problem}",
         how="fix the YAML at that line (check indentation, colons, quoting and repeated keys)",
     )
+    error.line = line
+    return error
 
 
 def read_yaml(path: Path) -> YamlDocument:
@@ -131,11 +139,15 @@ def read_yaml(path: Path) -> YamlDocument:
         node = yaml.compose(text, Loader=_Loader)
         root = _build(node, (), lines) if node is not None else None
     except _DuplicateKey as dup:
-        raise _syntax_error(path, f"{path}:{dup.line}", f"key '{dup.key}' repeats the one on line {dup.first}") from None
+        raise _syntax_error(path, f"{path}:{dup.line}", f"key '{dup.key}' repeats the one on line {dup.first}",
+                            dup.line) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        raise _syntax_error(path, where, " ".join(filter(None, [exc.context, exc.problem])) or "invalid YAML") from None
-    except (yaml.YAMLError, ValueError, TypeError, RecursionError) as exc:
+        raise _syntax_error(path, where, " ".join(filter(None, [exc.context, exc.problem])) or "invalid YAML",
+                            mark.line + 1 if mark else None) from None
+    except RecursionError:
+        raise _syntax_error(path, str(path), "an alias refers to itself (recursive anchor), or nesting is too deep") from None
+    except (yaml.YAMLError, ValueError, TypeError) as exc:
         raise _syntax_error(path, str(path), " ".join(str(exc).split()) or type(exc).__name__) from None
     return YamlDocument(path=path, root=root, lines=lines)
