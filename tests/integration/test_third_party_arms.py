@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from lxml import etree
-from ruamel.yaml import YAML
+import yaml
 
 from plem.description.compat import PROTOCOL_VERSION
 from plem.description.model import ACTUATED_TYPES
@@ -208,8 +208,7 @@ KINEMATICS = {"arm": {"kinematics_solver": "kdl_kinematics_plugin/KDLKinematicsP
 
 
 def _write_yaml(path: Path, content: dict[str, object]) -> None:
-    with path.open("w", encoding="utf-8") as stream:
-        YAML().dump(content, stream)
+    path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
 
 
 def write_package(spec: ArmSpec, prefix: Path, folder: Path) -> WrappedArm:
