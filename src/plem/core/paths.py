@@ -67,23 +67,6 @@ def is_dir(path: Path) -> bool:
         return False
 
 
-def _packages_in(root: Path) -> dict[str, Path]:
-    if is_file(root / PACKAGE_MARKER):
-        return {root.name: root}
-    if not root.is_dir():
-        return {}
-    return {child.name: child for child in sorted(root.iterdir()) if is_file(child / PACKAGE_MARKER)}
-
-
-def list_packages(environ: Mapping[str, str] | None = None) -> dict[str, Path]:
-    """Every package on the search path by name; an earlier root shadows a later one."""
-    found: dict[str, Path] = {}
-    for root in search_roots(environ):
-        for name, path in _packages_in(root).items():
-            found.setdefault(name, path)
-    return found
-
-
 def _search_path_description(environ: Mapping[str, str] | None) -> str:
     env = _environ(environ)
     return (

@@ -6,7 +6,6 @@ The same text builders serve `plem create-description`, so generated and scaffol
 
 from __future__ import annotations
 
-import itertools
 import logging
 import os
 import tempfile
@@ -85,15 +84,15 @@ class ResolvedDescription:
 
 def _fresh_directory(temp_root: Path | None) -> Path:
     root = Path(temp_root or tempfile.gettempdir())
-    stamp = time.strftime("%Y%m%d_%H%M%S")
-    for attempt in itertools.count():
-        path = root / f"{GENERATED_DIR_PREFIX}{stamp}" if attempt == 0 else root / f"{GENERATED_DIR_PREFIX}{stamp}_{attempt}"
+    base = root / f"{GENERATED_DIR_PREFIX}{time.strftime('%Y%m%d_%H%M%S')}"
+    path, attempt = base, 0
+    while True:
         try:
             path.mkdir(parents=True)
             return path
         except FileExistsError:
-            continue
-    raise AssertionError("unreachable")
+            attempt += 1
+            path = base.with_name(f"{base.name}_{attempt}")
 
 
 def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.PathLike[str] | None = None,
