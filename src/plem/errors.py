@@ -96,3 +96,11 @@ def raise_collected(errors: Iterable[PlemError], context: str = "") -> None:
         raise errors[0]
     if errors:
         raise MultipleErrors(errors, context)
+
+
+class CommandRejected(PlemError):
+    """A motion or mode command was refused before it reached the drives; the arm did not move."""
+
+
+class RobotFault(PlemError):
+    """The robot is in FAULT (or faulted while a command ran); the message carries the decoded reason."""

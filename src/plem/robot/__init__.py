@@ -11,11 +11,12 @@ from plem.robot.config import SerialArmConfig
 from plem.robot.models import MODELS, ArmModel, Indy7, Indy7V2, Indy12, Indy12V2, IndyRP2, IndyRP2V2, model_for
 
 _LAZY = {"RobotProfile": "plem.robot.profile", "ResolvedConfig": "plem.robot.resolution",
-         "resolve_arm_config": "plem.robot.resolution"}
+         "resolve_arm_config": "plem.robot.resolution", "Robot": "plem.robot.robot",
+         "RobotBuilder": "plem.robot.robot", "RobotFactory": "plem.robot.robot"}
 
 __all__ = [
     "MODELS", "ArmModel", "Indy7", "Indy7V2", "Indy12", "Indy12V2", "IndyRP2", "IndyRP2V2", "ResolvedConfig",
-    "RobotProfile", "SerialArmConfig", "model_for", "resolve_arm_config",
+    "Robot", "RobotBuilder", "RobotFactory", "RobotProfile", "SerialArmConfig", "model_for", "resolve_arm_config",
 ]
 
 

@@ -1,0 +1,162 @@
+"""Commands that travel from callers to the loop, and the handles callers wait on.
+
+A caller validates and plans a command in its own thread, then puts it in the loop's inbox. The loop
+accepts or rejects it at the start of a cycle and later finishes it; the handle carries both answers.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from plem.control.modes import Mode
+from plem.control.motion import Motion
+from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
+from plem.errors import CommandRejected, PlemError, RobotFault
+
+
+class CommandTimeout(PlemError):
+    """A command did not finish within the time the caller allowed."""
+
+
+Pump = Callable[[Callable[[], bool], "float | None"], None]
+
+
+class CommandHandle:
+    """Acceptance and completion of one command, set by the loop and awaited by the caller.
+
+    `pump(condition, timeout)` runs cycles in the caller's thread when no loop thread is running
+    (simulated time for scripts and tests), so waiting works the same in both cases.
+    """
+
+    def __init__(self, description: str, pump: Pump | None = None) -> None:
+        self.description = description
+        self._pump = pump
+        self._accepted = threading.Event()
+        self._finished = threading.Event()
+        self.rejection: PlemError | None = None
+        self.stale = False
+        self.result: Any = None
+        self.error: PlemError | None = None
+
+    # -- loop side -------------------------------------------------------------------------------
+    def accept(self) -> None:
+        self._accepted.set()
+
+    def reject(self, error: PlemError, *, stale: bool = False) -> None:
+        self.rejection = error
+        self.stale = stale
+        self._accepted.set()
+        self._finished.set()
+
+    def finish(self, result: Any = None, error: PlemError | None = None) -> None:
+        self.result = result
+        self.error = error
+        self._accepted.set()
+        self._finished.set()
+
+    # -- caller side -----------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        return self._finished.is_set()
+
+    @property
+    def accepted(self) -> bool:
+        return self._accepted.is_set() and self.rejection is None
+
+    def wait_accepted(self, timeout: float | None) -> None:
+        """Block until the loop took or refused the command; raises the rejection."""
+        if self._pump is not None:
+            self._pump(self._accepted.is_set, timeout)
+        if not self._accepted.wait(timeout):
+            raise CommandTimeout(f"{self.description} was not picked up by the loop",
+                                 what=f"the loop to accept the command within {timeout} s",
+                                 why="the loop is not running or is stalled",
+                                 how="start the robot (robot.start()) and check its status")
+        if self.rejection is not None:
+            raise self.rejection
+
+    def wait(self, timeout: float | None = None) -> Any:
+        """Block until the command finished; returns its result, raises on rejection, abort or fault."""
+        if self._pump is not None:
+            self._pump(self._finished.is_set, timeout)
+        if not self._finished.wait(timeout):
+            raise CommandTimeout(f"{self.description} did not finish in {timeout} s",
+                                 what=f"completion within {timeout} s", why="it is still running",
+                                 how="wait longer, or stop() the robot")
+        if self.rejection is not None:
+            raise self.rejection
+        if self.error is not None:
+            raise self.error
+        return self.result
+
+
+@dataclass(frozen=True)
+class PlanBasis:
+    """The loop's motion state a plan starts from; replaced (never mutated) whenever it changes.
+
+    A plan is valid only while this very object is the loop's basis, so a stale plan is detected by
+    identity. Holding: the plan starts at `hold_position` at rest. Moving: it starts at `motion`'s
+    state at the activation cycle the caller picked.
+    """
+
+    hold_position: np.ndarray
+    motion: Motion | None = None
+    motion_start_cycle: int = 0
+
+
+@dataclass
+class SetMode:
+    mode: Mode
+    handle: CommandHandle
+
+
+@dataclass
+class StartMotion:
+    motion: Motion
+    basis: PlanBasis
+    activation_cycle: int | None
+    tolerances: TrajectoryTolerances
+    final_position: np.ndarray
+    handle: CommandHandle
+    label: str = "motion"
+
+
+@dataclass
+class StopMotion:
+    handle: CommandHandle
+
+
+@dataclass
+class ResetFault:
+    handle: CommandHandle
+
+
+@dataclass
+class ActiveMotion:
+    """The motion the loop is executing, with what it needs to judge the result."""
+
+    motion: Motion
+    start_cycle: int
+    tolerances: TrajectoryTolerances
+    final_position: np.ndarray
+    handle: CommandHandle | None
+    label: str
+    settle_deadline_cycle: int | None = None
+    ended: bool = False
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def motion_error(result: TrajectoryResult) -> PlemError | None:
+    """The PlemError a caller sees for a finished motion, or None when it succeeded, was preempted or canceled."""
+    if result.outcome is TrajectoryOutcome.ABORTED:
+        return RobotFault("the motion was aborted", what="the motion to reach its goal",
+                          why=result.message, how="check the cause; the arm stopped smoothly and holds")
+    if result.outcome is TrajectoryOutcome.REJECTED:
+        return CommandRejected("the motion was rejected", what="a motion the robot can execute",
+                               why=result.message, how="fix the command and send it again")
+    return None

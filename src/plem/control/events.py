@@ -1,0 +1,71 @@
+"""Events of the loop: mode transitions, faults, rejected and finished commands.
+
+Events are rare (never one per cycle in steady state); each has a time, a kind, a cause and a
+human-readable reason with drive faults decoded, and goes to a bounded log plus any listeners.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import Enum
+
+from plem.control.modes import Mode
+
+
+class EventKind(str, Enum):
+    MODE_CHANGED = "mode_changed"
+    FAULT = "fault"
+    FAULT_CLEARED = "fault_cleared"
+    MOTION_STARTED = "motion_started"
+    MOTION_FINISHED = "motion_finished"
+    COMMAND_REJECTED = "command_rejected"
+    OVERRUN = "overrun"
+    WARNING = "warning"
+
+
+@dataclass(frozen=True)
+class Event:
+    """One thing that happened, stamped with the monotonic and wall-clock time and the loop cycle."""
+
+    kind: EventKind
+    cause: str
+    reason: str
+    mode: Mode
+    cycle: int
+    monotonic_ns: int
+    wall_time: float
+    previous_mode: Mode | None = None
+
+    def describe(self) -> str:
+        """One log line, e.g. 'cycle 1200 fault (tracking_error): joint2 ...'."""
+        transition = f" {self.previous_mode.name}→{self.mode.name}" if self.previous_mode is not None else ""
+        return f"cycle {self.cycle} {self.kind.value}{transition} ({self.cause}): {self.reason}"
+
+
+class EventLog:
+    """The most recent events, kept in a bounded deque, fanned out to listeners as they happen."""
+
+    def __init__(self, capacity: int = 1000) -> None:
+        self._events: deque[Event] = deque(maxlen=capacity)
+        self._listeners: list[Callable[[Event], None]] = []
+        self.total = 0
+
+    def subscribe(self, listener: Callable[[Event], None]) -> None:
+        """Call `listener(event)` for every later event (from the loop's thread: keep it short)."""
+        self._listeners.append(listener)
+
+    def emit(self, kind: EventKind, cause: str, reason: str, mode: Mode, cycle: int,
+             previous_mode: Mode | None = None) -> Event:
+        event = Event(kind, cause, reason, mode, cycle, time.monotonic_ns(), time.time(), previous_mode)
+        self._events.append(event)
+        self.total += 1
+        for listener in self._listeners:
+            listener(event)
+        return event
+
+    def recent(self, kinds: set[EventKind] | None = None) -> list[Event]:
+        """A copy of the kept events, oldest first, optionally of some kinds only."""
+        return [e for e in list(self._events) if kinds is None or e.kind in kinds]

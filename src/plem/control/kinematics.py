@@ -1,0 +1,106 @@
+"""Rigid-body kinematics and dynamics of the arm from its URDF, through pinocchio.
+
+One `ArmDynamics` serves the simulated arm (forward dynamics), free drive (gravity) and the planner
+(forward kinematics, Jacobian). Vectors are in the arm's joint order; when the URDF lists the joints
+in another order the values are permuted on the way in and out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from plem.errors import ConfigError
+
+
+class ArmDynamics:
+    """Pinocchio model and data of one arm, with results written into caller-owned arrays."""
+
+    def __init__(self, urdf_xml: str, joint_names: Sequence[str], tip_frame: str | None = None) -> None:
+        try:
+            self.model = pin.buildModelFromXML(urdf_xml)
+        except (RuntimeError, ValueError) as error:
+            raise ConfigError("pinocchio could not build a model from the URDF",
+                              what="a URDF pinocchio can load (revolute and prismatic joints, inertials)",
+                              why=str(error).strip() or type(error).__name__,
+                              how="run `plem validate <package> --strict` and fix what it reports") from error
+        self.data = self.model.createData()
+        self.joint_names = tuple(joint_names)
+        self._order = self._joint_order()
+        self._identity = bool(np.array_equal(self._order, np.arange(len(self._order))))
+        self._q = np.zeros(self.model.nq)
+        self._v = np.zeros(self.model.nv)
+        self._a = np.zeros(self.model.nv)
+        self.tip_frame = tip_frame or self.model.frames[len(self.model.frames) - 1].name
+        self._tip_id = self.model.getFrameId(self.tip_frame)
+
+    def _joint_order(self) -> np.ndarray:
+        model = self.model
+        problems = []
+        order = []
+        for name in self.joint_names:
+            if not model.existJointName(name):
+                problems.append(f"{name} is not a joint of the URDF")
+                continue
+            joint = model.joints[model.getJointId(name)]
+            if joint.nq != 1:
+                problems.append(f"{name} has {joint.nq} configuration values (continuous or multi-DOF joint)")
+            order.append(joint.idx_q)
+        if problems or model.nq != len(self.joint_names):
+            problems.append(f"the URDF has {model.nq} configuration values for {len(self.joint_names)} joints")
+            raise ConfigError("the URDF does not match the arm's joints",
+                              what="one single-DOF joint in the URDF for each joint of the arm",
+                              why="; ".join(problems),
+                              how="use the arm's description package, or pass joint names that match its URDF")
+        return np.array(order, dtype=np.intp)
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    def _load(self, target: np.ndarray, values: np.ndarray) -> np.ndarray:
+        if self._identity:
+            target[:] = values
+        else:
+            target[self._order] = values
+        return target
+
+    def _store(self, out: np.ndarray, values: np.ndarray) -> np.ndarray:
+        if self._identity:
+            out[:] = values
+        else:
+            out[:] = values[self._order]
+        return out
+
+    def gravity(self, q: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Joint torques that hold the arm still against gravity at `q` (N·m)."""
+        tau = pin.computeGeneralizedGravity(self.model, self.data, self._load(self._q, q))
+        return self._store(out, tau)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Torques that produce acceleration `a` at state (q, v), gravity included."""
+        tau = pin.rnea(self.model, self.data, self._load(self._q, q), self._load(self._v, v), self._load(self._a, a))
+        return self._store(out, tau)
+
+    def forward_dynamics(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Joint accelerations under torques `tau` at state (q, v), gravity included."""
+        acc = pin.aba(self.model, self.data, self._load(self._q, q), self._load(self._v, v), self._load(self._a, tau))
+        return self._store(out, acc)
+
+    def inertia_diagonal(self, q: np.ndarray) -> np.ndarray:
+        """Diagonal of the joint-space mass matrix at `q` (kg·m²): each joint's own inertia there."""
+        diagonal = np.diag(pin.crba(self.model, self.data, self._load(self._q, q))).copy()
+        return diagonal if self._identity else diagonal[self._order]
+
+    def forward_kinematics(self, q: np.ndarray) -> pin.SE3:
+        """Pose of the tip frame in the base frame at `q`."""
+        pin.framesForwardKinematics(self.model, self.data, self._load(self._q, q))
+        return self.data.oMf[self._tip_id]
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """6×dof Jacobian of the tip frame, in the world-aligned frame at the tip (columns in joint order)."""
+        jac = pin.computeFrameJacobian(self.model, self.data, self._load(self._q, q), self._tip_id,
+                                       pin.LOCAL_WORLD_ALIGNED)
+        return jac if self._identity else jac[:, self._order]

@@ -1,0 +1,105 @@
+"""Joint limits as arrays in the arm's joint order, and the checks that keep commands inside them.
+
+Absent limits are +inf (or -inf for a lower bound), so every check is one vectorised comparison.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from plem.description.limits import UNITS, JointLimit
+from plem.errors import CommandRejected, ConfigError
+
+#: Names of the limit arrays, as used in messages.
+KINDS = ("position", "velocity", "acceleration", "jerk", "effort")
+
+
+@dataclass(frozen=True)
+class ArmLimits:
+    """Position range and velocity/acceleration/jerk/effort maxima per joint (SI)."""
+
+    joint_names: tuple[str, ...]
+    min_position: np.ndarray
+    max_position: np.ndarray
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+    max_jerk: np.ndarray
+    max_effort: np.ndarray
+
+    @classmethod
+    def from_joint_limits(cls, limits: Mapping[str, JointLimit], joint_names: Sequence[str]) -> ArmLimits:
+        """Arrays in `joint_names` order; a joint missing from the file is a ConfigError."""
+        missing = [name for name in joint_names if name not in limits]
+        if missing:
+            raise ConfigError("joint_limits.yaml has no limits for some joints",
+                              what=f"an entry under joint_limits: for each of {', '.join(joint_names)}",
+                              why=f"missing: {', '.join(missing)}",
+                              how="add the joints to config/joint_limits.yaml of the description package")
+
+        def column(attribute: str, absent: float) -> np.ndarray:
+            values = [getattr(limits[name], attribute) for name in joint_names]
+            return np.array([absent if v is None else v for v in values], dtype=float)
+
+        return cls(tuple(joint_names), column("min_position", -math.inf), column("max_position", math.inf),
+                   column("max_velocity", math.inf), column("max_acceleration", math.inf),
+                   column("max_jerk", math.inf), column("max_effort", math.inf))
+
+    @classmethod
+    def unlimited(cls, joint_names: Sequence[str]) -> ArmLimits:
+        """No limits at all: only for buses and tests that have no description."""
+        n = len(joint_names)
+        inf = np.full(n, math.inf)
+        return cls(tuple(joint_names), -inf, inf.copy(), inf.copy(), inf.copy(), inf.copy(), inf.copy())
+
+    @property
+    def dof(self) -> int:
+        return len(self.joint_names)
+
+    def maximum(self, kind: str) -> np.ndarray:
+        """The array of maxima for 'velocity', 'acceleration', 'jerk' or 'effort'."""
+        return getattr(self, f"max_{kind}")
+
+    def check_vector(self, values: Sequence[float], what: str) -> np.ndarray:
+        """`values` as a float array of length dof with finite entries, else CommandRejected."""
+        try:
+            array = np.asarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as error:
+            raise CommandRejected(f"{what} is not a list of numbers", what=f"{self.dof} numbers, one per joint",
+                                  why=str(error), how=f"pass {what} as {self.dof} floats") from error
+        if array.size != self.dof:
+            raise CommandRejected(f"{what} has {array.size} values for {self.dof} joints",
+                                  what=f"one value per joint ({', '.join(self.joint_names)})",
+                                  why=f"got {array.size}", how=f"pass exactly {self.dof} values")
+        bad = [self.joint_names[i] for i in np.flatnonzero(~np.isfinite(array))]
+        if bad:
+            raise CommandRejected(f"{what} contains NaN or infinity", what="finite numbers only",
+                                  why=f"not finite for {', '.join(bad)}", how="send finite values")
+        return array
+
+    def check_positions(self, positions: np.ndarray, what: str) -> None:
+        """Reject positions outside [min_position, max_position], naming the joint, limit and value."""
+        low = positions < self.min_position
+        high = positions > self.max_position
+        if low.any() or high.any():
+            i = int(np.flatnonzero(low | high)[0])
+            bound = self.min_position[i] if low[i] else self.max_position[i]
+            raise CommandRejected(
+                f"{what} is outside the position limits of {self.joint_names[i]}",
+                what=f"{self.joint_names[i]} within [{self.min_position[i]:.6g}, {self.max_position[i]:.6g}] rad",
+                why=f"{self.joint_names[i]} = {positions[i]:.6g} rad is beyond its "
+                    f"{'min' if low[i] else 'max'}_position {bound:.6g} rad",
+                how="choose a target inside the joint's range (config/joint_limits.yaml)")
+
+
+def limit_exceeded(kind: str, joint: str, value: float, limit: float, where: str) -> CommandRejected:
+    """The rejection for a derivative beyond its maximum, worded the same everywhere."""
+    unit = UNITS.get(f"max_{kind}", "")
+    return CommandRejected(
+        f"{where} exceeds the {kind} limit of {joint}",
+        what=f"|{kind}| of {joint} at most {limit:.6g} {unit}",
+        why=f"{where} needs {abs(value):.6g} {unit}",
+        how="slow the motion down (later time_from_start, or a smaller speed_scale)")

@@ -1,0 +1,108 @@
+"""The scheduler: runs a cycle function on absolute deadlines and accounts its timing.
+
+Deadlines advance by exactly one period; after an overrun the missed periods are skipped (never
+burst to catch up), and K consecutive overruns are reported to the runtime as a fault.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from plem.control.realtime import AbsoluteSleeper, RealtimeContext, RealtimeReport
+from plem.control.timing import TimingStats
+
+MAX_CONSECUTIVE_ERRORS = 3
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """Timing and real-time settings of one loop."""
+
+    cycle_time_ns: int = 1_000_000
+    priority: int = 98
+    cpus: tuple[int, ...] | None = None
+    max_consecutive_overruns: int = 10
+    realtime: bool = True
+
+
+class CycleLoop:
+    """Calls `cycle()` once per period until `stop()`; timing goes to `stats`.
+
+    `on_overruns(count)` is called once when `max_consecutive_overruns` overruns happen in a row;
+    `on_error(exc)` when the cycle raises (the loop keeps running, so the robot can still be stopped,
+    unless it raises MAX_CONSECUTIVE_ERRORS times in a row).
+    """
+
+    def __init__(self, cycle: Callable[[], None], settings: LoopSettings,
+                 on_overruns: Callable[[int], None] | None = None,
+                 on_error: Callable[[BaseException], None] | None = None) -> None:
+        self.cycle = cycle
+        self.settings = settings
+        self.on_overruns = on_overruns
+        self.on_error = on_error
+        self.stats = TimingStats()
+        self.report = RealtimeReport()
+        self._stop = threading.Event()
+        self.error: BaseException | None = None
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop.is_set()
+
+    def run(self, duration_s: float | None = None) -> RealtimeReport:
+        """Run in the calling thread until stop() (or for `duration_s`); returns what RT set-up obtained."""
+        settings = self.settings
+        context = RealtimeContext(settings.priority, settings.cpus, lock_memory=settings.realtime,
+                                  hold_dma_latency=settings.realtime) if settings.realtime else None
+        if context is not None:
+            self.report = context.__enter__()
+        try:
+            self._run(duration_s)
+        finally:
+            if context is not None:
+                context.__exit__(None, None, None)
+        return self.report
+
+    def _run(self, duration_s: float | None) -> None:
+        period = self.settings.cycle_time_ns
+        limit = self.settings.max_consecutive_overruns
+        stats = self.stats
+        sleeper = AbsoluteSleeper()
+        clock = time.monotonic_ns
+        cycle = self.cycle
+        stop = self._stop
+        deadline = clock() + period
+        end = deadline + int(duration_s * 1e9) if duration_s is not None else None
+        errors = 0
+        while not stop.is_set():
+            sleeper.sleep_until(deadline)
+            woke = clock()
+            try:
+                cycle()
+                errors = 0
+            except Exception as error:  # a bug must not leave the arm uncontrolled: report and keep cycling
+                errors += 1
+                self.error = error
+                if self.on_error is not None:
+                    self.on_error(error)
+                if errors >= MAX_CONSECUTIVE_ERRORS:
+                    raise
+            done = clock()
+            stats.record(woke - deadline, done - woke)
+            deadline += period
+            if done > deadline:
+                missed = (done - deadline) // period + 1
+                deadline += missed * period
+                stats.record_overrun(int(missed))
+                if stats.consecutive_overruns == limit and self.on_overruns is not None:
+                    self.on_overruns(stats.consecutive_overruns)
+            else:
+                stats.record_on_time()
+            if end is not None and deadline > end:
+                break

@@ -1,0 +1,116 @@
+"""Jerk-limited motions planned with ruckig: point-to-point moves and smooth stops.
+
+Both are planned once (offline, time-optimal within the velocity, acceleration and jerk limits) and
+then sampled each cycle. A motion is anything with `sample(t, position, velocity, acceleration) -> done`
+and `duration`; the trajectory controller's splines have the same shape.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+
+from plem.control.limits import ArmLimits
+from plem.errors import CommandRejected
+
+
+class Motion(Protocol):
+    """A planned motion sampled by the loop; `t` is seconds since the motion became active."""
+
+    duration: float
+    final_positions: np.ndarray
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at `t` as new arrays; safe to call from any thread."""
+        ...
+
+    def sample(self, t: float, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> bool:
+        """Write the commanded state at `t`; True once `t` is at or past the end."""
+        ...
+
+
+class RuckigMotion:
+    """A ruckig trajectory; sampling copies ruckig's state into the loop's arrays."""
+
+    def __init__(self, trajectory: Trajectory) -> None:
+        self._trajectory = trajectory
+        self.duration = float(trajectory.duration)
+        self.final_positions = np.array(trajectory.at_time(self.duration)[0])
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p, v, a = self._trajectory.at_time(min(max(t, 0.0), self.duration))
+        return np.array(p), np.array(v), np.array(a)
+
+    def sample(self, t: float, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> bool:
+        done = t >= self.duration
+        p, v, a = self._trajectory.at_time(self.duration if done else t)
+        position[:] = p
+        velocity[:] = v
+        acceleration[:] = a
+        return done
+
+    def position_range(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lowest and highest position each joint passes through."""
+        extrema = self._trajectory.position_extrema
+        return np.array([e.min for e in extrema]), np.array([e.max for e in extrema])
+
+
+def _input(limits: ArmLimits, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
+           scale: float) -> InputParameter:
+    parameters = InputParameter(limits.dof)
+    parameters.current_position = position.tolist()
+    parameters.current_velocity = velocity.tolist()
+    parameters.current_acceleration = acceleration.tolist()
+    parameters.max_velocity = (limits.max_velocity * scale).tolist()
+    parameters.max_acceleration = (limits.max_acceleration * scale**2).tolist()
+    parameters.max_jerk = (limits.max_jerk * scale**3).tolist()
+    return parameters
+
+
+def _calculate(parameters: InputParameter, dof: int, what: str) -> RuckigMotion:
+    trajectory = Trajectory(dof)
+    result = Ruckig(dof).calculate(parameters, trajectory)
+    if result not in (Result.Working, Result.Finished):
+        raise CommandRejected(f"{what} could not be planned within the joint limits",
+                              what="a jerk-limited motion inside the velocity, acceleration and jerk limits",
+                              why=f"ruckig returned {result.name}",
+                              how="check the limits in config/joint_limits.yaml and the target")
+    return RuckigMotion(trajectory)
+
+
+def plan_point_to_point(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, np.ndarray], target: np.ndarray,
+                        speed_scale: float = 1.0) -> RuckigMotion:
+    """Time-optimal motion from `start` (position, velocity, acceleration) to rest at `target`.
+
+    `speed_scale` in (0, 1] scales time: velocity, acceleration and jerk limits by s, s² and s³, so the
+    motion follows the same path and takes 1/s as long. The target must lie
+    within the position limits, and so must every position the motion passes through.
+    """
+    if not (isinstance(speed_scale, (int, float)) and math.isfinite(speed_scale) and 0 < speed_scale <= 1):
+        raise CommandRejected("speed_scale is out of range", what="0 < speed_scale <= 1",
+                              why=f"got {speed_scale!r}", how="pass e.g. speed_scale=0.5 for half speed")
+    if not np.all(np.isfinite(limits.max_velocity)):
+        unlimited = [n for n, v in zip(limits.joint_names, limits.max_velocity) if not math.isfinite(v)]
+        raise CommandRejected("move_joints needs a velocity limit for every joint",
+                              what="max_velocity for each joint in config/joint_limits.yaml",
+                              why=f"no velocity limit for {', '.join(unlimited)}",
+                              how="add has_velocity_limits: true and max_velocity to those joints")
+    limits.check_positions(target, "the target")
+    parameters = _input(limits, *start, scale=float(speed_scale))
+    parameters.target_position = target.tolist()
+    motion = _calculate(parameters, limits.dof, "the point-to-point motion")
+    low, high = motion.position_range()
+    limits.check_positions(np.where(low < limits.min_position, low, high), "the motion toward the target")
+    return motion
+
+
+def plan_stop(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, np.ndarray]) -> RuckigMotion:
+    """The quickest jerk-limited motion from `start` to standstill (used for cancels and faults)."""
+    parameters = _input(limits, *start, scale=1.0)
+    parameters.control_interface = ControlInterface.Velocity
+    parameters.target_velocity = [0.0] * limits.dof
+    parameters.target_acceleration = [0.0] * limits.dof
+    return _calculate(parameters, limits.dof, "the stop")

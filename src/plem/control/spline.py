@@ -1,0 +1,344 @@
+"""The spline a JointTrajectory describes, interpolated per segment as ros2_control's joint_trajectory_controller does.
+
+A segment is linear in position when either end has positions only, a cubic Hermite when both ends carry
+velocities, and a quintic when both ends carry velocities and accelerations. When the first point lies
+after t = 0, a first segment runs from the state at activation; that state always has all three, so the
+first point alone decides the first segment's kind (a positions-only first point interpolates linearly
+from the start positions and ignores the start velocity, a jump `check_limits` judges). A point with
+accelerations but no velocities is rejected: the controller would interpolate nothing sensible for it.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.polynomial import polynomial
+
+from plem.control.limits import KINDS, ArmLimits, limit_exceeded
+from plem.description.limits import UNITS
+from plem.errors import CommandRejected
+
+if TYPE_CHECKING:
+    from plem.control.trajectory import JointTrajectory, TrajectoryPoint
+
+#: Coefficients per segment and joint, lowest order first: enough for a quintic.
+ORDER = 6
+#: A first point at time 0 must sit this close to the start positions (rad).
+START_MATCH = 1e-9
+#: The last point's velocities and accelerations must be this close to zero.
+AT_REST = 1e-6
+#: Relative slack on every limit, for rounding in the polynomial evaluation.
+SLACK = 1e-9
+
+FIELDS_HOW = ("send positions for every point; velocities and accelerations are optional but, when given, "
+              "need one value per joint")
+SMOOTH_HOW = ("add velocities and accelerations to the points so the spline is smooth at every point (quintic), "
+              "give the motion more time (later time_from_start), or use move_joints for point-to-point motion")
+SLOWER_HOW = "give the motion more time (later time_from_start), or use move_joints for point-to-point motion"
+
+
+class JointNamesRejected(CommandRejected):
+    """The trajectory's joint names are not exactly the arm's joints (FollowJointTrajectory INVALID_JOINTS)."""
+
+
+def _beyond(value: np.ndarray | float, limit: np.ndarray | float) -> np.ndarray | bool:
+    """Whether `value` exceeds the upper bound `limit` by more than the rounding slack (elementwise)."""
+    return value > limit + SLACK * np.maximum(1.0, np.abs(limit))
+
+
+def _joint_order(joint_names: Sequence[str], limits: ArmLimits) -> np.ndarray:
+    """For each arm joint, its column in the trajectory; every arm joint exactly once, nothing else."""
+    names = list(joint_names)
+    found = {"listed more than once": sorted({name for name in names if names.count(name) > 1}),
+             "not joints of this arm": [name for name in names if name not in limits.joint_names],
+             "missing": [name for name in limits.joint_names if name not in names]}
+    problems = [f"{problem}: {', '.join(joints)}" for problem, joints in found.items() if joints]
+    if problems:
+        raise JointNamesRejected(
+            "the trajectory's joint_names do not match the arm's joints",
+            what=f"each of {', '.join(limits.joint_names)} exactly once, in any order",
+            why="; ".join(problems),
+            how="send one column per arm joint (partial trajectories are not accepted), named as in the URDF")
+    return np.array([names.index(name) for name in limits.joint_names])
+
+
+def _field(values: Sequence[float], index: int, field: str, joint_names: Sequence[str],
+           order: np.ndarray) -> np.ndarray:
+    """One point's positions, velocities or accelerations: finite, one per joint, in the arm's order."""
+    dof = len(joint_names)
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise CommandRejected(f"point {index} {field} are not numbers", what=f"{dof} numbers",
+                              why=str(error), how=FIELDS_HOW) from error
+    if array.shape != (dof,):
+        raise CommandRejected(f"point {index} has {array.size} {field} for {dof} joints",
+                              what=f"one value per joint ({', '.join(joint_names)})",
+                              why=f"point {index} {field} has shape {array.shape}", how=FIELDS_HOW)
+    bad = [joint_names[j] for j in np.flatnonzero(~np.isfinite(array))]
+    if bad:
+        raise CommandRejected(f"point {index} {field} contain NaN or infinity", what="finite numbers only",
+                              why=f"point {index} {field} not finite for {', '.join(bad)}",
+                              how="send finite values")
+    return array[order]
+
+
+def _time(point: TrajectoryPoint, index: int, previous: float) -> float:
+    """A point's time_from_start: finite, not negative, after the previous point's."""
+    try:
+        time = float(point.time_from_start)
+    except (TypeError, ValueError):
+        why = f"point {index} has time_from_start {point.time_from_start!r}"
+    else:
+        if not (math.isfinite(time) and time >= 0.0):
+            why = f"point {index} has time_from_start {time:.9g} s"
+        elif time <= previous:
+            why = f"point {index - 1} is at {previous:.9g} s, point {index} at {time:.9g} s"
+        else:
+            return time
+    raise CommandRejected(f"point {index} has an invalid time_from_start",
+                          what="times_from_start in seconds: finite, >= 0 and strictly increasing from point to point",
+                          why=why, how="give each point a later time_from_start than the one before it")
+
+
+def _coefficients(times: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray,
+                  has_v: np.ndarray, has_a: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Per-segment coefficients (segments, ORDER, dof) in time since the segment's start, and each segment's kind."""
+    duration = np.diff(times)[:, None]
+    step, v0, v1, a0, a1 = p[1:] - p[:-1], v[:-1], v[1:], a[:-1], a[1:]
+    cubic = has_v[:-1] & has_v[1:]
+    quintic = cubic & has_a[:-1] & has_a[1:]
+    hermite = cubic & ~quintic
+    c = np.zeros((len(duration), ORDER, p.shape[1]))
+    c[:, 0] = p[:-1]
+    c[~cubic, 1] = (step / duration)[~cubic]
+    c[cubic, 1] = v0[cubic]
+    c[hermite, 2] = ((3 * step - (2 * v0 + v1) * duration) / duration**2)[hermite]
+    c[hermite, 3] = ((-2 * step + (v0 + v1) * duration) / duration**3)[hermite]
+    c[quintic, 2] = (a0 / 2)[quintic]
+    c[quintic, 3] = ((20 * step - (12 * v0 + 8 * v1) * duration - (3 * a0 - a1) * duration**2)
+                     / (2 * duration**3))[quintic]
+    c[quintic, 4] = ((-30 * step + (16 * v0 + 14 * v1) * duration + (3 * a0 - 2 * a1) * duration**2)
+                     / (2 * duration**4))[quintic]
+    c[quintic, 5] = ((12 * step - 6 * (v0 + v1) * duration - (a0 - a1) * duration**2) / (2 * duration**5))[quintic]
+    kinds = tuple("quintic" if q else "cubic" if h else "linear" for q, h in zip(quintic, hermite))
+    return c, kinds
+
+
+def _derivatives(coefficients: np.ndarray) -> np.ndarray:
+    """Coefficients of the 0th to 4th time derivative, stacked: (5, segments, ORDER, dof)."""
+    stack = [coefficients]
+    for _ in range(4):
+        derivative = np.zeros_like(coefficients)
+        derivative[:, :-1] = stack[-1][:, 1:] * np.arange(1, ORDER)[:, None]
+        stack.append(derivative)
+    return np.stack(stack)
+
+
+def _extrema(coefficients: np.ndarray, duration: float) -> tuple[float, float, float, float]:
+    """(min, time of min, max, time of max) of a polynomial on [0, duration], from its stationary points."""
+    scaled = coefficients * duration ** np.arange(coefficients.size)  # in s = t / duration, s in [0, 1]
+    slope = polynomial.polyder(scaled)
+    candidates = [0.0, 1.0]
+    significant = np.flatnonzero(np.abs(slope) > 1e-12 * np.abs(slope).max(initial=0.0))
+    if significant.size:
+        roots = polynomial.polyroots(slope[: significant[-1] + 1])
+        real = roots.real[(np.abs(roots.imag) < 1e-6) & (roots.real > 0.0) & (roots.real < 1.0)]
+        candidates.extend(real)
+    s = np.array(candidates)
+    values = polynomial.polyval(s, scaled)
+    low, high = int(values.argmin()), int(values.argmax())
+    return float(values[low]), float(s[low] * duration), float(values[high]), float(s[high] * duration)
+
+
+def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_names: tuple[str, ...]) -> None:
+    """A first point at time 0 must be where the arm is; the last point must be at rest."""
+    if first_time == 0.0:
+        offset = np.abs(states[0, 0] - start[0])
+        if offset.max() > START_MATCH:
+            j = int(offset.argmax())
+            raise CommandRejected(
+                "point 0 has time_from_start 0 but is not where the arm is",
+                what=f"a point at time 0 equal to the current positions (within {START_MATCH:g} rad)",
+                why=f"{joint_names[j]} is at {start[0, j]:.9g} rad, point 0 asks for {states[0, 0, j]:.9g} rad",
+                how="give point 0 a time_from_start > 0 so the arm can get there, or start at the current positions")
+    for k, field in ((1, "velocities"), (2, "accelerations")):
+        moving = np.abs(states[-1, k]) > AT_REST
+        if moving.any():
+            j = int(np.flatnonzero(moving)[0])
+            raise CommandRejected(
+                f"the last point has non-zero {field}: the arm would have to stop abruptly",
+                what=f"{field} of the last point zero (within {AT_REST:g})",
+                why=f"point {len(states) - 1} has {field} {states[-1, k, j]:.6g} for {joint_names[j]}",
+                how=f"end the trajectory at rest: set the last point's {field} to 0 (or leave them out)")
+
+
+class Spline:
+    """Piecewise polynomial through a validated trajectory, in the arm's joint order, sampled every cycle."""
+
+    def __init__(self, joint_names: tuple[str, ...], times: np.ndarray, coefficients: np.ndarray,
+                 kinds: tuple[str, ...], start: np.ndarray, final: np.ndarray, first_point: int) -> None:
+        self.joint_names = joint_names
+        self.coefficients = coefficients
+        self.segment_kinds = kinds
+        self.segment_starts = times[:-1]
+        self.duration = float(times[-1])
+        self.final_positions, self.final_velocities, self.final_accelerations = final
+        self._start = start
+        self._final = final
+        self._first_point = first_point  # knot index of trajectory point 0: 1 when a start segment precedes it
+        self._knots = [float(t) for t in times]
+        self._derivatives = _derivatives(coefficients)
+        self._segments = [tuple(self._derivatives[k, s] for k in range(3)) for s in range(len(kinds))]
+        self._powers = np.zeros(ORDER)
+        self._powers[0] = 1.0
+        self._cursor = 0
+
+    @classmethod
+    def build(cls, trajectory: JointTrajectory, limits: ArmLimits, start_positions: Sequence[float],
+              start_velocities: Sequence[float], start_accelerations: Sequence[float]) -> Spline:
+        """Validate `trajectory` against the arm and its state at activation, and fit the segments."""
+        order = _joint_order(trajectory.joint_names, limits)
+        start = np.stack([limits.check_vector(start_positions, "the start positions"),
+                          limits.check_vector(start_velocities, "the start velocities"),
+                          limits.check_vector(start_accelerations, "the start accelerations")])
+        if not trajectory.points:
+            raise CommandRejected("the trajectory has no points", what="at least one point",
+                                  why="points is empty", how="add the points to move through")
+        names = tuple(trajectory.joint_names)
+        times: list[float] = []
+        rows, has_v, has_a = [], [], []
+        for index, point in enumerate(trajectory.points):
+            if point.accelerations is not None and point.velocities is None:
+                raise CommandRejected(f"point {index} has accelerations but no velocities",
+                                      what="velocities wherever accelerations are given",
+                                      why=f"point {index} carries positions and accelerations only",
+                                      how="add velocities to the point, or drop its accelerations")
+            times.append(_time(point, index, times[-1] if times else -math.inf))
+            rows.append([np.zeros(limits.dof) if values is None else _field(values, index, field, names, order)
+                         for field, values in (("positions", point.positions), ("velocities", point.velocities),
+                                               ("accelerations", point.accelerations))])
+            has_v.append(point.velocities is not None)
+            has_a.append(point.accelerations is not None)
+        states = np.array(rows)  # (points, 3, dof): positions, velocities, accelerations in arm order
+        _check_ends(states, times[0], start, limits.joint_names)
+        if times[0] > 0.0:
+            times, states = [0.0, *times], np.concatenate([start[None], states])
+            has_v, has_a = [True, *has_v], [True, *has_a]
+        coefficients, kinds = _coefficients(np.array(times), states[:, 0], states[:, 1], states[:, 2],
+                                            np.array(has_v), np.array(has_a))
+        final = states[-1].copy()
+        final.flags.writeable = False
+        return cls(limits.joint_names, np.array(times), coefficients, kinds, start, final,
+                   first_point=len(times) - len(trajectory.points))
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at `t` as new arrays, without touching the sampling cursor.
+
+        Safe from another thread while the loop samples (used to plan a preemption from this motion).
+        """
+        if t >= self.duration or not self._segments:
+            return self.final_positions.copy(), self.final_velocities.copy(), self.final_accelerations.copy()
+        t = max(t, 0.0)
+        s = min(max(bisect.bisect_right(self._knots, t) - 1, 0), len(self._segments) - 1)
+        powers = (t - self._knots[s]) ** np.arange(ORDER)
+        position, velocity, acceleration = self._segments[s]
+        return powers @ position, powers @ velocity, powers @ acceleration
+
+    def sample(self, t: float, position_out: np.ndarray, velocity_out: np.ndarray,
+               acceleration_out: np.ndarray) -> bool:
+        """Write the state `t` s after activation into the (dof,) float64 arrays; True once the motion is over."""
+        if t >= self.duration or not self._segments:
+            np.copyto(position_out, self.final_positions)
+            np.copyto(velocity_out, self.final_velocities)
+            np.copyto(acceleration_out, self.final_accelerations)
+            return True
+        knots = self._knots
+        s = self._cursor
+        if t < knots[s]:
+            s = max(bisect.bisect_right(knots, t) - 1, 0)
+        while t >= knots[s + 1]:
+            s += 1
+        self._cursor = s
+        tau = t - knots[s] if t > knots[s] else 0.0
+        powers = self._powers
+        x = 1.0
+        for k in range(1, ORDER):
+            x *= tau
+            powers[k] = x
+        position, velocity, acceleration = self._segments[s]
+        np.dot(powers, position, out=position_out)
+        np.dot(powers, velocity, out=velocity_out)
+        np.dot(powers, acceleration, out=acceleration_out)
+        return False
+
+    def check_limits(self, limits: ArmLimits, cycle_time_s: float) -> None:
+        """Reject the spline if a joint leaves its range or exceeds a derivative limit anywhere along it."""
+        if not cycle_time_s > 0.0:
+            raise ValueError(f"cycle_time_s must be positive, got {cycle_time_s}")
+        durations = np.diff(self._knots)
+        ends = np.einsum("sp,kspj->ksj", durations[:, None] ** np.arange(ORDER), self._derivatives[:3])
+        before = np.concatenate([self._start[:, None], ends], axis=1)  # (3, knots, dof): value just before knot
+        after = np.concatenate([self._derivatives[:3, :, 0], self._final[:, None]], axis=1)
+        for q in range(len(self._knots)):
+            self._check_jumps(limits, after[:, q] - before[:, q], q, cycle_time_s)
+            if q < len(durations):
+                self._check_segment(limits, q, float(durations[q]))
+        for j, position in enumerate(self.final_positions):
+            self._check_position(limits, j, float(position), self.duration, self._knot_name(len(durations)))
+
+    def _knot_name(self, q: int) -> str:
+        """The knot as the user knows it: a point index, or the start state."""
+        return f"point {q - self._first_point}" if q >= self._first_point else "the start state"
+
+    def _check_jumps(self, limits: ArmLimits, jumps: np.ndarray, q: int, cycle_time_s: float) -> None:
+        """A velocity or acceleration step at a knot is commanded within one cycle: judge it as such."""
+        for k in (1, 2):
+            limit = limits.maximum(KINDS[k + 1])
+            level = np.abs(jumps[k]) / cycle_time_s
+            for j in np.flatnonzero(_beyond(level, limit)):
+                where = (f"the {KINDS[k]} step of {abs(jumps[k, j]):.6g} {UNITS[f'max_{KINDS[k]}']} at "
+                         f"{self._knot_name(q)} (t = {self._knots[q]:.6g} s), made within one "
+                         f"{cycle_time_s * 1e3:.6g} ms cycle,")
+                error = limit_exceeded(KINDS[k + 1], self.joint_names[j], level[j], limit[j], where)
+                error.how = SMOOTH_HOW
+                raise error
+
+    def _check_segment(self, limits: ArmLimits, s: int, duration: float) -> None:
+        """Exact extrema of position, velocity, acceleration and jerk inside segment `s`, against the limits."""
+        between = f"between {self._knot_name(s)} and {self._knot_name(s + 1)}"
+        for j, joint in enumerate(self.joint_names):
+            low, t_low, high, t_high = _extrema(self._derivatives[0, s, :, j], duration)
+            self._check_position(limits, j, low, self._knots[s] + t_low, between)
+            self._check_position(limits, j, high, self._knots[s] + t_high, between)
+            for k in (1, 2, 3):
+                limit = float(limits.maximum(KINDS[k])[j])
+                if math.isinf(limit):
+                    continue
+                low, t_low, high, t_high = _extrema(self._derivatives[k, s, :, j], duration)
+                value, t = (low, t_low) if -low > high else (high, t_high)
+                if _beyond(abs(value), limit):
+                    where = f"the trajectory at t = {self._knots[s] + t:.6g} s ({between})"
+                    error = limit_exceeded(KINDS[k], joint, value, limit, where)
+                    error.how = SMOOTH_HOW if k == 3 and self.segment_kinds[s] != "quintic" else SLOWER_HOW
+                    raise error
+
+    def _check_position(self, limits: ArmLimits, j: int, position: float, t: float, where: str) -> None:
+        """Reject one joint's position outside [min_position, max_position], saying when along the trajectory."""
+        low, high = float(limits.min_position[j]), float(limits.max_position[j])
+        if not (_beyond(-position, -low) or _beyond(position, high)):
+            return
+        joint = self.joint_names[j]
+        side, bound = ("min", low) if position < low else ("max", high)
+        raise CommandRejected(
+            f"the trajectory leaves the position limits of {joint}",
+            what=f"{joint} within [{low:.6g}, {high:.6g}] rad all along the trajectory",
+            why=f"at t = {t:.6g} s ({where}) {joint} = {position:.6g} rad is beyond its "
+                f"{side}_position {bound:.6g} rad",
+            how="keep every point inside the joint's range (config/joint_limits.yaml); between points a cubic or "
+                "quintic overshoots when the velocities are large, so lower them or add points, or use move_joints "
+                "for point-to-point motion")

@@ -1,0 +1,112 @@
+"""Per-cycle timing statistics: wake-up latency, compute time and overruns.
+
+Recording a cycle is a few index operations on preallocated arrays. A fixed-bin histogram (1 µs bins)
+covers the whole run, like cyclictest's; a rolling window of the last samples gives live figures.
+Percentiles are computed only when someone asks, outside the loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+HISTOGRAM_BIN_NS = 1_000
+HISTOGRAM_BINS = 10_000  # 0..10 ms; the last bin counts everything above
+
+
+@dataclass(frozen=True)
+class TimingSummary:
+    """Figures over a set of cycles, in microseconds."""
+
+    samples: int
+    min_us: float
+    mean_us: float
+    p50_us: float
+    p99_us: float
+    p999_us: float
+    max_us: float
+
+    @classmethod
+    def empty(cls) -> TimingSummary:
+        return cls(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+class _Series:
+    """One timed quantity: whole-run histogram plus a rolling window of raw samples."""
+
+    def __init__(self, window: int) -> None:
+        self.histogram = np.zeros(HISTOGRAM_BINS, dtype=np.int64)
+        self.window = np.zeros(window, dtype=np.int64)
+        self.count = 0
+        self.total_ns = 0
+        self.min_ns = 0
+        self.max_ns = 0
+
+    def add(self, value_ns: int) -> None:
+        if value_ns < 0:
+            value_ns = 0
+        bin_index = value_ns // HISTOGRAM_BIN_NS
+        self.histogram[bin_index if bin_index < HISTOGRAM_BINS else HISTOGRAM_BINS - 1] += 1
+        size = self.window.shape[0]
+        self.window[self.count % size] = value_ns
+        if self.count == 0 or value_ns < self.min_ns:
+            self.min_ns = value_ns
+        if value_ns > self.max_ns:
+            self.max_ns = value_ns
+        self.count += 1
+        self.total_ns += value_ns
+
+    def recent(self) -> TimingSummary:
+        filled = min(self.count, self.window.shape[0])
+        if filled == 0:
+            return TimingSummary.empty()
+        values = self.window[:filled] / 1e3
+        p50, p99, p999 = np.percentile(values, (50, 99, 99.9))
+        return TimingSummary(filled, float(values.min()), float(values.mean()), float(p50), float(p99),
+                             float(p999), float(values.max()))
+
+    def whole_run(self) -> TimingSummary:
+        if self.count == 0:
+            return TimingSummary.empty()
+        cumulative = np.cumsum(self.histogram)
+
+        def percentile(fraction: float) -> float:
+            index = int(np.searchsorted(cumulative, fraction * self.count, side="left"))
+            return (index + 1) * HISTOGRAM_BIN_NS / 1e3  # upper edge of the bin, like cyclictest
+
+        return TimingSummary(self.count, self.min_ns / 1e3, self.total_ns / self.count / 1e3, percentile(0.5),
+                             percentile(0.99), percentile(0.999), self.max_ns / 1e3)
+
+
+class TimingStats:
+    """Timing of every cycle of one loop run."""
+
+    def __init__(self, window: int = 10_000) -> None:
+        self.latency = _Series(window)
+        self.compute = _Series(window)
+        self.cycles = 0
+        self.overruns = 0
+        self.missed_periods = 0
+        self.consecutive_overruns = 0
+
+    def record(self, latency_ns: int, compute_ns: int) -> None:
+        """Account one cycle's wake-up latency and compute time."""
+        self.latency.add(latency_ns)
+        self.compute.add(compute_ns)
+        self.cycles += 1
+
+    def record_overrun(self, missed: int) -> None:
+        """A cycle ended after the next deadline; `missed` periods are skipped."""
+        self.overruns += 1
+        self.missed_periods += missed
+        self.consecutive_overruns += 1
+
+    def record_on_time(self) -> None:
+        self.consecutive_overruns = 0
+
+    def summary(self) -> dict[str, object]:
+        """Rolling and whole-run figures, for status lines, the state block and benchmarks."""
+        return {"cycles": self.cycles, "overruns": self.overruns, "missed_periods": self.missed_periods,
+                "latency": self.latency.whole_run(), "compute": self.compute.whole_run(),
+                "latency_recent": self.latency.recent(), "compute_recent": self.compute.recent()}

@@ -1,0 +1,387 @@
+"""Robot: one arm's runtime and loop behind a Python API, built by `Robot.builder(config)` or `RobotFactory`.
+
+The loop runs either in a background thread of the calling process (`start()`, for scripts and tests)
+or in the calling thread (`run()`, the body of the RT driver process); the commands are the same.
+Motions are validated and planned in the caller's thread, so the loop only samples them.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from plem.control.commands import CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
+from plem.control.events import EventKind, EventLog
+from plem.control.free_drive import FreeDriveController
+from plem.control.kinematics import ArmDynamics
+from plem.control.limits import ArmLimits
+from plem.control.loop import CycleLoop, LoopSettings
+from plem.control.modes import Mode
+from plem.control.motion import Motion, plan_point_to_point
+from plem.control.runtime import ArmRuntime, RuntimeSettings
+from plem.control.state import JointState, StateBlock
+from plem.control.trajectory import JointTrajectory, Spline, TrajectoryTolerances
+from plem.errors import CommandRejected, ConfigError, PlemError
+from plem.fieldbus.bus import BusSetup, IBus
+from plem.robot.config import SerialArmConfig
+from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
+
+PREEMPTION_LEAD_S = 0.02
+PLAN_ATTEMPTS = 5
+ACCEPT_TIMEOUT_S = 2.0
+IN_PROCESS_SWITCH_INTERVAL_S = 0.0002
+DEFAULT_COUNTS_PER_RADIAN = MOTOR_ENCODER_COUNTS * LARGE_JOINT_GEAR / (2 * math.pi)
+
+
+class EtherCATUnavailable(ConfigError):
+    """The EtherCAT bus was asked for but plem has no EtherCAT master yet."""
+
+
+class Robot:
+    """A built arm: bus opened, limits and dynamics loaded, loop ready to run."""
+
+    def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop,
+                 description_package: str, dynamics: ArmDynamics | None) -> None:
+        self.config = config
+        self.bus = bus
+        self.runtime = runtime
+        self.loop = loop
+        self.description_package = description_package
+        self.dynamics = dynamics
+        self._thread: threading.Thread | None = None
+        self._previous_switch_interval: float | None = None
+        self._closed = False
+
+    @staticmethod
+    def builder(config: SerialArmConfig) -> RobotBuilder:
+        """Start building a robot from `config` (see RobotBuilder)."""
+        return RobotBuilder(config)
+
+    # -- identity --------------------------------------------------------------------------------
+    @property
+    def robot_id(self) -> str:
+        return self.config.robot_id
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return self.runtime.joint_names
+
+    @property
+    def limits(self) -> ArmLimits:
+        return self.runtime.limits
+
+    @property
+    def events(self) -> EventLog:
+        return self.runtime.events
+
+    @property
+    def mode(self) -> Mode:
+        return self.runtime.mode
+
+    @property
+    def fault_reason(self) -> str:
+        return self.runtime.fault_reason
+
+    # -- running the loop ------------------------------------------------------------------------
+    def start(self) -> None:
+        """Run the loop in a background thread (real-time priority when permitted)."""
+        if self._thread is not None:
+            return
+        self._previous_switch_interval = sys.getswitchinterval()
+        sys.setswitchinterval(IN_PROCESS_SWITCH_INTERVAL_S)  # the loop thread gets the interpreter promptly
+        self._thread = threading.Thread(target=self.loop.run, name=f"plem-loop-{self.robot_id or 'robot'}",
+                                        daemon=True)
+        self._thread.start()
+        state = self.wait_for_state(2.0)
+        if state is None:
+            raise PlemError("the control loop did not start", what="a first cycle within 2 s",
+                            why=repr(self.loop.error) if self.loop.error else "no cycle ran",
+                            how="check the bus and the system load")
+
+    def step(self, cycles: int = 1) -> None:
+        """Run `cycles` cycles now, in the calling thread, without waiting for deadlines (simulated time).
+
+        Only while the loop is not running; waiting on a command handle steps the same way.
+        """
+        if self.running:
+            raise PlemError("cannot step a running loop", what="step() only while the loop is stopped",
+                            why="the loop runs in its own thread", how="call shutdown() first, or just wait")
+        for _ in range(cycles):
+            self.runtime.cycle()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _pump(self, condition: Callable[[], bool], timeout: float | None) -> None:
+        """Advance simulated time until `condition()` or `timeout` when no loop thread runs."""
+        if self.running:
+            return
+        cycles = math.ceil((timeout if timeout is not None else 60.0) / self.runtime.dt)
+        for _ in range(cycles):
+            if condition():
+                return
+            self.runtime.cycle()
+
+    def run(self, duration_s: float | None = None) -> None:
+        """Run the loop in the calling thread until `shutdown()` from elsewhere (or `duration_s`)."""
+        self.loop.run(duration_s)
+
+    def shutdown(self, timeout: float = 10.0) -> None:
+        """Stop any motion smoothly, disable the drives, stop the loop and close the bus (idempotent)."""
+        if self._closed:
+            return
+        if self.mode in (Mode.TRAJECTORY, Mode.HOLD, Mode.FREE_DRIVE):
+            self._settle_and_disable(timeout)
+        if self.running:
+            self.loop.stop()
+            self._thread.join(timeout)
+        self._thread = None
+        if self._previous_switch_interval is not None:
+            sys.setswitchinterval(self._previous_switch_interval)
+            self._previous_switch_interval = None
+        self.bus.close()
+        self._closed = True
+
+    def _settle_and_disable(self, timeout: float) -> None:
+        try:
+            if self.mode is not Mode.HOLD:
+                self.set_mode(Mode.HOLD, timeout)
+            self.wait_until_idle(timeout)
+            self.set_mode(Mode.IDLE, timeout)
+        except PlemError as error:
+            self.events.emit(EventKind.WARNING, "shutdown", f"could not settle before disabling: {error.summary}",
+                             self.mode, self.runtime.cycle_count)
+
+    def __enter__(self) -> Robot:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.shutdown()
+
+    # -- state -----------------------------------------------------------------------------------
+    def state(self) -> JointState | None:
+        """The latest published state (None before the first cycle)."""
+        return self.runtime.state_block.read()
+
+    def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
+        """Block until a state newer than `after_cycle` is published."""
+        deadline = threading.Event()
+        waited = 0.0
+        while waited <= timeout:
+            state = self.state()
+            if state is not None and state.cycle > after_cycle:
+                return state
+            deadline.wait(0.001)
+            waited += 0.001
+        return None
+
+    def timing(self) -> dict[str, Any]:
+        """Loop timing: whole-run and recent latency and compute, overruns, missed periods."""
+        return self.loop.stats.summary()
+
+    # -- commands --------------------------------------------------------------------------------
+    def _send(self, command: Any) -> CommandHandle:
+        self.runtime.inbox.append(command)
+        return command.handle
+
+    def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
+        """Change mode (idle, hold, free_drive) and wait until it took effect."""
+        requested = Mode.parse(mode)
+        handle = self._send(SetMode(requested, CommandHandle(f"set_mode({requested.name})", self._pump)))
+        return handle.wait(timeout)
+
+    def reset_fault(self, timeout: float = 5.0) -> Mode:
+        """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
+        return self._send(ResetFault(CommandHandle("reset_fault()", self._pump))).wait(timeout)
+
+    def stop(self) -> CommandHandle:
+        """Cancel the running motion with a jerk-limited stop; the arm then holds."""
+        return self._send(StopMotion(CommandHandle("stop()", self._pump)))
+
+    def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
+                    tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
+        """Time-optimal jerk-limited motion to `target` (rad), within every joint limit.
+
+        Returns once the loop accepted the motion; wait on the handle for the result.
+        """
+        goal = self.limits.check_vector(target, "the target")
+        return self._submit(lambda start: plan_point_to_point(self.limits, start, goal, speed_scale),
+                            tolerances, "move_joints")
+
+    def execute_trajectory(self, trajectory: JointTrajectory,
+                           tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
+        """Follow a JointTrajectory with ros2_control's spline semantics; rejected up front if it breaks a limit."""
+        def plan(start: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Spline:
+            spline = Spline.build(trajectory, self.limits, *start)
+            spline.check_limits(self.limits, self.runtime.dt)
+            return spline
+
+        return self._submit(plan, tolerances, "trajectory")
+
+    def _submit(self, plan: Callable[[tuple[np.ndarray, np.ndarray, np.ndarray]], Motion],
+                tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
+        """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
+        tolerances = tolerances or TrajectoryTolerances()
+        for attempt in range(PLAN_ATTEMPTS):
+            basis: PlanBasis = self.runtime.basis
+            activation, start = self._start_state(basis, attempt)
+            motion = plan(start)
+            handle = CommandHandle(label, self._pump)
+            final = np.array(motion.final_positions, dtype=float)
+            self._send(StartMotion(motion, basis, activation, tolerances, final, handle, label))
+            handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else PREEMPTION_LEAD_S * 2 ** attempt))
+            if not handle.stale:
+                return handle
+        raise CommandRejected(f"{label} could not be started", what="the arm's state to settle long enough to plan",
+                              why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
+                              how="retry, or stop() first")
+
+    def _start_state(self, basis: PlanBasis, attempt: int) -> tuple[int | None, tuple[np.ndarray, ...]]:
+        dof = self.limits.dof
+        if basis.motion is None:
+            return None, (basis.hold_position.copy(), np.zeros(dof), np.zeros(dof))
+        lead = max(2, math.ceil(PREEMPTION_LEAD_S * 2 ** attempt / self.runtime.dt))
+        activation = self.runtime.cycle_count + lead
+        t = (activation - basis.motion_start_cycle) * self.runtime.dt
+        return activation, basis.motion.state_at(t)
+
+    def wait_until_idle(self, timeout: float = 30.0) -> None:
+        """Block until no motion (user or internal stop) is running."""
+        waited = 0.0
+        pause = threading.Event()
+        def moving() -> bool:
+            return self.runtime.basis.motion is not None or self.mode is Mode.TRAJECTORY
+
+        self._pump(lambda: not moving(), timeout)
+        while moving():
+            if waited > timeout:
+                raise PlemError("the robot is still moving", what=f"motion to end within {timeout} s",
+                                why=f"mode {self.mode.name}", how="wait longer or call stop()")
+            pause.wait(0.002)
+            waited += 0.002
+
+
+@dataclass
+class RobotBuilder:
+    """Collects the choices for one robot; `build()` validates everything and opens the bus."""
+
+    config: SerialArmConfig
+    robot_id: str | None = None
+    bus: IBus | None = None
+    description_package: str | None = None
+    counts_per_radian: tuple[float, ...] | None = None
+    runtime_settings: RuntimeSettings = field(default_factory=RuntimeSettings)
+    loop_settings: dict[str, Any] = field(default_factory=dict)
+
+    def with_robot_id(self, robot_id: str) -> RobotBuilder:
+        """Instance id: namespace of topics and prefix of shared-memory names (e.g. 'arm_left')."""
+        self.robot_id = robot_id
+        return self
+
+    def with_bus(self, bus: IBus | None) -> RobotBuilder:
+        """Use this bus (same as config.custom_bus)."""
+        self.bus = bus
+        return self
+
+    def with_description(self, package: str) -> RobotBuilder:
+        """Description package (name or path); presets default to their built-in package."""
+        self.description_package = package
+        return self
+
+    def with_counts_per_radian(self, counts: Sequence[float]) -> RobotBuilder:
+        """Encoder counts per joint radian, for arms that are not presets."""
+        self.counts_per_radian = tuple(float(c) for c in counts)
+        return self
+
+    def with_runtime_settings(self, **values: Any) -> RobotBuilder:
+        """Override supervision thresholds (see RuntimeSettings)."""
+        self.runtime_settings = replace(self.runtime_settings, **values)
+        return self
+
+    def with_loop_settings(self, **values: Any) -> RobotBuilder:
+        """Override loop settings: cpus, max_consecutive_overruns, realtime."""
+        self.loop_settings.update(values)
+        return self
+
+    def build(self) -> Robot:
+        """Validate the config, load profile, description and limits, open the bus, make the runtime."""
+        from plem.description.validate import Stage, require_valid
+
+        config = replace(self.config, robot_id=self.robot_id) if self.robot_id is not None else self.config
+        config.validate()
+        offsets = self._joint_offsets(config)
+        model = config.MODEL
+        package = self.description_package or (model.description_package if model else None)
+        if package is None:
+            raise ConfigError("no description package for this arm",
+                              what="a description package with the arm's URDF and joint_limits.yaml",
+                              why=f"{config.model_name()} is not a preset and none was given",
+                              how="call .with_description('my_robot_description') on the builder")
+        report = require_valid(package, stage=Stage.STARTUP)
+        joint_names = tuple(model.joint_names) if model else tuple(j.name for j in report.urdf.actuated_joints)
+        if len(joint_names) != config.dof:
+            raise ConfigError("the URDF's DOF does not match the configuration",
+                              what=f"{config.dof} actuated joints", why=f"{package} has {len(joint_names)}",
+                              how="use the description package that belongs to this arm")
+        counts = self.counts_per_radian or (model.counts_per_radian() if model else
+                                            (DEFAULT_COUNTS_PER_RADIAN,) * config.dof)
+        bus = self._bus(config)
+        setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, report.urdf_xml,
+                         config.network_interface, config.master_index)
+        limits = ArmLimits.from_joint_limits(report.limits, joint_names)
+        dynamics = ArmDynamics(report.urdf_xml, joint_names)
+        bus.open(setup)
+        runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
+                             FreeDriveController(dynamics, limits, setup.cycle_time_s), self.runtime_settings, StateBlock(config.dof))
+        loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
+                                     **self.loop_settings)
+        loop = CycleLoop(runtime.cycle, loop_settings,
+                         on_overruns=lambda n: runtime.fault("overrun", f"{n} consecutive cycles overran their "
+                                                                        f"{config.cycle_time} µs period"),
+                         on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"))
+        return Robot(config, bus, runtime, loop, str(package), dynamics)
+
+    def _bus(self, config: SerialArmConfig) -> IBus:
+        bus = self.bus or config.custom_bus
+        if bus is None:
+            raise EtherCATUnavailable("the EtherCAT bus is not available in this version of plem",
+                                      what="a bus to drive the arm",
+                                      why="no custom_bus was given, so the default EtherCAT bus was requested",
+                                      how="use the simulated arm: config.custom_bus = MockBus(dof) "
+                                          "(CLI: bus:=mock)")
+        if not isinstance(bus, IBus):
+            raise ConfigError("custom_bus does not implement IBus", what="an object with the IBus methods",
+                              why=f"got {type(bus).__name__}", how="pass a MockBus or an IBus implementation")
+        return bus
+
+    @staticmethod
+    def _joint_offsets(config: SerialArmConfig) -> list[int]:
+        """Offsets from the profile when robot_serial is set (the reference's rule), else from the config."""
+        if not config.robot_serial:
+            return list(config.joint_offsets)
+        from plem.robot.profile import RobotProfile
+
+        profile = RobotProfile.load_from_serial(config.robot_serial)
+        if len(profile.joint_offsets) != config.dof:
+            raise ConfigError(f"profile {config.robot_serial} has {len(profile.joint_offsets)} joint offsets",
+                              what=f"{config.dof} offsets, one per joint",
+                              why=f"{RobotProfile.default_path(config.robot_serial)} has "
+                                  f"{len(profile.joint_offsets)}",
+                              how=f"recreate it: plem profile create {config.robot_serial} --offsets ...")
+        return list(profile.joint_offsets)
+
+
+class RobotFactory:
+    """Builds a robot from a config and an optional bus, like the reference's RobotFactory<Model>::create."""
+
+    @staticmethod
+    def create(config: SerialArmConfig, bus: IBus | None = None) -> Robot:
+        return Robot.builder(config).with_bus(bus).build()
