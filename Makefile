@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/plem config show robot_type:=indy7_v2
+	$(BIN)/python examples/simulated_arm.py indy7_v2
 
 test: $(STAMP)
 	$(BIN)/pytest -q -m "not slow"

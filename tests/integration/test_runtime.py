@@ -342,3 +342,22 @@ def test_seven_dof_arm_moves_in_a_background_thread():
         assert robot.timing()["cycles"] > 0
     assert robot.mode is Mode.IDLE
     assert not robot.running
+
+
+def test_steady_state_cycles_keep_their_buffers_and_do_not_grow_memory(holding):
+    import tracemalloc
+
+    holding.execute_trajectory(quintic_trajectory([(8.0, [0.5] * 6)]))
+    holding.step(200)
+    runtime = holding.runtime
+    buffers = [id(a) for a in (runtime._work, runtime._scratch, holding.bus.io.target_position)]
+    tracemalloc.start()
+    try:
+        holding.step(100)
+        before, _ = tracemalloc.get_traced_memory()
+        holding.step(3000)
+        after, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert [id(a) for a in (runtime._work, runtime._scratch, holding.bus.io.target_position)] == buffers
+    assert after - before < 2048, after - before

@@ -15,6 +15,7 @@ from plem.control.realtime import AbsoluteSleeper, RealtimeContext, RealtimeRepo
 from plem.control.timing import TimingStats
 
 MAX_CONSECUTIVE_ERRORS = 3
+OVERRUN_REPORT_INTERVAL_NS = 1_000_000_000
 
 
 @dataclass(frozen=True)
@@ -32,14 +33,17 @@ class CycleLoop:
     """Calls `cycle()` once per period until `stop()`; timing goes to `stats`.
 
     `on_overruns(count)` is called once when `max_consecutive_overruns` overruns happen in a row;
+    `on_overrun_report(new, total, missed)` at most once a second while overruns keep happening;
     `on_error(exc)` when the cycle raises (the loop keeps running, so the robot can still be stopped,
     unless it raises MAX_CONSECUTIVE_ERRORS times in a row).
     """
 
     def __init__(self, cycle: Callable[[], None], settings: LoopSettings,
                  on_overruns: Callable[[int], None] | None = None,
-                 on_error: Callable[[BaseException], None] | None = None) -> None:
+                 on_error: Callable[[BaseException], None] | None = None,
+                 on_overrun_report: Callable[[int, int, int], None] | None = None) -> None:
         self.cycle = cycle
+        self.on_overrun_report = on_overrun_report
         self.settings = settings
         self.on_overruns = on_overruns
         self.on_error = on_error
@@ -80,6 +84,8 @@ class CycleLoop:
         deadline = clock() + period
         end = deadline + int(duration_s * 1e9) if duration_s is not None else None
         errors = 0
+        reported_overruns = 0
+        next_report = 0
         while not stop.is_set():
             sleeper.sleep_until(deadline)
             woke = clock()
@@ -102,6 +108,10 @@ class CycleLoop:
                 stats.record_overrun(int(missed))
                 if stats.consecutive_overruns == limit and self.on_overruns is not None:
                     self.on_overruns(stats.consecutive_overruns)
+                if done >= next_report and self.on_overrun_report is not None:
+                    self.on_overrun_report(stats.overruns - reported_overruns, stats.overruns, stats.missed_periods)
+                    reported_overruns = stats.overruns
+                    next_report = done + OVERRUN_REPORT_INTERVAL_NS
             else:
                 stats.record_on_time()
             if end is not None and deadline > end:

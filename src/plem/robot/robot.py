@@ -346,7 +346,10 @@ class RobotBuilder:
         loop = CycleLoop(runtime.cycle, loop_settings,
                          on_overruns=lambda n: runtime.fault("overrun", f"{n} consecutive cycles overran their "
                                                                         f"{config.cycle_time} µs period"),
-                         on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"))
+                         on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
+                         on_overrun_report=lambda new, total, missed: runtime.events.emit(
+                             EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
+                             f"{missed} missed periods)", runtime.mode, runtime.cycle_count))
         return Robot(config, bus, runtime, loop, str(package), dynamics)
 
     def _bus(self, config: SerialArmConfig) -> IBus:
