@@ -38,15 +38,18 @@ Figures (µs):
   compute   plem only: time from the wake-up to the end of ArmRuntime.cycle() (bus read, simulated dynamics,
             supervision, motion sampling, limits, bus write, state publication).
   ratios    plem / cyclictest within each pair, median over the pairs.
-  note      motions started (plem), the 1-minute load average at the end of the run (other work on the machine
-            shows there), whether cyclictest held /dev/cpu_dma_latency.
+  note      plem: motions started, and the periods missed while a motion was handed over (from the caller
+            waking up in handle.wait() to move_joints() returning: the loop finishing one motion and the caller
+            planning and submitting the next); cyclictest: whether it held /dev/cpu_dma_latency. Both: the
+            1-minute load average at the end of the run (other work on the machine shows there).
 /dev/cpu_dma_latency: cyclictest opens it, writes 0 and holds it for the whole run unless given --laptop or
 --default-system (then it leaves it alone); --latency=N writes N instead of 0. None of them is used here, so both
 sides hold it at 0 (plem: plem.control.realtime.RealtimeContext).
 
-Targets: at 1 kHz, latency p99 and p99.9 each <= 1.2x cyclictest's; at every rate, missed periods <= 2x
-cyclictest's (medians over the runs) and compute p99 <= 100 µs; plem's forward kinematics, Jacobian and ruckig
-step <= 1.5x the bare pinocchio / ruckig call (benchmarks/micro_kinematics.py, run first in the same process).
+Targets: at 1 kHz, latency p99 and p99.9 each <= 1.2x cyclictest's (median ratios); at every rate, missed
+periods <= 2x cyclictest's (summed over the runs of each side, since a single run's count is often 0) and compute
+p99 <= 100 µs (median over the runs); plem's forward kinematics, Jacobian and ruckig step <= 1.5x the bare
+pinocchio / ruckig call (benchmarks/micro_kinematics.py, run first in the same process).
 """
 
 from __future__ import annotations
@@ -151,21 +154,34 @@ def window_max_us(counts: np.ndarray, whole_run_max_ns: int) -> int:
 
 
 # -- plem ----------------------------------------------------------------------------------------------------------
-def keep_moving(robot: Robot, seconds: int) -> tuple[Snapshot, Snapshot, int, str]:
+@dataclass(frozen=True)
+class Window:
+    """What happened in one plem run's measured window."""
+
+    start: Snapshot
+    end: Snapshot
+    motions: int
+    handover_missed: int  # periods missed between the caller waking from wait() and move_joints() returning
+    fault: str  # why the robot faulted, '' if it did not
+
+
+def keep_moving(robot: Robot, seconds: int) -> Window:
     """Alternate move_joints(POSE) / move_joints(HOME) for `seconds` from the first acceptance.
 
-    Returns the loop's timing at the window's start and end, the number of motions started, and the reason
-    the robot faulted ('' if it did not); after a fault the window still runs to its end, without motions.
+    After a fault the window still runs to its end, without motions.
     """
+    stats = robot.loop.stats
     targets = itertools.cycle((POSE, HOME))
     handle = robot.move_joints(next(targets), SPEED_SCALE)
-    start = Snapshot.of(robot.loop.stats)
+    start = Snapshot.of(stats)
     end_time = time.monotonic() + seconds
-    motions, fault = 1, ""
+    motions, handover_missed, fault = 1, 0, ""
     while (remaining := end_time - time.monotonic()) > 0:
         try:
             handle.wait(remaining)
+            before = stats.missed_periods
             handle = robot.move_joints(next(targets), SPEED_SCALE)
+            handover_missed += stats.missed_periods - before
             motions += 1
         except CommandTimeout:
             break
@@ -173,7 +189,7 @@ def keep_moving(robot: Robot, seconds: int) -> tuple[Snapshot, Snapshot, int, st
             fault = robot.fault_reason or error.summary
             time.sleep(max(0.0, end_time - time.monotonic()))
             break
-    return start, Snapshot.of(robot.loop.stats), motions, fault
+    return Window(start, Snapshot.of(stats), motions, handover_missed, fault)
 
 
 def run_plem(period_us: int, seconds: int) -> tuple[Run, list[str]]:
@@ -185,7 +201,7 @@ def run_plem(period_us: int, seconds: int) -> tuple[Run, list[str]]:
     robot.start()
     try:
         robot.set_mode("hold")
-        start, end, motions, fault = keep_moving(robot, seconds)
+        window = keep_moving(robot, seconds)
     finally:
         robot.shutdown()
     stats = robot.loop.stats
@@ -194,9 +210,11 @@ def run_plem(period_us: int, seconds: int) -> tuple[Run, list[str]]:
                 "memory locked" if report.memory_locked else "memory NOT locked",
                 "/dev/cpu_dma_latency held at 0" if report.dma_latency_held else "/dev/cpu_dma_latency NOT held",
                 *report.warnings]
+    start, end = window.start, window.end
     latency = end.latency - start.latency
     compute = end.compute - start.compute
-    note = f"{motions} motions, {load_note()}" + (f"; FAULT: {fault}" if fault else "")
+    note = (f"{window.motions} motions, {window.handover_missed} missed at hand-overs, {load_note()}"
+            + (f"; FAULT: {window.fault}" if window.fault else ""))
     run = Run("plem", int(latency.sum()), Percentiles.of(latency, window_max_us(latency, stats.latency.max_ns)),
               end.missed - start.missed, compute=Percentiles.of(compute, window_max_us(compute, stats.compute.max_ns)),
               note=note)
@@ -315,22 +333,22 @@ def summarize(result: RateResult) -> list[tuple[str, bool]]:
     ratios = {name: statistics.median(ratio(getattr(p.latency, field), getattr(c.latency, field)) for p, c in pairs)
               for name, field in (("p50", "p50"), ("p99", "p99"), ("p99.9", "p999"), ("max", "max"))}
     missed_ratio = statistics.median(ratio(p.missed, c.missed) for p, c in pairs)
-    plem_missed = statistics.median(p.missed for p, _ in pairs)
-    cyclictest_missed = statistics.median(c.missed for _, c in pairs)
+    plem_missed = sum(p.missed for p, _ in pairs)
+    cyclictest_missed = sum(c.missed for _, c in pairs)
     compute = {name: statistics.median(getattr(p.compute, field) for p, _ in pairs)
                for name, field in (("p50", "p50"), ("p99", "p99"), ("max", "max"))}
     print(f"\n{result.rate_hz} Hz, median over {len(pairs)} pair(s):")
     print("  latency plem/cyclictest: " + ", ".join(f"{name} {times(value)}" for name, value in ratios.items()))
-    print(f"  missed periods: plem {plem_missed:g}, cyclictest {cyclictest_missed:g}, "
-          f"ratio {times(missed_ratio)} (0/0 counts as 1x)")
+    print(f"  missed periods: ratio {times(missed_ratio)} (0/0 counts as 1x); over all runs plem {plem_missed}, "
+          f"cyclictest {cyclictest_missed}")
     print("  plem compute: " + ", ".join(f"{name} {value:g} µs" for name, value in compute.items()))
     rate = f"{result.rate_hz} Hz"
     targets = []
     if result.rate_hz == LATENCY_TARGET_RATE_HZ:
         targets += [(f"{rate} latency {name} <= {LATENCY_TARGET}x cyclictest's: {times(ratios[name])}",
                      ratios[name] <= LATENCY_TARGET) for name in ("p99", "p99.9")]
-    targets.append((f"{rate} missed periods <= {MISSED_TARGET:g}x cyclictest's: plem {plem_missed:g}, "
-                    f"cyclictest {cyclictest_missed:g}", plem_missed <= MISSED_TARGET * cyclictest_missed))
+    targets.append((f"{rate} missed periods over all runs <= {MISSED_TARGET:g}x cyclictest's: plem {plem_missed}, "
+                    f"cyclictest {cyclictest_missed}", plem_missed <= MISSED_TARGET * cyclictest_missed))
     targets.append((f"{rate} compute p99 <= {COMPUTE_P99_TARGET_US:g} µs: {compute['p99']:g} µs",
                     compute["p99"] <= COMPUTE_P99_TARGET_US))
     return targets

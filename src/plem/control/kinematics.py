@@ -16,7 +16,11 @@ from plem.errors import ConfigError
 
 
 class ArmDynamics:
-    """Pinocchio model and data of one arm, with results written into caller-owned arrays."""
+    """Pinocchio model and data of one arm, with results written into caller-owned arrays.
+
+    One instance is not thread-safe (it shares pinocchio's data between calls): the loop owns the
+    robot's instance, other threads build their own.
+    """
 
     def __init__(self, urdf_xml: str, joint_names: Sequence[str], tip_frame: str | None = None) -> None:
         try:
@@ -61,7 +65,10 @@ class ArmDynamics:
         return len(self.joint_names)
 
     def _load(self, target: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """`values` in pinocchio's order: passed through when the orders agree, else permuted into `target`."""
         if self._identity:
+            if type(values) is np.ndarray:
+                return values
             target[:] = values
         else:
             target[self._order] = values
@@ -95,9 +102,9 @@ class ArmDynamics:
         return diagonal if self._identity else diagonal[self._order]
 
     def forward_kinematics(self, q: np.ndarray) -> pin.SE3:
-        """Pose of the tip frame in the base frame at `q`."""
+        """Pose of the tip frame in the base frame at `q` (a copy the caller may keep)."""
         pin.framesForwardKinematics(self.model, self.data, self._load(self._q, q))
-        return self.data.oMf[self._tip_id]
+        return self.data.oMf[self._tip_id].copy()
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """6×dof Jacobian of the tip frame, in the world-aligned frame at the tip (columns in joint order)."""

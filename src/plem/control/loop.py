@@ -6,6 +6,7 @@ burst to catch up), and K consecutive overruns are reported to the runtime as a 
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -16,6 +17,7 @@ from plem.control.timing import TimingStats
 
 MAX_CONSECUTIVE_ERRORS = 3
 OVERRUN_REPORT_INTERVAL_NS = 1_000_000_000
+_log = logging.getLogger("plem.control")
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,7 @@ class CycleLoop:
 
     `on_overruns(count)` is called once when `max_consecutive_overruns` overruns happen in a row;
     `on_overrun_report(new, total, missed)` at most once a second while overruns keep happening;
+    `on_warning(text)` once per real-time set-up step the machine refused (default: a log warning);
     `on_error(exc)` when the cycle raises (the loop keeps running, so the robot can still be stopped,
     unless it raises MAX_CONSECUTIVE_ERRORS times in a row).
     """
@@ -41,8 +44,10 @@ class CycleLoop:
     def __init__(self, cycle: Callable[[], None], settings: LoopSettings,
                  on_overruns: Callable[[int], None] | None = None,
                  on_error: Callable[[BaseException], None] | None = None,
-                 on_overrun_report: Callable[[int, int, int], None] | None = None) -> None:
+                 on_overrun_report: Callable[[int, int, int], None] | None = None,
+                 on_warning: Callable[[str], None] = _log.warning) -> None:
         self.cycle = cycle
+        self.on_warning = on_warning
         self.on_overrun_report = on_overrun_report
         self.settings = settings
         self.on_overruns = on_overruns
@@ -66,6 +71,8 @@ class CycleLoop:
                                   hold_dma_latency=settings.realtime) if settings.realtime else None
         if context is not None:
             self.report = context.__enter__()
+            for warning in self.report.warnings:
+                self.on_warning(warning)
         try:
             self._run(duration_s)
         finally:

@@ -33,6 +33,14 @@ CSP = int(OperationMode.CYCLIC_SYNC_POSITION)
 CST = int(OperationMode.CYCLIC_SYNC_TORQUE)
 
 
+def _center_and_half(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Midpoint and half-width of each range; an unlimited joint gets centre 0 and half-width inf."""
+    finite = np.isfinite(low) & np.isfinite(high)
+    center = np.where(finite, (low + high) / 2, 0.0)
+    half = np.where(finite, (high - low) / 2, np.inf)
+    return center, half
+
+
 class _Flags:
     """A preallocated boolean buffer, so the cycle's comparisons allocate nothing (and skip ndarray.any())."""
 
@@ -97,16 +105,28 @@ class ArmRuntime:
         self._counts = np.zeros(dof, dtype=np.int64)
         self._status = np.zeros(dof, dtype=np.uint16)
         self._flags = _Flags(dof)
-        self._command_flags = _Flags((3, dof))
-        self._low = np.vstack([limits.min_position, -limits.max_velocity, -limits.max_acceleration])
-        self._high = np.vstack([limits.max_position, limits.max_velocity, limits.max_acceleration])
-        self._low -= np.abs(self._low) * self.settings.command_tolerance + 1e-9
-        self._high += np.abs(self._high) * self.settings.command_tolerance + 1e-9
-        self._jerk_step = limits.max_jerk * self.dt * (1 + self.settings.command_tolerance) + 1e-9
-        self._measured_low = limits.min_position - self.settings.position_margin
-        self._measured_high = limits.max_position + self.settings.position_margin
-        self._velocity_bound = limits.max_velocity * self.settings.velocity_margin + 0.01
-        self._jump_bound = 2.0 * limits.max_velocity * self.dt + 1e-3
+        settings = self.settings
+        center, half = _center_and_half(limits.min_position, limits.max_position)
+        # Measured checks, one row each: encoder jump, position, velocity, tracking error.
+        self._measure = np.zeros((4, dof))
+        self._measure_flags = _Flags((4, dof))
+        self._measure_center = center
+        measure_bounds = np.vstack([2.0 * limits.max_velocity * self.dt + 1e-3, half + settings.position_margin,
+                                    limits.max_velocity * settings.velocity_margin + 0.01,
+                                    np.full(dof, settings.tracking_tolerance)])
+        idle = measure_bounds.copy()
+        idle[1:] = np.inf  # drives off: only encoder plausibility
+        free = measure_bounds.copy()
+        free[3] = np.inf   # free drive: the command follows the arm
+        self._measure_bounds = {Mode.IDLE: idle, Mode.FREE_DRIVE: free, Mode.HOLD: measure_bounds,
+                                Mode.TRAJECTORY: measure_bounds}
+        # Command checks: |command - center| per row (position, velocity, acceleration) and |Δa| per cycle.
+        self._command_center = np.vstack([center, np.zeros(dof), np.zeros(dof)])
+        slack = 1 + settings.command_tolerance
+        self._command_bounds = np.vstack([half * slack, limits.max_velocity * slack, limits.max_acceleration * slack,
+                                          limits.max_jerk * self.dt * slack]) + 1e-9
+        self._command_check = np.zeros((4, dof))
+        self._command_flags = _Flags((4, dof))
         self._have_previous = False
         self._active: ActiveMotion | None = None
         self._pending_mode: list | None = None  # [target mode, deadline cycle, handle, enable sent]
@@ -139,45 +159,46 @@ class ArmRuntime:
                                  self.mode in (Mode.HOLD, Mode.TRAJECTORY, Mode.FREE_DRIVE))
 
     def _supervise_measurement(self, io: BusIO) -> None:
-        """Fault on drive faults, implausible encoder jumps and limit breaches."""
-        enabled = self.mode in (Mode.HOLD, Mode.TRAJECTORY, Mode.FREE_DRIVE)
-        flags = self._flags
-        if enabled and flags.not_equal(np.bitwise_and(io.statusword, ENABLED_MASK, out=self._status), ENABLED_VALUE):
-            i = int(np.flatnonzero(flags.buffer)[0])
+        """Fault on drive faults, implausible encoder jumps, limit breaches and tracking errors."""
+        mode = self.mode
+        enabled = mode is not Mode.IDLE
+        if enabled and self._flags.not_equal(np.bitwise_and(io.statusword, ENABLED_MASK, out=self._status),
+                                             ENABLED_VALUE):
+            i = int(np.flatnonzero(self._flags.buffer)[0])
             cause = "drive_fault" if io.statusword[i] & STATUS_FAULT_BIT else "drive_disabled"
             self._fault(cause, describe_drive_fault(self.joint_names[i], int(io.statusword[i]),
                                                     int(io.error_code[i])))
             return
-        if self._have_previous:
-            np.subtract(self.position, self._previous_position, out=self._scratch)
-            np.abs(self._scratch, out=self._scratch)
-            if flags.greater(self._scratch, self._jump_bound):
-                i = int(np.argmax(self._scratch - self._jump_bound))
-                self._fault("encoder_jump", f"{self.joint_names[i]} encoder jumped {self._scratch[i]:.4g} rad in one "
-                            f"cycle (at most {self._jump_bound[i]:.4g} rad is physically possible)")
-                return
+        if not self._have_previous:
+            self._previous_position[:] = self.position
+            self._have_previous = True
+        measure = self._measure
+        np.subtract(self.position, self._previous_position, out=measure[0])
+        np.subtract(self.position, self._measure_center, out=measure[1])
+        np.copyto(measure[2], self.velocity)
+        np.subtract(self.command_position, self.position, out=measure[3])
+        np.abs(measure, out=measure)
         self._previous_position[:] = self.position
-        self._have_previous = True
-        if not enabled:
-            return
-        if flags.less(self.position, self._measured_low) or flags.greater(self.position, self._measured_high):
-            i = int(np.flatnonzero((self.position < self._measured_low) | (self.position > self._measured_high))[0])
-            self._fault("position_limit", f"{self.joint_names[i]} at {self.position[i]:.4g} rad is outside "
-                        f"[{self.limits.min_position[i]:.4g}, {self.limits.max_position[i]:.4g}] rad")
-            return
-        np.abs(self.velocity, out=self._scratch)
-        if flags.greater(self._scratch, self._velocity_bound):
-            i = int(np.argmax(self._scratch - self._velocity_bound))
-            self._fault("velocity_limit", f"{self.joint_names[i]} moves at {self.velocity[i]:.4g} rad/s, above "
-                        f"its limit {self.limits.max_velocity[i]:.4g} rad/s")
-            return
-        if self.mode is not Mode.FREE_DRIVE:
-            np.subtract(self.command_position, self.position, out=self._scratch)
-            np.abs(self._scratch, out=self._scratch)
-            if flags.greater(self._scratch, self.settings.tracking_tolerance):
-                i = int(np.argmax(self._scratch))
-                self._fault("tracking_error", f"{self.joint_names[i]} is {self._scratch[i]:.4g} rad from its command "
-                            f"(tolerance {self.settings.tracking_tolerance:g} rad)")
+        bounds = self._measure_bounds[mode]
+        if self._measure_flags.greater(measure, bounds):
+            self._measurement_fault(measure, bounds)
+
+    def _measurement_fault(self, measure: np.ndarray, bounds: np.ndarray) -> None:
+        """Name the first breached check (rows in order of how basic they are) and fault."""
+        row, i = (int(x) for x in np.argwhere(self._measure_flags.buffer)[0])
+        joint, value, bound = self.joint_names[i], measure[row, i], bounds[row, i]
+        limits = self.limits
+        if row == 0:
+            self._fault("encoder_jump", f"{joint} encoder jumped {value:.4g} rad in one cycle (at most {bound:.4g} "
+                        "rad is physically possible)")
+        elif row == 1:
+            self._fault("position_limit", f"{joint} at {self.position[i]:.4g} rad is outside "
+                        f"[{limits.min_position[i]:.4g}, {limits.max_position[i]:.4g}] rad")
+        elif row == 2:
+            self._fault("velocity_limit", f"{joint} moves at {self.velocity[i]:.4g} rad/s, above its limit "
+                        f"{limits.max_velocity[i]:.4g} rad/s")
+        else:
+            self._fault("tracking_error", f"{joint} is {value:.4g} rad from its command (tolerance {bound:g} rad)")
 
     def _control(self) -> None:
         mode = self.mode
@@ -207,24 +228,21 @@ class ArmRuntime:
             self._advance_enable()
 
     def _check_command(self) -> None:
-        command = self.command
-        if self._command_flags.greater(command, self._high) or self._command_flags.less(command, self._low):
-            self._command_breach()
-            return
-        np.subtract(self.command_acceleration, self._previous_acceleration, out=self._scratch)
-        np.abs(self._scratch, out=self._scratch)
+        """Fault when the command leaves the position, velocity or acceleration limits or jerks too hard."""
+        check = self._command_check
+        np.subtract(self.command, self._command_center, out=check[:3])
+        np.subtract(self.command_acceleration, self._previous_acceleration, out=check[3])
+        np.abs(check, out=check)
         self._previous_acceleration[:] = self.command_acceleration
-        if self._flags.greater(self._scratch, self._jerk_step):
-            i = int(np.argmax(self._scratch - self._jerk_step))
-            self._fault("jerk_limit", f"command of {self.joint_names[i]} changed acceleration by "
-                        f"{self._scratch[i]:.4g} rad/s² in one cycle (jerk limit {self.limits.max_jerk[i]:.4g} rad/s³)")
-
-    def _command_breach(self) -> None:
-        outside = (self.command > self._high) | (self.command < self._low)
-        row, i = (int(x) for x in np.argwhere(outside)[0])
-        kind = ("position", "velocity", "acceleration")[row]
-        value = self.command[row, i]
-        self._fault(f"{kind}_limit", f"command for {self.joint_names[i]} has {kind} {value:.6g}, beyond its limit")
+        if self._command_flags.greater(check, self._command_bounds):
+            row, i = (int(x) for x in np.argwhere(self._command_flags.buffer)[0])
+            kind = ("position", "velocity", "acceleration", "jerk")[row]
+            value = check[row, i] / self.dt if row == 3 else self.command[row, i]
+            limit = self.limits.maximum(kind)[i] if row else None
+            detail = (f"{kind} {value:.6g}, beyond its limit {limit:.6g}" if limit is not None
+                      else f"position {value:.6g} rad, outside [{self.limits.min_position[i]:.6g}, "
+                           f"{self.limits.max_position[i]:.6g}]")
+            self._fault(f"{kind}_limit", f"command for {self.joint_names[i]} has {detail}")
 
     def _write(self) -> None:
         io = self.bus.io

@@ -7,6 +7,7 @@ Motions are validated and planned in the caller's thread, so the loop only sampl
 
 from __future__ import annotations
 
+import logging
 import math
 import sys
 import threading
@@ -35,8 +36,18 @@ from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 PREEMPTION_LEAD_S = 0.02
 PLAN_ATTEMPTS = 5
 ACCEPT_TIMEOUT_S = 2.0
-IN_PROCESS_SWITCH_INTERVAL_S = 0.0002
+MAX_SWITCH_INTERVAL_S = 0.0002
+SWITCH_INTERVALS_PER_CYCLE = 5  # another thread holds the interpreter for at most a fifth of a period
 DEFAULT_COUNTS_PER_RADIAN = MOTOR_ENCODER_COUNTS * LARGE_JOINT_GEAR / (2 * math.pi)
+
+
+_log = logging.getLogger("plem.robot")
+
+
+def _warn(runtime: ArmRuntime, text: str) -> None:
+    """A start-up warning goes to the log once and into the event log."""
+    _log.warning(text)
+    runtime.events.emit(EventKind.WARNING, "realtime_setup", text, runtime.mode, runtime.cycle_count)
 
 
 class EtherCATUnavailable(ConfigError):
@@ -47,13 +58,13 @@ class Robot:
     """A built arm: bus opened, limits and dynamics loaded, loop ready to run."""
 
     def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop,
-                 description_package: str, dynamics: ArmDynamics | None) -> None:
+                 description_package: str, dynamics: ArmDynamics) -> None:
         self.config = config
         self.bus = bus
         self.runtime = runtime
         self.loop = loop
         self.description_package = description_package
-        self.dynamics = dynamics
+        self.dynamics = dynamics  # kinematics and dynamics for the caller's thread (the loop has its own)
         self._thread: threading.Thread | None = None
         self._previous_switch_interval: float | None = None
         self._closed = False
@@ -94,7 +105,8 @@ class Robot:
         if self._thread is not None:
             return
         self._previous_switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(IN_PROCESS_SWITCH_INTERVAL_S)  # the loop thread gets the interpreter promptly
+        # the loop thread gets the interpreter back within a fraction of its period
+        sys.setswitchinterval(min(MAX_SWITCH_INTERVAL_S, self.runtime.dt / SWITCH_INTERVALS_PER_CYCLE))
         self._thread = threading.Thread(target=self.loop.run, name=f"plem-loop-{self.robot_id or 'robot'}",
                                         daemon=True)
         self._thread.start()
@@ -337,10 +349,11 @@ class RobotBuilder:
         setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, report.urdf_xml,
                          config.network_interface, config.master_index)
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
-        dynamics = ArmDynamics(report.urdf_xml, joint_names)
+        loop_dynamics = ArmDynamics(report.urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
         bus.open(setup)
         runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
-                             FreeDriveController(dynamics, limits, setup.cycle_time_s), self.runtime_settings, StateBlock(config.dof))
+                             FreeDriveController(loop_dynamics, limits, setup.cycle_time_s), self.runtime_settings,
+                             StateBlock(config.dof))
         loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
                                      **self.loop_settings)
         loop = CycleLoop(runtime.cycle, loop_settings,
@@ -349,8 +362,9 @@ class RobotBuilder:
                          on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
                          on_overrun_report=lambda new, total, missed: runtime.events.emit(
                              EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
-                             f"{missed} missed periods)", runtime.mode, runtime.cycle_count))
-        return Robot(config, bus, runtime, loop, str(package), dynamics)
+                             f"{missed} missed periods)", runtime.mode, runtime.cycle_count),
+                         on_warning=lambda text: _warn(runtime, text))
+        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(report.urdf_xml, joint_names))
 
     def _bus(self, config: SerialArmConfig) -> IBus:
         bus = self.bus or config.custom_bus
