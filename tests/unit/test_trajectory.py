@@ -453,3 +453,19 @@ def test_results_carry_the_follow_joint_trajectory_error_codes():
     assert TrajectoryResult.canceled().outcome is TrajectoryOutcome.CANCELED
     rejected = TrajectoryResult.rejected(CommandRejected("bad", what="w", why="y", how="h"))
     assert rejected.outcome is TrajectoryOutcome.REJECTED and rejected.message.startswith("ERROR: bad")
+
+
+def test_state_at_agrees_with_sample_even_behind_the_cursor():
+    limits = ArmLimits(tuple(f"joint{i}" for i in range(6)), np.full(6, -3.05), np.full(6, 3.05), np.full(6, 2.6),
+                       np.full(6, 3.0), np.full(6, 30.0), np.full(6, 400.0))
+    zeros = (0.0,) * 6
+    trajectory = JointTrajectory(limits.joint_names, (
+        TrajectoryPoint((0.3,) * 6, 2.0, (0.1,) * 6, zeros), TrajectoryPoint((0.5,) * 6, 4.0, zeros, zeros)))
+    spline = Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6))
+    out = [np.zeros(6) for _ in range(3)]
+    spline.sample(3.5, *out)
+    for t in (0.0, 0.7, 2.0, 3.1, 4.0, 9.0):
+        expected = [np.zeros(6) for _ in range(3)]
+        Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6)).sample(t, *expected)
+        for want, got in zip(expected, spline.state_at(t)):
+            assert np.allclose(want, got, atol=1e-12)

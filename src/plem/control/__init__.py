@@ -23,6 +23,7 @@ _LAZY = {
     "Mode": "plem.control.modes",
     "TimingStats": "plem.control.timing",
     "JointTrajectory": "plem.control.trajectory",
+    "Spline": "plem.control.spline",
     "TrajectoryPoint": "plem.control.trajectory",
     "TrajectoryTolerances": "plem.control.trajectory",
     "TrajectoryOutcome": "plem.control.trajectory",
