@@ -1,0 +1,1 @@
+"""Shared memory between the RT driver and other processes: segments and the state segment."""

@@ -1,0 +1,170 @@
+"""The state segment `/{robot_id}_joint_actual_values`: a versioned header and the loop's state block.
+
+The header says what the block holds (magic, layout version, DOF, a hash of the joint names, cycle time)
+and who writes it (owner pid). The state block behind it is the seqlock of `plem.control.state`; its
+per-cycle time stamp is the driver's heartbeat. A segment whose owner is gone, or whose heartbeat
+stopped, is stale and may be replaced; a live one is never taken over.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import struct
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from plem.control.state import StateBlock
+from plem.errors import ConfigError
+from plem.ipc.segment import SegmentError, SharedSegment
+
+MAGIC = b"PLEMSTAT"
+LAYOUT_VERSION = 1
+NAMES_BYTES = 1024
+_HEADER = struct.Struct("<8sIIQq16s")  # magic, layout version, dof, cycle time ns, owner pid, joint-name hash
+HEADER_BYTES = 64 + NAMES_BYTES          # fixed header area, then the joint names, then the state block
+STALE_AFTER_NS = 2_000_000_000
+_log = logging.getLogger("plem.ipc")
+
+
+def state_segment_name(robot_id: str) -> str:
+    """The spec's name of a robot's state segment."""
+    return f"/{robot_id}_joint_actual_values"
+
+
+def joint_names_hash(joint_names: Sequence[str]) -> bytes:
+    return hashlib.blake2b("\0".join(joint_names).encode(), digest_size=16).digest()
+
+
+@dataclass(frozen=True)
+class SegmentHeader:
+    """What a state segment says about itself."""
+
+    dof: int
+    cycle_time_ns: int
+    owner_pid: int
+    joint_names: tuple[str, ...]
+
+
+def _owner_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class StateSegment:
+    """A state segment mapped by its writer (`create`) or by a reader (`attach`)."""
+
+    def __init__(self, segment: SharedSegment, header: SegmentHeader) -> None:
+        self.segment = segment
+        self.header = header
+        self.block = StateBlock(header.dof, segment.buffer, HEADER_BYTES)
+
+    @property
+    def name(self) -> str:
+        return self.segment.name
+
+    @staticmethod
+    def size(dof: int) -> int:
+        return HEADER_BYTES + StateBlock.nbytes(dof)
+
+    @classmethod
+    def create(cls, robot_id: str, joint_names: Sequence[str], cycle_time_ns: int, *, mode: int = 0o600,
+               group: int | None = None,
+               warn: Callable[[str], None] = _log.warning) -> StateSegment:
+        """Create the segment for the RT driver; replaces a stale one (with a warning), refuses a live one."""
+        name = state_segment_name(robot_id)
+        names = "\n".join(joint_names).encode()
+        if len(names) > NAMES_BYTES:
+            raise ConfigError("joint names too long for the state segment", what=f"at most {NAMES_BYTES} bytes",
+                              why=f"{len(names)} bytes", how="use shorter joint names")
+        if SharedSegment.exists(name):
+            cls._replace_stale(robot_id, name, warn)
+        segment = SharedSegment.create(name, cls.size(len(joint_names)), mode, group)
+        buffer = segment.buffer
+        buffer[64:64 + len(names)] = names
+        header = SegmentHeader(len(joint_names), cycle_time_ns, os.getpid(), tuple(joint_names))
+        buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, header.dof, cycle_time_ns, header.owner_pid,
+                                             joint_names_hash(joint_names))
+        return cls(segment, header)
+
+    @classmethod
+    def _replace_stale(cls, robot_id: str, name: str, warn: Callable[[str], None]) -> None:
+        try:
+            existing = cls.attach(robot_id)
+        except SegmentError as error:
+            warn(f"replacing unreadable shared memory {name} ({error.summary})")
+            SharedSegment.unlink(name)
+            return
+        try:
+            owner = existing.header.owner_pid
+            state = existing.block.read(retries=100)
+            beat_age = time.monotonic_ns() - state.monotonic_ns if state is not None else None
+            live = _owner_alive(owner) and owner != os.getpid() and (beat_age is None or beat_age < STALE_AFTER_NS)
+        finally:
+            existing.close()
+        if live:
+            raise SegmentError(f"robot '{robot_id}' already has a running RT driver",
+                               what=f"one RT driver per robot_id; {name} must be free",
+                               why=f"{name} belongs to the running process {owner}",
+                               how=f"stop that robot first, or give this one another robot_id:=... "
+                                   f"(kill {owner} if it is a leftover)")
+        warn(f"replacing stale shared memory {name} left by process {owner}, which is gone "
+             "or stopped updating it")
+        SharedSegment.unlink(name)
+
+    @classmethod
+    def attach(cls, robot_id: str, expected_dof: int | None = None) -> StateSegment:
+        """Map a robot's state segment for reading; checks magic, layout version and, if given, the DOF."""
+        name = state_segment_name(robot_id)
+        segment = SharedSegment.open(name)
+        try:
+            header = cls._read_header(segment)
+        except SegmentError:
+            segment.close()
+            raise
+        if expected_dof is not None and expected_dof != header.dof:
+            segment.close()
+            raise SegmentError("IPC DOF mismatch", what=f"a state segment for {expected_dof} joints",
+                               why=f"{name} was created for {header.dof} joints "
+                                   f"({', '.join(header.joint_names)})",
+                               how="use the description package the robot was launched with, "
+                                   "or connect without an expected DOF")
+        return cls(segment, header)
+
+    @staticmethod
+    def _read_header(segment: SharedSegment) -> SegmentHeader:
+        buffer = segment.buffer
+        if segment.size < HEADER_BYTES:
+            raise SegmentError(f"{segment.name} is not a plem state segment", what="a plem state segment",
+                               why=f"it is only {segment.size} bytes", how="remove it and restart the robot")
+        magic, version, dof, cycle_ns, pid, digest = _HEADER.unpack(bytes(buffer[:_HEADER.size]))
+        if magic != MAGIC or version != LAYOUT_VERSION:
+            raise SegmentError(f"{segment.name} has an unknown layout",
+                               what=f"magic {MAGIC!r} with layout version {LAYOUT_VERSION}",
+                               why=f"found magic {magic!r}, version {version}",
+                               how="run the same plem version for the driver and the client, or remove the "
+                                   f"segment {segment.name} if no driver runs")
+        names = tuple(bytes(buffer[64:64 + NAMES_BYTES]).rstrip(b"\0").decode().split("\n"))
+        if len(names) != dof or joint_names_hash(names) != digest or segment.size < StateSegment.size(dof):
+            raise SegmentError(f"{segment.name} is inconsistent", what="header, joint names and size that agree",
+                               why=f"DOF {dof}, {len(names)} joint names, {segment.size} bytes",
+                               how="restart the robot (the segment will be recreated)")
+        return SegmentHeader(dof, cycle_ns, pid, names)
+
+    def close(self) -> None:
+        """Drop the block's views, then unmap."""
+        self.block = None
+        self.segment.close()
+
+    def remove(self) -> None:
+        """Unmap and unlink (the writer's clean exit)."""
+        name = self.segment.name
+        self.close()
+        SharedSegment.unlink(name)
