@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -64,10 +64,6 @@ class CommandHandle:
     def done(self) -> bool:
         return self._finished.is_set()
 
-    @property
-    def accepted(self) -> bool:
-        return self._accepted.is_set() and self.rejection is None
-
     def wait_accepted(self, timeout: float | None) -> None:
         """Block until the loop took or refused the command; raises the rejection."""
         if self._pump is not None:
@@ -121,7 +117,6 @@ class StartMotion:
     basis: PlanBasis
     activation_cycle: int | None
     tolerances: TrajectoryTolerances
-    final_position: np.ndarray
     handle: CommandHandle
     label: str = "motion"
 
@@ -143,12 +138,10 @@ class ActiveMotion:
     motion: Motion
     start_cycle: int
     tolerances: TrajectoryTolerances
-    final_position: np.ndarray
     handle: CommandHandle | None
     label: str
     settle_deadline_cycle: int | None = None
     ended: bool = False
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def motion_error(result: TrajectoryResult) -> PlemError | None:

@@ -51,7 +51,6 @@ class EventLog:
     def __init__(self, capacity: int = 1000) -> None:
         self._events: deque[Event] = deque(maxlen=capacity)
         self._listeners: list[Callable[[Event], None]] = []
-        self.total = 0
 
     def subscribe(self, listener: Callable[[Event], None]) -> None:
         """Call `listener(event)` for every later event (from the loop's thread: keep it short)."""
@@ -61,7 +60,6 @@ class EventLog:
              previous_mode: Mode | None = None) -> Event:
         event = Event(kind, cause, reason, mode, cycle, time.monotonic_ns(), time.time(), previous_mode)
         self._events.append(event)
-        self.total += 1
         for listener in self._listeners:
             listener(event)
         return event

@@ -48,13 +48,6 @@ class ArmLimits:
                    column("max_velocity", math.inf), column("max_acceleration", math.inf),
                    column("max_jerk", math.inf), column("max_effort", math.inf))
 
-    @classmethod
-    def unlimited(cls, joint_names: Sequence[str]) -> ArmLimits:
-        """No limits at all: only for buses and tests that have no description."""
-        n = len(joint_names)
-        inf = np.full(n, math.inf)
-        return cls(tuple(joint_names), -inf, inf.copy(), inf.copy(), inf.copy(), inf.copy(), inf.copy())
-
     @property
     def dof(self) -> int:
         return len(self.joint_names)

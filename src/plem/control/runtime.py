@@ -208,9 +208,7 @@ class ArmRuntime:
                 self._advance_enable()
             return
         if mode is Mode.FREE_DRIVE:
-            self.command_position[:] = self.position
-            self.command_velocity[:] = self.velocity
-            self.command_acceleration[:] = 0.0
+            self._follow_measurement()
             self.free_drive.update(self.position, self.velocity, self._torque)
             return
         active = self._active
@@ -278,7 +276,7 @@ class ArmRuntime:
         tolerances = active.tolerances
         if active.settle_deadline_cycle is None:
             active.settle_deadline_cycle = self.cycle_count + max(1, math.ceil(tolerances.goal_time / self.dt))
-        np.subtract(active.final_position, self.position, out=self._scratch)
+        np.subtract(active.motion.final_positions, self.position, out=self._scratch)
         np.abs(self._scratch, out=self._scratch)
         inside = tolerances.goal is None or not (self._scratch > tolerances.goal).any()
         stopped = not (np.abs(self.velocity) > tolerances.stopped_velocity_tolerance).any()
@@ -310,8 +308,7 @@ class ArmRuntime:
             self._rebase()
             return
         stop = plan_stop(self.limits, start)
-        self._active = ActiveMotion(stop, self.cycle_count, TrajectoryTolerances(), stop.final_positions, None,
-                                    f"stop ({reason})")
+        self._active = ActiveMotion(stop, self.cycle_count, TrajectoryTolerances(), None, f"stop ({reason})")
         self._active.ended = stop.sample(0.0, self.command_position, self.command_velocity,
                                          self.command_acceleration)
         self._rebase()
@@ -369,8 +366,8 @@ class ArmRuntime:
         if previous is not None and previous.handle is not None:
             previous.handle.finish(TrajectoryResult.preempted())
             self.events.emit(EventKind.MOTION_FINISHED, "preempted", previous.label, self.mode, self.cycle_count)
-        self._active = ActiveMotion(command.motion, self.cycle_count, command.tolerances, command.final_position,
-                                    command.handle, command.label)
+        self._active = ActiveMotion(command.motion, self.cycle_count, command.tolerances, command.handle,
+                                    command.label)
         self._rebase()
         command.handle.accept()
         self._set_mode(Mode.TRAJECTORY, "motion_started", command.label)
@@ -405,11 +402,7 @@ class ArmRuntime:
             handle.finish(Mode.FREE_DRIVE)
         else:  # HOLD from FREE_DRIVE or TRAJECTORY: stop smoothly from where the arm is
             if current is Mode.FREE_DRIVE:
-                self.bus.io.mode[:] = CSP
-                self.command_position[:] = self.position
-                self.command_velocity[:] = self.velocity
-                self.command_acceleration[:] = 0.0
-                self._previous_acceleration[:] = 0.0
+                self._leave_free_drive()
             elif self._active is not None and self._active.handle is not None:
                 self._end_motion(TrajectoryResult.canceled())
             self._set_mode(Mode.HOLD, "set_mode", f"holding (from {current.name})")
@@ -503,10 +496,7 @@ class ArmRuntime:
                                                     why=reason, how="reset_fault() once the cause is gone"))
         self._pending_mode = None
         if previous is Mode.FREE_DRIVE:
-            self.bus.io.mode[:] = CSP
-            self.command_position[:] = self.position
-            self.command_velocity[:] = self.velocity
-            self.command_acceleration[:] = 0.0
+            self._leave_free_drive()
         if previous is not Mode.IDLE and self._can_command():
             self._start_stop(cause)
         else:
@@ -516,6 +506,18 @@ class ArmRuntime:
         """Whether commands reach any drive (a faulted drive ignores its share and holds on its brake)."""
         io = self.bus.io
         return self.communication_ok and bool(((io.statusword & ENABLED_MASK) == ENABLED_VALUE).any())
+
+    def _follow_measurement(self) -> None:
+        """Command where the arm is and how it moves (free drive: the arm leads, the command follows)."""
+        self.command_position[:] = self.position
+        self.command_velocity[:] = self.velocity
+        self.command_acceleration[:] = 0.0
+
+    def _leave_free_drive(self) -> None:
+        """Back to position control, starting from the arm's measured motion so a stop can be planned."""
+        self.bus.io.mode[:] = CSP
+        self._follow_measurement()
+        self._previous_acceleration[:] = 0.0
 
     def _seed_from_measurement(self) -> None:
         self.command_position[:] = self.position

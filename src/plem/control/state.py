@@ -9,7 +9,6 @@ even sequence values, so it never sees a half-written sample and never blocks th
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 
@@ -19,18 +18,9 @@ from plem.control.modes import Mode
 ROWS = ("position", "velocity", "effort", "command_position", "command_velocity", "command_acceleration")
 
 
-class Header(IntEnum):
-    """Slots of the int64 header."""
-
-    SEQUENCE = 0
-    CYCLE = 1
-    MONOTONIC_NS = 2
-    MODE = 3
-    FAULTED = 4
-    DRIVES_ENABLED = 5
-
-
-HEADER_SLOTS = len(Header)
+#: Slots of the int64 header, in order (publish and read index them directly: the loop's path stays lean).
+HEADER = ("sequence", "cycle", "monotonic_ns", "mode", "faulted", "drives_enabled")
+HEADER_SLOTS = len(HEADER)
 
 
 @dataclass(frozen=True)

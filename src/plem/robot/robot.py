@@ -247,8 +247,7 @@ class Robot:
             activation, start = self._start_state(basis, attempt)
             motion = plan(start)
             handle = CommandHandle(label, self._pump)
-            final = np.array(motion.final_positions, dtype=float)
-            self._send(StartMotion(motion, basis, activation, tolerances, final, handle, label))
+            self._send(StartMotion(motion, basis, activation, tolerances, handle, label))
             handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else PREEMPTION_LEAD_S * 2 ** attempt))
             if not handle.stale:
                 return handle
