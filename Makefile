@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/python examples/simulated_arm.py indy7_v2
+	$(BIN)/plem launch bus:=mock
 
 test: $(STAMP)
 	$(BIN)/pytest -q -m "not slow"

@@ -14,12 +14,22 @@ import uuid
 import numpy as np
 import pytest
 
+from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.state import ROWS
 from plem.ipc.segment import SegmentError, SharedSegment, segment_path
 from plem.ipc.state_segment import StateSegment, state_segment_name
 
 JOINTS = tuple(f"joint{i}" for i in range(6))
+
+
+def limits_for(joints: tuple[str, ...]) -> ArmLimits:
+    """Distinct limits per joint, so a reader that mixes up rows or joints notices."""
+    base = np.arange(1.0, len(joints) + 1)
+    return ArmLimits(joints, -base, base, 2 * base, 3 * base, 4 * base, 5 * base)
+
+
+LIMITS = limits_for(JOINTS)
 
 
 @pytest.fixture
@@ -34,7 +44,8 @@ def writer_process(robot_id: str) -> subprocess.Popen:
     code = textwrap.dedent(f"""
         import time, numpy as np, sys
         from plem.ipc.state_segment import StateSegment
-        segment = StateSegment.create({robot_id!r}, {JOINTS!r}, 1_000_000)
+        from tests.integration.test_state_segment import LIMITS
+        segment = StateSegment.create({robot_id!r}, LIMITS, 1_000_000)
         values = np.zeros((6, 6))
         cycle = 0
         print("ready", flush=True)
@@ -50,7 +61,7 @@ def writer_process(robot_id: str) -> subprocess.Popen:
 
 
 def test_name_permissions_and_round_trip(robot_id):
-    segment = StateSegment.create(robot_id, JOINTS, 1_000_000)
+    segment = StateSegment.create(robot_id, LIMITS, 1_000_000)
     path = segment_path(state_segment_name(robot_id))
     assert path == segment_path(f"/{robot_id}_joint_actual_values")
     assert stat.S_IMODE(path.stat().st_mode) == 0o600
@@ -60,6 +71,10 @@ def test_name_permissions_and_round_trip(robot_id):
     state = reader.block.read()
     assert reader.header.joint_names == JOINTS and reader.header.cycle_time_ns == 1_000_000
     assert state.cycle == 42 and state.mode is Mode.HOLD and np.array_equal(state.velocity, values[1])
+    limits = reader.limits
+    assert limits.joint_names == JOINTS
+    for row in ("min_position", "max_position", "max_velocity", "max_acceleration", "max_jerk", "max_effort"):
+        assert np.array_equal(getattr(limits, row), getattr(LIMITS, row)), row
     reader.close()
     segment.remove()
     assert not path.exists()
@@ -89,20 +104,20 @@ def test_second_driver_is_refused_and_a_killed_ones_segment_is_replaced(robot_id
     writer = writer_process(robot_id)
     try:
         with pytest.raises(SegmentError, match="already has a running RT driver") as caught:
-            StateSegment.create(robot_id, JOINTS, 1_000_000)
+            StateSegment.create(robot_id, LIMITS, 1_000_000)
         assert str(writer.pid) in caught.value.why
     finally:
         writer.send_signal(signal.SIGKILL)
         writer.wait()
     warnings: list[str] = []
-    segment = StateSegment.create(robot_id, JOINTS, 1_000_000, warn=warnings.append)
+    segment = StateSegment.create(robot_id, LIMITS, 1_000_000, warn=warnings.append)
     assert segment.header.owner_pid == os.getpid()
     assert len(warnings) == 1 and "stale" in warnings[0] and str(writer.pid) in warnings[0]
     segment.remove()
 
 
 def test_dof_mismatch_is_the_ipc_dof_error(robot_id):
-    segment = StateSegment.create(robot_id, JOINTS, 1_000_000)
+    segment = StateSegment.create(robot_id, LIMITS, 1_000_000)
     with pytest.raises(SegmentError, match="IPC DOF mismatch") as caught:
         StateSegment.attach(robot_id, expected_dof=7)
     assert "6 joints" in caught.value.why
@@ -114,9 +129,9 @@ def test_missing_and_foreign_segments_are_explained(robot_id):
         StateSegment.attach(robot_id)
     assert "plem launch" in caught.value.how
     path = segment_path(state_segment_name(robot_id))
-    path.write_bytes(b"not plem" * 200)
+    path.write_bytes(b"not plem" * 1000)
     with pytest.raises(SegmentError, match="unknown layout"):
         StateSegment.attach(robot_id)
     warnings: list[str] = []
-    StateSegment.create(robot_id, JOINTS, 1_000_000, warn=warnings.append).remove()
+    StateSegment.create(robot_id, LIMITS, 1_000_000, warn=warnings.append).remove()
     assert "unreadable" in warnings[0]

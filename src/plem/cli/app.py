@@ -12,6 +12,8 @@ from typer._click import exceptions as click_exceptions
 
 from plem.cli import config as config_commands
 from plem.cli import description as description_commands
+from plem.cli import launch as launch_command
+from plem.cli import robot as robot_commands
 from plem.cli import profile as profile_commands
 from plem.cli.output import print_error
 from plem.errors import PlemError, UsageError
@@ -27,6 +29,11 @@ app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
 app.command("validate")(description_commands.validate)
 app.command("create-description")(description_commands.create_description)
+app.command("launch", context_settings=launch_command.EXTRA_ARGS, add_help_option=False)(launch_command.launch)
+app.command("state")(robot_commands.state)
+app.command("move")(robot_commands.move)
+app.command("mode")(robot_commands.mode)
+app.command("reset")(robot_commands.reset)
 
 
 def _usage_error(error: click_exceptions.UsageError) -> UsageError:

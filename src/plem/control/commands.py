@@ -64,6 +64,11 @@ class CommandHandle:
     def done(self) -> bool:
         return self._finished.is_set()
 
+    @property
+    def is_accepted(self) -> bool:
+        """The loop took the command (or already answered it)."""
+        return self._accepted.is_set()
+
     def wait_accepted(self, timeout: float | None) -> None:
         """Block until the loop took or refused the command; raises the rejection."""
         if self._pump is not None:

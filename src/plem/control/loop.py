@@ -38,15 +38,18 @@ class CycleLoop:
     `on_overrun_report(new, total, missed)` at most once a second while overruns keep happening;
     `on_warning(text)` once per real-time set-up step the machine refused (default: a log warning);
     `on_error(exc)` when the cycle raises (the loop keeps running, so the robot can still be stopped,
-    unless it raises MAX_CONSECUTIVE_ERRORS times in a row).
+    unless it raises MAX_CONSECUTIVE_ERRORS times in a row); `after_cycle(latency_ns, previous_compute_ns)`
+    right after each cycle, inside the timed part (the RT driver's per-cycle sample).
     """
 
     def __init__(self, cycle: Callable[[], None], settings: LoopSettings,
                  on_overruns: Callable[[int], None] | None = None,
                  on_error: Callable[[BaseException], None] | None = None,
                  on_overrun_report: Callable[[int, int, int], None] | None = None,
-                 on_warning: Callable[[str], None] = _log.warning) -> None:
+                 on_warning: Callable[[str], None] = _log.warning,
+                 after_cycle: Callable[[int, int], None] | None = None) -> None:
         self.cycle = cycle
+        self.after_cycle = after_cycle
         self.on_warning = on_warning
         self.on_overrun_report = on_overrun_report
         self.settings = settings
@@ -87,6 +90,8 @@ class CycleLoop:
         sleeper = AbsoluteSleeper()
         clock = time.monotonic_ns
         cycle = self.cycle
+        after_cycle = self.after_cycle
+        compute = 0
         stop = self._stop
         deadline = clock() + period
         end = deadline + int(duration_s * 1e9) if duration_s is not None else None
@@ -98,6 +103,8 @@ class CycleLoop:
             woke = clock()
             try:
                 cycle()
+                if after_cycle is not None:
+                    after_cycle(woke - deadline, compute)
                 errors = 0
             except Exception as error:  # a bug must not leave the arm uncontrolled: report and keep cycling
                 errors += 1
@@ -107,7 +114,8 @@ class CycleLoop:
                 if errors >= MAX_CONSECUTIVE_ERRORS:
                     raise
             done = clock()
-            stats.record(woke - deadline, done - woke)
+            compute = done - woke
+            stats.record(woke - deadline, compute)
             deadline += period
             if done > deadline:
                 missed = (done - deadline) // period + 1

@@ -69,14 +69,28 @@ class _Series:
     def whole_run(self) -> TimingSummary:
         if self.count == 0:
             return TimingSummary.empty()
-        cumulative = np.cumsum(self.histogram)
+        p50, p99, p999 = _percentiles(self.histogram, self.count)
+        return TimingSummary(self.count, self.min_ns / 1e3, self.total_ns / self.count / 1e3, p50, p99, p999,
+                             self.max_ns / 1e3)
 
-        def percentile(fraction: float) -> float:
-            index = int(np.searchsorted(cumulative, fraction * self.count, side="left"))
-            return (index + 1) * HISTOGRAM_BIN_NS / 1e3  # upper edge of the bin, like cyclictest
 
-        return TimingSummary(self.count, self.min_ns / 1e3, self.total_ns / self.count / 1e3, percentile(0.5),
-                             percentile(0.99), percentile(0.999), self.max_ns / 1e3)
+def _percentiles(histogram: np.ndarray, count: int) -> tuple[float, float, float]:
+    """p50, p99, p99.9 in µs as the upper edges of their bins, like cyclictest."""
+    cumulative = np.cumsum(histogram)
+    indices = np.searchsorted(cumulative, np.array((0.5, 0.99, 0.999)) * count, side="left")
+    return tuple(float(i + 1) * HISTOGRAM_BIN_NS / 1e3 for i in indices)
+
+
+def histogram_summary(histogram: np.ndarray) -> TimingSummary:
+    """Figures of the cycles a histogram counts (e.g. the difference of two snapshots), to 1 µs bins."""
+    count = int(histogram.sum())
+    if count == 0:
+        return TimingSummary.empty()
+    filled = np.flatnonzero(histogram)
+    edges_us = HISTOGRAM_BIN_NS / 1e3
+    mean = float(np.dot(histogram, np.arange(histogram.size))) / count * edges_us + edges_us / 2
+    return TimingSummary(count, float(filled[0]) * edges_us, mean, *_percentiles(histogram, count),
+                         float(filled[-1] + 1) * edges_us)
 
 
 class TimingStats:

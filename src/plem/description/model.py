@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -169,6 +170,15 @@ class SrdfModel:
     groups: dict[str, SrdfGroup]
     group_states: list[GroupState]
     disabled_collisions: list[tuple[str, str, int | None]]
+
+    def poses(self, joint_names: Sequence[str]) -> dict[str, list[float]]:
+        """Named joint poses (group_state) that give a value to every one of `joint_names`, in that order."""
+        poses = {}
+        for state in self.group_states:
+            values = {name: value for name, value, _ in state.values if value is not None}
+            if all(name in values for name in joint_names):
+                poses[state.name] = [values[name] for name in joint_names]
+        return poses
 
 
 def parse_srdf(text: str | bytes, source: Path) -> SrdfModel:

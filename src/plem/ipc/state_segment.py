@@ -1,7 +1,8 @@
 """The state segment `/{robot_id}_joint_actual_values`: a versioned header and the loop's state block.
 
-The header says what the block holds (magic, layout version, DOF, a hash of the joint names, cycle time)
-and who writes it (owner pid). The state block behind it is the seqlock of `plem.control.state`; its
+The header says what the block holds (magic, layout version, DOF, a hash of the joint names, cycle time),
+who writes it (owner pid), the joint limits and the named poses (SRDF group states), so a client can
+validate commands and name targets without the description package. The state block behind it is the seqlock of `plem.control.state`; its
 per-cycle time stamp is the driver's heartbeat. A segment whose owner is gone, or whose heartbeat
 stopped, is stale and may be replaced; a live one is never taken over.
 """
@@ -9,22 +10,30 @@ stopped, is stale and may be replaced; a live one is never taken over.
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 import struct
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
+from plem.control.limits import ArmLimits
 from plem.control.state import StateBlock
 from plem.errors import ConfigError
 from plem.ipc.segment import SegmentError, SharedSegment
 
 MAGIC = b"PLEMSTAT"
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 2
 NAMES_BYTES = 1024
 _HEADER = struct.Struct("<8sIIQq16s")  # magic, layout version, dof, cycle time ns, owner pid, joint-name hash
-HEADER_BYTES = 64 + NAMES_BYTES          # fixed header area, then the joint names, then the state block
+POSES_BYTES = 4096
+NAMES_OFFSET = 64                        # fixed header area, joint names, named poses (JSON), limits, the block
+POSES_OFFSET = NAMES_OFFSET + NAMES_BYTES
+LIMITS_OFFSET = POSES_OFFSET + POSES_BYTES
+LIMIT_ROWS = ("min_position", "max_position", "max_velocity", "max_acceleration", "max_jerk", "max_effort")
 STALE_AFTER_NS = 2_000_000_000
 _log = logging.getLogger("plem.ipc")
 
@@ -48,6 +57,14 @@ class SegmentHeader:
     joint_names: tuple[str, ...]
 
 
+def _block_offset(dof: int) -> int:
+    return LIMITS_OFFSET + len(LIMIT_ROWS) * dof * 8
+
+
+def _limits_view(buffer: memoryview, dof: int) -> np.ndarray:
+    return np.ndarray((len(LIMIT_ROWS), dof), dtype=np.float64, buffer=buffer, offset=LIMITS_OFFSET)
+
+
 def _owner_alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -64,32 +81,48 @@ class StateSegment:
     def __init__(self, segment: SharedSegment, header: SegmentHeader) -> None:
         self.segment = segment
         self.header = header
-        self.block = StateBlock(header.dof, segment.buffer, HEADER_BYTES)
+        self._limits = _limits_view(segment.buffer, header.dof)
+        self.block = StateBlock(header.dof, segment.buffer, _block_offset(header.dof))
 
     @property
     def name(self) -> str:
         return self.segment.name
 
+    @property
+    def poses(self) -> dict[str, list[float]]:
+        """Named joint poses, e.g. {'home': [...]} from the SRDF."""
+        return json.loads(bytes(self.segment.buffer[POSES_OFFSET:LIMITS_OFFSET]).rstrip(b"\0") or b"{}")
+
+    @property
+    def limits(self) -> ArmLimits:
+        """The joint limits the driver enforces (a copy)."""
+        return ArmLimits(self.header.joint_names, *self._limits.copy())
+
     @staticmethod
     def size(dof: int) -> int:
-        return HEADER_BYTES + StateBlock.nbytes(dof)
+        return _block_offset(dof) + StateBlock.nbytes(dof)
 
     @classmethod
-    def create(cls, robot_id: str, joint_names: Sequence[str], cycle_time_ns: int, *, mode: int = 0o600,
-               group: int | None = None,
+    def create(cls, robot_id: str, limits: ArmLimits, cycle_time_ns: int, *,
+               poses: Mapping[str, Sequence[float]] | None = None, mode: int = 0o600, group: int | None = None,
                warn: Callable[[str], None] = _log.warning) -> StateSegment:
         """Create the segment for the RT driver; replaces a stale one (with a warning), refuses a live one."""
         name = state_segment_name(robot_id)
+        joint_names = limits.joint_names
         names = "\n".join(joint_names).encode()
-        if len(names) > NAMES_BYTES:
-            raise ConfigError("joint names too long for the state segment", what=f"at most {NAMES_BYTES} bytes",
-                              why=f"{len(names)} bytes", how="use shorter joint names")
+        poses_json = json.dumps({name: list(map(float, values)) for name, values in (poses or {}).items()}).encode()
+        if len(names) > NAMES_BYTES or len(poses_json) > POSES_BYTES:
+            raise ConfigError("joint names or named poses too long for the state segment",
+                              what=f"at most {NAMES_BYTES} bytes of names and {POSES_BYTES} of poses",
+                              why=f"{len(names)} and {len(poses_json)} bytes", how="use shorter names or fewer poses")
         if SharedSegment.exists(name):
             cls._replace_stale(robot_id, name, warn)
         segment = SharedSegment.create(name, cls.size(len(joint_names)), mode, group)
         buffer = segment.buffer
-        buffer[64:64 + len(names)] = names
+        buffer[NAMES_OFFSET:NAMES_OFFSET + len(names)] = names
+        buffer[POSES_OFFSET:POSES_OFFSET + len(poses_json)] = poses_json
         header = SegmentHeader(len(joint_names), cycle_time_ns, os.getpid(), tuple(joint_names))
+        _limits_view(buffer, header.dof)[:] = [getattr(limits, row) for row in LIMIT_ROWS]
         buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, header.dof, cycle_time_ns, header.owner_pid,
                                              joint_names_hash(joint_names))
         return cls(segment, header)
@@ -141,7 +174,7 @@ class StateSegment:
     @staticmethod
     def _read_header(segment: SharedSegment) -> SegmentHeader:
         buffer = segment.buffer
-        if segment.size < HEADER_BYTES:
+        if segment.size < LIMITS_OFFSET:
             raise SegmentError(f"{segment.name} is not a plem state segment", what="a plem state segment",
                                why=f"it is only {segment.size} bytes", how="remove it and restart the robot")
         magic, version, dof, cycle_ns, pid, digest = _HEADER.unpack(bytes(buffer[:_HEADER.size]))
@@ -151,7 +184,7 @@ class StateSegment:
                                why=f"found magic {magic!r}, version {version}",
                                how="run the same plem version for the driver and the client, or remove the "
                                    f"segment {segment.name} if no driver runs")
-        names = tuple(bytes(buffer[64:64 + NAMES_BYTES]).rstrip(b"\0").decode().split("\n"))
+        names = tuple(bytes(buffer[NAMES_OFFSET:POSES_OFFSET]).rstrip(b"\0").decode().split("\n"))
         if len(names) != dof or joint_names_hash(names) != digest or segment.size < StateSegment.size(dof):
             raise SegmentError(f"{segment.name} is inconsistent", what="header, joint names and size that agree",
                                why=f"DOF {dof}, {len(names)} joint names, {segment.size} bytes",
@@ -161,6 +194,7 @@ class StateSegment:
     def close(self) -> None:
         """Drop the block's views, then unmap."""
         self.block = None
+        self._limits = None
         self.segment.close()
 
     def remove(self) -> None:

@@ -206,13 +206,20 @@ class Robot:
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
+        return self.request_mode(mode).wait(timeout)
+
+    def request_mode(self, mode: str | Mode) -> CommandHandle:
+        """Ask for a mode change without waiting; the handle finishes with the mode reached."""
         requested = Mode.parse(mode)
-        handle = self._send(SetMode(requested, CommandHandle(f"set_mode({requested.name})", self._pump)))
-        return handle.wait(timeout)
+        return self._send(SetMode(requested, CommandHandle(f"set_mode({requested.name})", self._pump)))
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
-        return self._send(ResetFault(CommandHandle("reset_fault()", self._pump))).wait(timeout)
+        return self.request_reset().wait(timeout)
+
+    def request_reset(self) -> CommandHandle:
+        """Ask for a fault reset without waiting; the handle finishes once the arm holds again."""
+        return self._send(ResetFault(CommandHandle("reset_fault()", self._pump)))
 
     def stop(self) -> CommandHandle:
         """Cancel the running motion with a jerk-limited stop; the arm then holds."""
@@ -288,7 +295,10 @@ class RobotBuilder:
     robot_id: str | None = None
     bus: IBus | None = None
     description_package: str | None = None
+    urdf_file: str | None = None
     counts_per_radian: tuple[float, ...] | None = None
+    state_block: Callable[[ArmLimits], StateBlock] | None = None
+    cycle_observer: Callable[[StateBlock], Callable[[int, int], None]] | None = None
     runtime_settings: RuntimeSettings = field(default_factory=RuntimeSettings)
     loop_settings: dict[str, Any] = field(default_factory=dict)
 
@@ -302,9 +312,20 @@ class RobotBuilder:
         self.bus = bus
         return self
 
-    def with_description(self, package: str) -> RobotBuilder:
-        """Description package (name or path); presets default to their built-in package."""
+    def with_description(self, package: str, urdf_file: str | None = None) -> RobotBuilder:
+        """Description package (name or path), optionally with a URDF override; presets default to their own."""
         self.description_package = package
+        self.urdf_file = urdf_file or None
+        return self
+
+    def with_state_block(self, make: Callable[[ArmLimits], StateBlock]) -> RobotBuilder:
+        """Publish into the block `make(limits)` returns (the RT driver's shared memory) instead of private memory."""
+        self.state_block = make
+        return self
+
+    def with_cycle_observer(self, make: Callable[[StateBlock], Callable[[int, int], None]]) -> RobotBuilder:
+        """Call `make(state_block)(latency_ns, previous_compute_ns)` after every cycle (the rt_raw sample)."""
+        self.cycle_observer = make
         return self
 
     def with_counts_per_radian(self, counts: Sequence[float]) -> RobotBuilder:
@@ -336,7 +357,7 @@ class RobotBuilder:
                               what="a description package with the arm's URDF and joint_limits.yaml",
                               why=f"{config.model_name()} is not a preset and none was given",
                               how="call .with_description('my_robot_description') on the builder")
-        report = require_valid(package, stage=Stage.STARTUP)
+        report = require_valid(package, stage=Stage.STARTUP, urdf_file=self.urdf_file)
         joint_names = tuple(model.joint_names) if model else tuple(j.name for j in report.urdf.actuated_joints)
         if len(joint_names) != config.dof:
             raise ConfigError("the URDF's DOF does not match the configuration",
@@ -349,10 +370,11 @@ class RobotBuilder:
                          config.network_interface, config.master_index)
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
         loop_dynamics = ArmDynamics(report.urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
+        state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)
         bus.open(setup)
         runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
                              FreeDriveController(loop_dynamics, limits, setup.cycle_time_s), self.runtime_settings,
-                             StateBlock(config.dof))
+                             state_block)
         loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
                                      **self.loop_settings)
         loop = CycleLoop(runtime.cycle, loop_settings,
@@ -362,7 +384,8 @@ class RobotBuilder:
                          on_overrun_report=lambda new, total, missed: runtime.events.emit(
                              EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
                              f"{missed} missed periods)", runtime.mode, runtime.cycle_count),
-                         on_warning=lambda text: _warn(runtime, text))
+                         on_warning=lambda text: _warn(runtime, text),
+                         after_cycle=self.cycle_observer(state_block) if self.cycle_observer else None)
         return Robot(config, bus, runtime, loop, str(package), ArmDynamics(report.urdf_xml, joint_names))
 
     def _bus(self, config: SerialArmConfig) -> IBus:

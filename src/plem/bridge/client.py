@@ -1,0 +1,284 @@
+"""The Python bridge: watch and command a running robot from any process on the same host.
+
+`connect(robot_id)` maps the robot's shared memory. Reading state never talks to the driver; commands
+are validated here, written to the command ring, and answered by the driver in the replies ring.
+The client API mirrors `plem.robot.Robot`, so a script moves between in-process and launched robots.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Generic, TypeVar
+
+import numpy as np
+
+from plem.control.commands import CommandTimeout
+from plem.control.events import Event
+from plem.control.limits import ArmLimits
+from plem.control.modes import Mode
+from plem.control.state import JointState
+from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
+from plem.errors import CommandRejected, PlemError
+from plem.ipc.channels import RobotChannels
+from plem.ipc.records import RawSample, event_from_record
+from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json
+from plem.ipc.ring import RingReader
+from plem.ipc.state_segment import STALE_AFTER_NS
+
+DEFAULT_ROBOT_ID = "indy"
+POLL_S = 0.0005
+ACCEPT_TIMEOUT_S = 5.0
+T = TypeVar("T")
+
+
+class DriverGone(PlemError):
+    """The robot's RT driver stopped answering (its heartbeat in shared memory stopped)."""
+
+
+def default_robot_id() -> str:
+    """PLEM_ROBOT_ID (set by `plem launch` for its components), else 'indy' as in the spec."""
+    return os.environ.get("PLEM_ROBOT_ID") or DEFAULT_ROBOT_ID
+
+
+def connect(robot_id: str | None = None, expected_dof: int | None = None) -> RobotClient:
+    """A client of the running robot `robot_id`; `expected_dof` makes a DOF mismatch an error right away."""
+    return RobotClient(RobotChannels.attach(robot_id or default_robot_id(), expected_dof))
+
+
+class Stream(Generic[T]):
+    """Records of one ring as they arrive; iteration ends after `timeout` s without a record (None: never)."""
+
+    def __init__(self, reader: RingReader, read: Callable[[], Any], convert: Callable[[Any], T],
+                 timeout: float | None) -> None:
+        self._reader = reader
+        self._read = read
+        self._convert = convert
+        self._timeout = timeout
+
+    @property
+    def dropped(self) -> int:
+        """Records the loop wrote that this stream lost because it read too slowly."""
+        return self._reader.dropped
+
+    def __iter__(self) -> Stream[T]:
+        return self
+
+    def __next__(self) -> T:
+        last = time.monotonic()
+        while (record := self._read()) is None:
+            if self._timeout is not None and time.monotonic() - last > self._timeout:
+                raise StopIteration
+            time.sleep(POLL_S)
+        return self._convert(record)
+
+
+class RemoteHandle:
+    """One command sent to the driver: wait for acceptance (done on send) and for its result."""
+
+    def __init__(self, client: RobotClient, request_id: str, description: str) -> None:
+        self._client = client
+        self.id = request_id
+        self.description = description
+        self.accepted = False
+        self.reply: dict[str, Any] | None = None
+
+    @property
+    def done(self) -> bool:
+        self._client._collect()
+        return self.reply is not None
+
+    def wait_accepted(self, timeout: float | None = ACCEPT_TIMEOUT_S) -> None:
+        """Block until the driver took the command; raises its rejection."""
+        self._client._wait(self, lambda: self.accepted or self.reply is not None, timeout, "accepted")
+        if self.reply is not None and self.reply["stage"] == "rejected":
+            raise error_from_json(self.reply["error"])
+
+    def wait(self, timeout: float | None = None) -> Any:
+        """Block until the command finished; returns its result, raises on rejection, abort or fault."""
+        self._client._wait(self, lambda: self.reply is not None, timeout, "finished")
+        if self.reply["error"] is not None:
+            raise error_from_json(self.reply["error"])
+        return result_from_json(self.reply["result"])
+
+
+class RobotClient:
+    """A connection to one robot's shared memory (see `connect`)."""
+
+    def __init__(self, channels: RobotChannels) -> None:
+        self.channels = channels
+        self.robot_id = channels.robot_id
+        header = channels.state.header
+        self.joint_names: tuple[str, ...] = header.joint_names
+        self.dof = header.dof
+        self.cycle_time_s = header.cycle_time_ns * 1e-9
+        self.limits: ArmLimits = channels.state.limits
+        self._replies = channels.rings["replies"].reader()
+        self._handles: dict[str, RemoteHandle] = {}
+        self._lock = threading.Lock()
+
+    def close(self) -> None:
+        self.channels.close()
+
+    def __enter__(self) -> RobotClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- state -------------------------------------------------------------------------------------
+    def state(self) -> JointState | None:
+        """The latest cycle's state (None before the first cycle)."""
+        return self.channels.state.block.read()
+
+    def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
+        """Block until a state newer than `after_cycle` is published; None on timeout."""
+        deadline = time.monotonic() + timeout
+        while True:
+            state = self.state()
+            if state is not None and state.cycle > after_cycle:
+                return state
+            if time.monotonic() > deadline:
+                return None
+            time.sleep(POLL_S)
+
+    def stream(self, timeout: float | None = None) -> Stream[RawSample]:
+        """Every cycle's rt_raw sample from now on, in order; ends after `timeout` s without a sample.
+
+        A consumer slower than the loop loses the oldest samples; the stream's `dropped` counts them.
+        """
+        reader = self.channels.rings["rt_raw"].reader()
+        return Stream(reader, reader.read_values, lambda record: RawSample.from_record(record, self.dof), timeout)
+
+    def events(self, timeout: float | None = None, *, from_oldest: bool = False) -> Stream[Event]:
+        """Events (mode changes, faults, motions) as they happen; ends after `timeout` s without one."""
+        reader = self.channels.rings["events"].reader(from_oldest=from_oldest)
+        return Stream(reader, reader.read, event_from_record, timeout)
+
+    def stats(self) -> dict[str, Any] | None:
+        """The newest loop statistics record (timing, overruns, command counters), or None."""
+        ring = self.channels.rings["stats"]
+        reader = ring.reader(from_oldest=True)
+        records = reader.read_all()
+        return json.loads(records[-1]) if records else None
+
+    # -- commands ----------------------------------------------------------------------------------
+    def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
+                    tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
+        """Time-optimal jerk-limited motion to `target` (rad); returns once the driver accepted it."""
+        return self._send("move_joints", {"target": _floats(target), "speed_scale": speed_scale,
+                                          "tolerances": _tolerances(tolerances)}, wait_accepted=True)
+
+    def execute_trajectory(self, trajectory: JointTrajectory,
+                           tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
+        """Follow a JointTrajectory (ros2_control spline semantics); returns once the driver accepted it."""
+        points = [{"positions": list(p.positions), "time_from_start": p.time_from_start,
+                   **({"velocities": list(p.velocities)} if p.velocities is not None else {}),
+                   **({"accelerations": list(p.accelerations)} if p.accelerations is not None else {})}
+                  for p in trajectory.points]
+        return self._send("execute_trajectory", {"joint_names": list(trajectory.joint_names), "points": points,
+                                                 "tolerances": _tolerances(tolerances)}, wait_accepted=True)
+
+    def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
+        """Change mode (idle, hold, free_drive) and wait until it took effect."""
+        return self._send("set_mode", {"mode": Mode.parse(mode).name.lower()}).wait(timeout)
+
+    def reset_fault(self, timeout: float = 5.0) -> Mode:
+        """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
+        return self._send("reset_fault", {}).wait(timeout)
+
+    def stop(self) -> RemoteHandle:
+        """Cancel the running motion with a jerk-limited stop; the arm then holds."""
+        return self._send("stop", {})
+
+    def wait_until_idle(self, timeout: float = 30.0) -> None:
+        """Block until no motion runs (mode is not TRAJECTORY)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            state = self.live_state()
+            if state.mode is not Mode.TRAJECTORY:
+                return
+            if time.monotonic() > deadline:
+                raise PlemError("the robot is still moving", what=f"motion to end within {timeout} s",
+                                why=f"mode {state.mode.name}", how="wait longer or call stop()")
+            time.sleep(0.002)
+
+    def _send(self, op: str, args: dict[str, Any], wait_accepted: bool = False) -> RemoteHandle:
+        payload = {"id": new_request_id(), "op": op, **{k: v for k, v in args.items() if v is not None}}
+        check_request(payload, self.limits)  # the driver checks the same again
+        record = encode(payload)
+        handle = RemoteHandle(self, payload["id"], op)
+        with self._lock:
+            self._handles[handle.id] = handle
+        self.live_state()
+        if not self.channels.rings["commands"].write(record):
+            with self._lock:
+                del self._handles[handle.id]
+            raise CommandRejected("the robot's command queue is full", what="room in the command ring",
+                                  why=f"{self.channels.rings['commands'].slots} requests are waiting for the driver",
+                                  how="wait for earlier commands to be taken, then retry")
+        if wait_accepted:
+            handle.wait_accepted()
+        return handle
+
+    def _collect(self) -> None:
+        """Route new replies to this client's handles (replies of other clients are skipped)."""
+        with self._lock:
+            for record in self._replies.read_all():
+                reply = json.loads(record)
+                handle = self._handles.get(reply.get("id"))
+                if handle is None:
+                    continue
+                if reply["stage"] == "accepted":
+                    handle.accepted = True
+                else:
+                    handle.reply = reply
+                    del self._handles[handle.id]
+
+    def _wait(self, handle: RemoteHandle, condition: Any, timeout: float | None, stage: str) -> None:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            self._collect()
+            if condition():
+                return
+            self.live_state()
+            if deadline is not None and time.monotonic() > deadline:
+                raise CommandTimeout(f"{handle.description} was not {stage} in {timeout} s",
+                                     what=f"the driver to answer within {timeout} s", why="no reply yet",
+                                     how="wait longer, or check the robot with `plem state`")
+            time.sleep(POLL_S)
+
+    def live_state(self) -> JointState:
+        """The current state, or DriverGone when the heartbeat is older than the stale limit."""
+        state = self.state()
+        age = None if state is None else time.monotonic_ns() - state.monotonic_ns
+        if age is None or age > STALE_AFTER_NS:
+            raise DriverGone(f"the RT driver of robot '{self.robot_id}' is not running",
+                             what="a heartbeat in shared memory every cycle",
+                             why="no cycle published yet" if age is None else f"last cycle {age / 1e9:.1f} s ago",
+                             how="start the robot with `plem launch` (bus:=mock for the simulated arm)")
+        return state
+
+
+def _floats(values: Sequence[float]) -> list[float]:
+    """Plain floats for JSON; NaN/inf stay and are refused by validation with a clear message."""
+    try:
+        return [float(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+    except (TypeError, ValueError) as error:
+        raise CommandRejected("the target is not a list of numbers", what="one number per joint (rad)",
+                              why=str(error), how="pass a list of floats") from None
+
+
+def _tolerances(tolerances: TrajectoryTolerances | Mapping[str, Any] | None) -> dict[str, Any] | None:
+    if tolerances is None or isinstance(tolerances, Mapping):
+        return None if tolerances is None else dict(tolerances)
+
+    def plain(array: np.ndarray | None) -> list[float] | None:
+        return None if array is None else [0.0 if not np.isfinite(v) else float(v) for v in array]
+
+    return {"path": plain(tolerances.path), "goal": plain(tolerances.goal),
+            "goal_time": tolerances.goal_time if np.isfinite(tolerances.goal_time) else 1e9,
+            "stopped_velocity_tolerance": tolerances.stopped_velocity_tolerance}

@@ -1,0 +1,87 @@
+"""What the RT driver's outbound rings carry: one rt_raw sample per cycle, events, loop statistics.
+
+An rt_raw sample is one float64 record: a few scalars (cycle, time, mode, fault, this cycle's wake-up
+latency, the previous cycle's compute time) followed by the state block's joint rows. Events and
+statistics are rare and travel as JSON.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from plem.control.events import Event, EventKind
+from plem.control.modes import Mode
+from plem.control.state import ROWS, StateBlock
+
+RAW_SCALARS = ("cycle", "monotonic_ns", "mode", "faulted", "latency_ns", "compute_ns")
+
+
+def raw_record_length(dof: int) -> int:
+    """Float64 values in one rt_raw record of an arm with `dof` joints."""
+    return len(RAW_SCALARS) + len(ROWS) * dof
+
+
+@dataclass(frozen=True)
+class RawSample:
+    """One cycle as the loop saw it (SI units; times in ns)."""
+
+    cycle: int
+    monotonic_ns: int
+    mode: Mode
+    faulted: bool
+    latency_ns: int
+    compute_ns: int
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+    command_position: np.ndarray
+    command_velocity: np.ndarray
+    command_acceleration: np.ndarray
+
+    @classmethod
+    def from_record(cls, record: np.ndarray, dof: int) -> RawSample:
+        rows = record[len(RAW_SCALARS):].reshape(len(ROWS), dof)
+        cycle, stamp, mode, faulted, latency, compute = (int(v) for v in record[:len(RAW_SCALARS)])
+        return cls(cycle, stamp, Mode(mode), bool(faulted), latency, compute, *rows)
+
+
+class RawRecorder:
+    """Fills the rt_raw record from the state block the cycle just published; called by the loop."""
+
+    def __init__(self, block: StateBlock, write: Any) -> None:
+        self._block = block
+        self._write = write
+        self.record = np.zeros(raw_record_length(block.dof))
+        self._scalars = self.record[:len(RAW_SCALARS)]
+        self._rows = self.record[len(RAW_SCALARS):].reshape(len(ROWS), block.dof)
+
+    def __call__(self, latency_ns: int, compute_ns: int) -> None:
+        header = self._block.header
+        scalars = self._scalars
+        scalars[0] = header[1]
+        scalars[1] = header[2]
+        scalars[2] = header[3]
+        scalars[3] = header[4]
+        scalars[4] = latency_ns
+        scalars[5] = compute_ns
+        np.copyto(self._rows, self._block.values)
+        self._write(self.record)
+
+
+def event_record(event: Event) -> bytes:
+    """An event as one JSON record."""
+    return json.dumps({"kind": event.kind.value, "cause": event.cause, "reason": event.reason,
+                       "mode": event.mode.name, "cycle": event.cycle, "monotonic_ns": event.monotonic_ns,
+                       "wall_time": event.wall_time,
+                       "previous_mode": None if event.previous_mode is None else event.previous_mode.name}).encode()
+
+
+def event_from_record(record: bytes) -> Event:
+    data = json.loads(record)
+    previous = data["previous_mode"]
+    return Event(EventKind(data["kind"]), data["cause"], data["reason"], Mode[data["mode"]], data["cycle"],
+                 data["monotonic_ns"], data["wall_time"], None if previous is None else Mode[previous])

@@ -1,0 +1,137 @@
+"""What one robot of a launch will be: its arguments checked, description found, configuration resolved.
+
+The supervisor makes a plan to report every problem before anything starts (and to generate missing
+description files once); the RT driver makes the same plan from the same arguments to build the robot.
+"""
+
+from __future__ import annotations
+
+import grp
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from plem.core.paths import BUILTIN_PACKAGES_DIR
+from plem.description.discover import locate_package, package_for_launch
+from plem.description.generate import ResolvedDescription, resolve_description
+from plem.description.validate import Stage, ValidationReport, require_valid
+from plem.errors import ConfigError, PlemError, raise_collected
+from plem.launch.arguments import DEFAULTS
+from plem.robot.config import SerialArmConfig
+from plem.robot.models import MODELS
+from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
+
+BUSES = ("ethercat", "mock")
+BOOLEANS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
+
+
+@dataclass
+class RobotPlan:
+    """One robot's launch: the arguments as given and everything derived from them."""
+
+    arguments: dict[str, str]
+    resolved: ResolvedConfig
+    package: Path
+    urdf_file: str | None
+    srdf_file: str | None
+    bus: str
+    robot_name: str
+    record: bool
+    shm_group: int | None
+    report: ValidationReport
+    description: ResolvedDescription | None = None
+
+    @property
+    def config(self) -> SerialArmConfig:
+        return self.resolved.config
+
+    @property
+    def robot_id(self) -> str:
+        return self.config.robot_id
+
+    def poses(self, joint_names: tuple[str, ...]) -> dict[str, list[float]]:
+        """Named poses of the SRDF; 'home' defaults to every joint at 0 rad when the SRDF names none."""
+        poses = self.report.srdf.poses(joint_names) if self.report.srdf is not None else {}
+        poses.setdefault("home", [0.0] * len(joint_names))
+        return poses
+
+    def value(self, name: str) -> str:
+        """An argument as given, else its launch default."""
+        return self.arguments.get(name) or DEFAULTS[name]
+
+
+def _problem(name: str, value: str, what: str, how: str) -> ConfigError:
+    return ConfigError(f"invalid launch argument {name}:={value}", what=what, why=f"{name} is {value!r}", how=how)
+
+
+def _integer(arguments: Mapping[str, str], name: str, low: int, high: int, errors: list[PlemError]) -> None:
+    text = arguments.get(name) or DEFAULTS[name]
+    if not text.strip().isdigit() or not low <= int(text) <= high:
+        errors.append(_problem(name, text, f"a whole number from {low} to {high}", f"e.g. {name}:={DEFAULTS[name]}"))
+
+
+def _group(text: str, errors: list[PlemError]) -> int | None:
+    if not text:
+        return None
+    try:
+        return int(text) if text.isdigit() else grp.getgrnam(text).gr_gid
+    except KeyError:
+        errors.append(_problem("shm_group", text, "an existing group name or id", "create the group or drop shm_group"))
+        return None
+
+
+def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root: Path | None = None) -> RobotPlan:
+    """Check the launch arguments of one robot and resolve its description and configuration.
+
+    `generate` writes missing optional description files into a fresh temp directory (the supervisor);
+    the RT driver plans without it. All argument problems are raised together.
+    """
+    arguments = {name: value for name, value in arguments.items() if value != ""}
+    errors: list[PlemError] = []
+    bus = arguments.get("bus", DEFAULTS["bus"])
+    if bus not in BUSES:
+        errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}", "use bus:=mock for the simulated arm"))
+    record_text = arguments.get("record", DEFAULTS["record"]).lower()
+    if record_text not in BOOLEANS:
+        errors.append(_problem("record", record_text, "true or false", "e.g. record:=false"))
+    _integer(arguments, "retention_minutes", 1, 10_000_000, errors)
+    _integer(arguments, "disk_threshold", 1, 99, errors)
+    group = _group(arguments.get("shm_group", ""), errors)
+    raise_collected(errors, "the launch arguments")
+
+    package = Path(locate_package(package_for_launch(arguments.get("description_package"),
+                                                     arguments.get("robot_type"))))
+    urdf_file, srdf_file = arguments.get("urdf_file"), arguments.get("srdf_file")
+    config_arguments = dict(arguments)
+    builtin = _builtin_model(package)
+    if builtin is None:
+        config_arguments.pop("robot_type", None)  # a custom package: robot_type does not apply
+    else:
+        config_arguments["robot_type"] = builtin
+    description = None
+    if generate:
+        cycle_us = int(arguments["cycle_time"]) if arguments.get("cycle_time", "").isdigit() else 1000
+        description = resolve_description(package, urdf_file=urdf_file, srdf_file=srdf_file, cycle_time_us=cycle_us,
+                                          stage=Stage.STARTUP, temp_root=temp_root)
+        report = description.report
+    else:
+        report = require_valid(package, stage=Stage.STARTUP, urdf_file=urdf_file, srdf_file=srdf_file)
+    resolved = resolve_arm_config(launch_args=config_arguments, launch_defaults=LAUNCH_DEFAULTS,
+                                  dof=None if builtin else report.dof)
+    robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
+    return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, BOOLEANS[record_text],
+                     group, report, description)
+
+
+def _builtin_model(package: Path) -> str | None:
+    """The robot_type whose built-in package this is, or None for a user's package."""
+    if package.resolve().parent != BUILTIN_PACKAGES_DIR:
+        return None
+    return next((robot_type for robot_type, model in MODELS.items()
+                 if model.MODEL.description_package == package.name), None)
+
+
+def child_environment(plan: RobotPlan) -> dict[str, str]:
+    """The environment of a robot's child processes: PLEM_ROBOT_ID, as the spec's launch passes it."""
+    return {**os.environ, "PLEM_ROBOT_ID": plan.robot_id}

@@ -1,0 +1,114 @@
+"""The RT driver process: owns one robot's bus and loop and serves it through shared memory.
+
+`plem launch` starts it as `python -m plem.launch.rt_driver '<launch arguments as JSON>'`. It prints one
+JSON line on stdout once the loop runs (or why it could not start), then nothing else there. SIGTERM or
+SIGINT stops any motion smoothly, disables the drives, stops the loop and removes the shared memory;
+when the launching process dies the kernel sends SIGTERM, so the arm never runs unsupervised.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import logging
+import os
+import signal
+import sys
+import threading
+from typing import Any
+
+from plem.errors import PlemError
+from plem.ipc.channels import RobotChannels
+from plem.ipc.records import RawRecorder, event_record
+from plem.launch.driver_service import DriverService
+from plem.launch.plan import RobotPlan, plan_robot
+from plem.robot.robot import Robot
+
+PR_SET_PDEATHSIG = 1
+_log = logging.getLogger("plem.rt_driver")
+
+
+def _die_with_parent(parent: int) -> None:
+    """Ask the kernel for SIGTERM when the launching process exits (and catch a parent already gone)."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def _bus(plan: RobotPlan) -> Any:
+    if plan.bus == "mock":
+        from plem.fieldbus.mock import MockBus
+
+        return MockBus(plan.config.dof)
+    return None  # the builder explains that EtherCAT is not available
+
+
+def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChannels]:
+    """The robot of `plan`, publishing into freshly created shared memory (removed again if building fails)."""
+    channels: list[RobotChannels] = []
+
+    def state_block(limits: Any) -> Any:
+        channels.append(RobotChannels.create(plan.robot_id, limits, plan.config.cycle_time * 1000,
+                                             poses=plan.poses(limits.joint_names), mode=0o640 if plan.shm_group is not None else 0o600,
+                                             group=plan.shm_group, warn=warn))
+        return channels[0].state.block
+
+    try:
+        robot = (Robot.builder(plan.config).with_bus(_bus(plan)).with_description(str(plan.package), plan.urdf_file)
+                 .with_state_block(state_block)
+                 .with_cycle_observer(lambda block: RawRecorder(block, channels[0].rings["rt_raw"].write_values))
+                 .build())
+    except BaseException:
+        for created in channels:
+            created.remove()
+        raise
+    events = channels[0].rings["events"]
+    robot.events.subscribe(lambda event: events.write(event_record(event)))
+    return robot, channels[0]
+
+
+def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
+    """Build, start the loop and the service, announce readiness, run until `stop`, then shut down cleanly."""
+    robot, channels = build(plan)
+    service = DriverService(robot, channels)
+    try:
+        robot.start()
+        service.start()
+        report = robot.loop.report
+        announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
+                  "joint_names": list(robot.joint_names), "cycle_time_us": plan.config.cycle_time,
+                  "policy": report.policy, "priority": report.priority, "memory_locked": report.memory_locked,
+                  "warnings": report.warnings, "shared_memory": channels.names})
+        while not stop.wait(0.2):
+            if not robot.running:
+                _log.error("the control loop stopped: %r", robot.loop.error)
+                break
+    finally:
+        robot.shutdown()
+        service.stop.set()
+        service.thread.join(2.0)
+        channels.remove()
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    logging.basicConfig(level=logging.INFO, format="[rt_driver] %(levelname)s: %(message)s")
+    _die_with_parent(int(os.environ.get("PLEM_LAUNCH_PID", os.getppid())))
+    stop = threading.Event()
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, lambda *_: stop.set())
+
+    def announce(payload: dict[str, Any]) -> None:
+        print(json.dumps(payload), flush=True)
+
+    try:
+        serve(plan_robot(json.loads(argv[0]), generate=False), stop, announce)
+    except PlemError as error:
+        announce({"ready": False, "error": error.to_dict()})
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,245 @@
+"""`plem launch`'s supervisor: starts each robot's components as child processes and watches them.
+
+Children start in order with a readiness check (the RT driver announces itself once its loop runs),
+in their own session so that Ctrl-C reaches only the supervisor, which then stops them in order: the
+driver stops the arm smoothly, disables the drives and removes its shared memory. A child that dies
+is reported; when an RT driver dies, everything stops.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, TextIO
+
+from plem.errors import PlemError
+from plem.launch.description import COMPONENTS
+from plem.launch.plan import RobotPlan, child_environment
+
+READY_TIMEOUT_S = 120.0
+STOP_TIMEOUT_S = 20.0
+STATUS_PERIOD_S = 0.5
+PIPE_STATUS_PERIOD_S = 10.0
+#: Components of later releases: listed in the summary, never faked.
+NOT_BUILT = {"bridge": "ROS 2 bridge over DDS", "recorder": "rosbag2 recorder", "planner": "motion planner"}
+
+
+class LaunchFailed(PlemError):
+    """A component did not start or stopped unexpectedly."""
+
+
+@dataclass
+class Child:
+    """One child process of the launch."""
+
+    robot_id: str
+    component: str
+    process: subprocess.Popen
+    critical: bool
+    ready: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return f"[{self.robot_id}/{self.component}]"
+
+    def exit_description(self) -> str:
+        code = self.process.returncode
+        if code is not None and code < 0:
+            return f"killed by {signal.Signals(-code).name}"
+        return f"exited with code {code}"
+
+
+class Supervisor:
+    """Runs the robots of one launch until a stop signal or a critical child's death."""
+
+    def __init__(self, plans: list[RobotPlan], components: dict[str, bool] | None = None,
+                 out: TextIO = sys.stdout) -> None:
+        self.plans = plans
+        self.components = components or dict.fromkeys(COMPONENTS, True)
+        self.out = out
+        self.children: list[Child] = []
+        self.stop_requested = threading.Event()
+        self._clients: dict[str, Any] = {}
+        self._event_streams: dict[str, Any] = {}
+
+    def say(self, line: str) -> None:
+        self.out.write(line + "\n")
+        self.out.flush()
+
+    # -- start -------------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Start everything, watch until stopped, stop everything; the exit code of `plem launch`."""
+        previous = {signum: signal.signal(signum, lambda *_: self.stop_requested.set())
+                    for signum in (signal.SIGINT, signal.SIGTERM)}
+        code = 0
+        try:
+            for plan in self.plans:
+                if self.stop_requested.is_set():
+                    break
+                self._start_driver(plan)
+            if not self.stop_requested.is_set():
+                self._summary()
+                code = self._watch()
+        except PlemError:
+            self._stop_all()
+            raise
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
+        self._stop_all()
+        return code
+
+    def _start_driver(self, plan: RobotPlan) -> None:
+        for line in plan.description.log_lines if plan.description else ():
+            self.say(f"[{plan.robot_id}] {line}")
+        env = {**child_environment(plan), "PLEM_LAUNCH_PID": str(os.getpid())}
+        process = subprocess.Popen([sys.executable, "-m", "plem.launch.rt_driver", json.dumps(plan.arguments)],
+                                   stdout=subprocess.PIPE, text=True, env=env, start_new_session=True)
+        child = Child(plan.robot_id, "rt_driver", process, critical=True)
+        self.children.append(child)
+        child.ready = self._await_ready(child)
+
+    def _await_ready(self, child: Child) -> dict[str, Any]:
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        stream = child.process.stdout
+        while time.monotonic() < deadline and not self.stop_requested.is_set():
+            readable, _, _ = select.select([stream], [], [], 0.2)
+            if not readable:
+                if child.process.poll() is not None:
+                    break
+                continue
+            line = stream.readline()
+            if not line:
+                break
+            announcement = json.loads(line)
+            if announcement.get("ready"):
+                return announcement
+            error = announcement.get("error", {})
+            raise LaunchFailed(f"{child.label} could not start: {error.get('summary', 'unknown error')}",
+                               what=error.get("what", "a running RT driver"), why=error.get("why", ""),
+                               how=error.get("how", "see the messages above"))
+        if self.stop_requested.is_set():
+            return {}
+        child.process.poll()
+        raise LaunchFailed(f"{child.label} did not become ready", what=f"its loop running within {READY_TIMEOUT_S:.0f} s",
+                           why=child.exit_description() if child.process.returncode is not None else "no answer",
+                           how="see the messages above; rerun with fewer robots or a longer cycle_time")
+
+    def _summary(self) -> None:
+        for plan, child in zip(self.plans, self.children):
+            ready, config = child.ready, plan.config
+            self.say(f"robot {plan.robot_id} ({plan.robot_name}): {config.model_name()}, {ready['dof']} joints, "
+                     f"bus {plan.bus}, cycle {ready['cycle_time_us']} µs")
+            priority = (f"{ready['policy']} priority {ready['priority']}" if ready["policy"] == "SCHED_FIFO"
+                        else f"{ready['policy']} (real-time priority {config.rt_priority} refused)")
+            self.say(f"  rt_driver     running, pid {ready['pid']}, {priority}, memory locked: "
+                     f"{'yes' if ready['memory_locked'] else 'no'}")
+            for warning in ready["warnings"]:
+                self.say(f"  warning: {warning}")
+            self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
+            for component, title in NOT_BUILT.items():
+                self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
+        self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
+                 "plem move --to home")
+
+    def _component_status(self, plan: RobotPlan, component: str, title: str) -> str:
+        if not self.components.get(component, True):
+            return "disabled by the launch file"
+        if component == "recorder" and not plan.record:
+            return "off (record:=false)"
+        if component == "planner" and plan.description is not None and not plan.description.planner_enabled:
+            return "not started: no SRDF"
+        return f"unavailable: the {title} is not part of this plem version"
+
+    # -- watch -------------------------------------------------------------------------------------
+    def _watch(self) -> int:
+        from plem.bridge.client import connect
+
+        for child in self.children:
+            client = connect(child.robot_id)
+            self._clients[child.robot_id] = client
+            self._event_streams[child.robot_id] = client.events(timeout=0)
+        interactive = self.out.isatty()
+        period = STATUS_PERIOD_S if interactive else PIPE_STATUS_PERIOD_S
+        next_status = time.monotonic() + period
+        while not self.stop_requested.wait(0.1):
+            self._print_events(interactive)
+            dead = [child for child in self.children if child.process.poll() is not None]
+            if dead:
+                for child in dead:
+                    self._clear_status(interactive)
+                    self.say(f"{child.label} {child.exit_description()}")
+                if any(child.critical for child in dead):
+                    self.say("an RT driver stopped: stopping everything")
+                    return 1
+                self.children = [child for child in self.children if child not in dead]
+            if time.monotonic() >= next_status:
+                self._print_status(interactive)
+                next_status = time.monotonic() + period
+        self._clear_status(interactive)
+        return 0
+
+    def _print_events(self, interactive: bool) -> None:
+        for robot_id, stream in self._event_streams.items():
+            for event in stream:
+                self._clear_status(interactive)
+                self.say(f"[{robot_id}] {event.describe()}")
+
+    def _clear_status(self, interactive: bool) -> None:
+        if interactive:
+            self.out.write("\r\033[K")
+
+    def _print_status(self, interactive: bool) -> None:
+        parts = [status_line(robot_id, client) for robot_id, client in self._clients.items()]
+        text = "  |  ".join(parts)
+        if interactive:
+            self.out.write("\r\033[K" + text)
+            self.out.flush()
+        else:
+            self.say(text)
+
+    # -- stop --------------------------------------------------------------------------------------
+    def _stop_all(self) -> None:
+        """Stop children in reverse start order: each driver stops its arm, then exits."""
+        if self.children:
+            self.say("stopping: the arms stop smoothly and their drives are disabled")
+        for child in reversed(self.children):
+            if child.process.poll() is None:
+                child.process.send_signal(signal.SIGTERM)
+        for child in reversed(self.children):
+            try:
+                child.process.wait(STOP_TIMEOUT_S)
+                if child.ready:
+                    self.say(f"{child.label} stopped ({child.exit_description()})")
+            except subprocess.TimeoutExpired:
+                child.process.kill()
+                child.process.wait()
+                self.say(f"{child.label} did not stop within {STOP_TIMEOUT_S:.0f} s and was killed")
+        self.children.clear()
+        self._print_events(interactive=False)  # the shutdown's events: the mappings outlive the unlinked names
+        for client in self._clients.values():
+            client.close()
+        self._clients.clear()
+        self._event_streams.clear()
+
+
+def status_line(robot_id: str, client: Any) -> str:
+    """One compact line: mode, cycle, recent latency, overruns, fault reason when faulted."""
+    state = client.state()
+    stats = client.stats() or {}
+    if state is None:
+        return f"{robot_id}: starting"
+    interval = stats.get("latency_interval", {})
+    text = (f"{robot_id}: {state.mode.name:<10} cycle {state.cycle:>9}  latency p99 {interval.get('p99_us', 0):.0f} µs "
+            f"max {interval.get('max_us', 0):.0f} µs  overruns {stats.get('overruns', 0)}")
+    if state.faulted and stats.get("fault_reason"):
+        text += f"  fault: {stats['fault_reason']}"
+    return text
+
