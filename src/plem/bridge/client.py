@@ -210,15 +210,21 @@ class RobotClient:
         payload = {"id": new_request_id(), "op": op, **{k: v for k, v in args.items() if v is not None}}
         check_request(payload, self.limits)  # the driver checks the same again
         record = encode(payload)
+        commands = self.channels.rings["commands"]
+        if not commands.writable:
+            raise CommandRejected(f"no permission to command robot '{self.robot_id}'",
+                                  what="write access to the robot's command ring",
+                                  why=f"{commands.name} is readable but not writable for this user (shm_group)",
+                                  how="command the robot as the user that launched it")
         handle = RemoteHandle(self, payload["id"], op)
         with self._lock:
             self._handles[handle.id] = handle
         self.live_state()
-        if not self.channels.rings["commands"].write(record):
+        if not commands.write(record):
             with self._lock:
                 del self._handles[handle.id]
             raise CommandRejected("the robot's command queue is full", what="room in the command ring",
-                                  why=f"{self.channels.rings['commands'].slots} requests are waiting for the driver",
+                                  why=f"{commands.slots} requests are waiting for the driver",
                                   how="wait for earlier commands to be taken, then retry")
         if wait_accepted:
             handle.wait_accepted()

@@ -61,6 +61,21 @@ class RealtimeReport:
     warnings: list[str] = field(default_factory=list)
 
 
+def keep_threads_scheduled(priority: int = 1) -> str | None:
+    """Put the calling thread, and threads it starts later, on SCHED_FIFO `priority`; a warning if refused.
+
+    The loop thread shares the interpreter lock with its process's other threads. If one of them is
+    preempted by ordinary processes while it holds the lock, the loop waits for it; at FIFO priority 1 they
+    run ahead of every ordinary process and behind interrupt threads and the loop itself.
+    """
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as error:
+        return (f"helper threads stay at normal priority ({error.strerror}): a busy host can delay the loop "
+                "while one of them holds the interpreter lock")
+    return None
+
+
 class RealtimeContext:
     """Applies the real-time settings on `__enter__` and restores the machine on `__exit__`."""
 

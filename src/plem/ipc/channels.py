@@ -8,13 +8,14 @@ of the same robot are stale too and are replaced.
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from plem.control.limits import ArmLimits
 from plem.ipc.records import raw_record_length
 from plem.ipc.ring import SlotRing
-from plem.ipc.segment import SharedSegment
+from plem.ipc.segment import SharedSegment, segment_path
 from plem.ipc.state_segment import StateSegment, state_segment_name
 
 _log = logging.getLogger("plem.ipc")
@@ -46,6 +47,13 @@ def channel_names(robot_id: str) -> dict[str, str]:
 
 def _shape(ring: str, dof: int) -> RingShape:
     return RINGS[ring] or RingShape(raw_record_length(dof) * 8, RAW_SLOTS)
+
+
+def _attach_for_commands(name: str) -> SlotRing:
+    """The command ring writable when permitted; read-only for users who may watch but not command."""
+    if os.access(segment_path(name), os.W_OK):
+        return SlotRing.attach(name, writable=True)
+    return SlotRing.attach(name)
 
 
 class RobotChannels:
@@ -89,8 +97,10 @@ class RobotChannels:
         rings: dict[str, SlotRing] = {}
         try:
             for ring, name in channel_names(robot_id).items():
-                if ring != "state":
-                    rings[ring] = SlotRing.attach(name, writable=ring == "commands")
+                if ring == "commands":
+                    rings[ring] = _attach_for_commands(name)
+                elif ring != "state":
+                    rings[ring] = SlotRing.attach(name)
         except BaseException:
             for attached in rings.values():
                 attached.close()

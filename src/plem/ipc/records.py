@@ -1,7 +1,8 @@
 """What the RT driver's outbound rings carry: one rt_raw sample per cycle, events, loop statistics.
 
-An rt_raw sample is one float64 record: a few scalars (cycle, time, mode, fault, this cycle's wake-up
-latency, the previous cycle's compute time) followed by the state block's joint rows. Events and
+An rt_raw sample is one float64 record: the state block's header scalars (cycle, time, mode, fault,
+drives enabled), this cycle's wake-up latency and the previous cycle's compute time, then the state
+block's joint rows. Events and
 statistics are rare and travel as JSON.
 """
 
@@ -15,9 +16,9 @@ import numpy as np
 
 from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
-from plem.control.state import ROWS, StateBlock
+from plem.control.state import ROWS, JointState, StateBlock
 
-RAW_SCALARS = ("cycle", "monotonic_ns", "mode", "faulted", "latency_ns", "compute_ns")
+RAW_SCALARS = ("cycle", "monotonic_ns", "mode", "faulted", "drives_enabled", "latency_ns", "compute_ns")
 
 
 def raw_record_length(dof: int) -> int:
@@ -26,27 +27,17 @@ def raw_record_length(dof: int) -> int:
 
 
 @dataclass(frozen=True)
-class RawSample:
-    """One cycle as the loop saw it (SI units; times in ns)."""
+class RawSample(JointState):
+    """One cycle as the loop saw it, with its wake-up latency and the previous cycle's compute time (ns)."""
 
-    cycle: int
-    monotonic_ns: int
-    mode: Mode
-    faulted: bool
     latency_ns: int
     compute_ns: int
-    position: np.ndarray
-    velocity: np.ndarray
-    effort: np.ndarray
-    command_position: np.ndarray
-    command_velocity: np.ndarray
-    command_acceleration: np.ndarray
 
     @classmethod
     def from_record(cls, record: np.ndarray, dof: int) -> RawSample:
         rows = record[len(RAW_SCALARS):].reshape(len(ROWS), dof)
-        cycle, stamp, mode, faulted, latency, compute = (int(v) for v in record[:len(RAW_SCALARS)])
-        return cls(cycle, stamp, Mode(mode), bool(faulted), latency, compute, *rows)
+        cycle, stamp, mode, faulted, enabled, latency, compute = (int(v) for v in record[:len(RAW_SCALARS)])
+        return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), *rows, latency, compute)
 
 
 class RawRecorder:
@@ -66,8 +57,9 @@ class RawRecorder:
         scalars[1] = header[2]
         scalars[2] = header[3]
         scalars[3] = header[4]
-        scalars[4] = latency_ns
-        scalars[5] = compute_ns
+        scalars[4] = header[5]
+        scalars[5] = latency_ns
+        scalars[6] = compute_ns
         np.copyto(self._rows, self._block.values)
         self._write(self.record)
 

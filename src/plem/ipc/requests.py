@@ -61,12 +61,21 @@ def _tolerances(value: Any, limits: ArmLimits) -> TrajectoryTolerances | None:
     arguments = dict(value)
     for key in ("path", "goal"):
         if arguments.get(key) is not None:
-            arguments[key] = limits.check_vector(arguments[key], f"the {key} tolerance")
+            arguments[key] = limits.check_vector(_numbers(arguments[key], f"the {key} tolerance"),
+                                                 f"the {key} tolerance")
     for key in ("goal_time", "stopped_velocity_tolerance"):
-        if key in arguments and not isinstance(arguments[key], (int, float)):
+        if key in arguments and (isinstance(arguments[key], bool) or not isinstance(arguments[key], (int, float))):
             raise _rejected(f"{key} is not a number", what="seconds or rad/s as a number",
                             why=f"got {arguments[key]!r}", how=f"send {key} as a number")
     return TrajectoryTolerances(**arguments)
+
+
+def _numbers(value: Any, what: str) -> Any:
+    """`value` unchanged unless it is a list holding something other than numbers (JSON true is not 1.0)."""
+    if isinstance(value, list) and any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise _rejected(f"{what} holds something other than numbers", what="a list of numbers",
+                        why=f"got {value!r}"[:300], how="send plain numbers")
+    return value
 
 
 def _speed_scale(value: Any) -> float:
@@ -110,7 +119,7 @@ def _trajectory(args: Mapping[str, Any], limits: ArmLimits) -> JointTrajectory:
 def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedRequest:
     """Validate a decoded request against the robot's joints and limits; CommandRejected names the problem."""
     request_id, op = payload.get("id"), payload.get("op")
-    if not isinstance(request_id, str) or op not in OPERATIONS:
+    if not isinstance(request_id, str) or not isinstance(op, str) or op not in OPERATIONS:
         raise _rejected("not a plem request", what=f"an id and an op from {', '.join(OPERATIONS)}",
                         why=f"id {request_id!r}, op {op!r}"[:300], how="send requests with plem.bridge.connect()")
     args = {k: v for k, v in payload.items() if k not in ("id", "op")}
@@ -120,7 +129,7 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
                         why=f"unknown: {', '.join(unknown)}", how="check the spelling")
     checked: dict[str, Any] = {}
     if op == "move_joints":
-        target = limits.check_vector(args.get("target"), "the target")
+        target = limits.check_vector(_numbers(args.get("target"), "the target"), "the target")
         limits.check_positions(target, "the target")
         checked = {"target": target, "speed_scale": _speed_scale(args.get("speed_scale", 1.0)),
                    "tolerances": _tolerances(args.get("tolerances"), limits)}
@@ -148,7 +157,7 @@ def decode(record: bytes) -> dict[str, Any]:
     """A JSON object from a ring record; anything else is CommandRejected."""
     try:
         payload = json.loads(record)
-    except (UnicodeDecodeError, ValueError) as error:
+    except (UnicodeDecodeError, ValueError, RecursionError) as error:
         raise _rejected("unreadable request", what="a JSON object", why=str(error)[:200],
                         how="send requests with plem.bridge.connect()") from None
     if not isinstance(payload, dict):

@@ -92,6 +92,10 @@ class SlotRing:
         return cls(segment, slot_bytes, slots, bool(flags & BOUNDED))
 
     @property
+    def writable(self) -> bool:
+        return self._segment.writable
+
+    @property
     def head(self) -> int:
         """Number of records ever written."""
         return int(self._hot[HEAD])

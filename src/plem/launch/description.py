@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,6 +61,8 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
                               why=f"{path} does not exist or is not a Python file",
                               how="check the path (e.g. my_robot_description/launch/bringup.launch.py)")
     module = importlib.util.module_from_spec(spec)
+    writes_bytecode = sys.dont_write_bytecode
+    sys.dont_write_bytecode = True  # never write __pycache__ into the user's package
     try:
         spec.loader.exec_module(module)
         generate = getattr(module, "generate_launch_description")
@@ -70,6 +73,8 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
         raise LaunchFileError(f"Launch file {path.name} failed", what="generate_launch_description() to return "
                               "plem.launch.bringup(...)", why=f"{type(error).__name__}: {error}",
                               how=f"fix {path}") from None
+    finally:
+        sys.dont_write_bytecode = writes_bytecode
     if not isinstance(description, LaunchDescription):
         raise LaunchFileError(f"Launch file {path.name} returned {type(description).__name__}",
                               what="generate_launch_description() returning plem.launch.bringup(...)",

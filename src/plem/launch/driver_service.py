@@ -17,7 +17,7 @@ import numpy as np
 
 from plem.control.commands import CommandHandle
 from plem.control.timing import histogram_summary
-from plem.errors import PlemError
+from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.requests import CheckedRequest, check_request, decode, reply, request_id_of
 from plem.robot.robot import Robot
@@ -82,11 +82,11 @@ class DriverService:
         try:
             payload = decode(record)
             handle = self._dispatch(check_request(payload, self._limits))
-        except PlemError as error:
+        except Exception as error:  # anything a record provokes is its rejection; the service goes on
             self.counters.rejected += 1
             request_id = request_id_of(payload)
             if request_id is not None:
-                self._replies.write(reply(request_id, "rejected", error=error))
+                self._replies.write(reply(request_id, "rejected", error=_as_plem_error(error)))
             return
         self._pending.append(_Pending(payload["id"], handle))
         self._answer_pending()
@@ -146,6 +146,13 @@ class DriverService:
                          "memory_locked": report.memory_locked, "dma_latency_held": report.dma_latency_held},
         }
         self.channels.rings["stats"].write(json.dumps(record, default=_plain).encode())
+
+
+def _as_plem_error(error: Exception) -> PlemError:
+    if isinstance(error, PlemError):
+        return error
+    return CommandRejected("the request could not be handled", what="a request the driver can execute",
+                           why=f"{type(error).__name__}: {error}"[:300], how="check the request's values")
 
 
 def _plain(value: Any) -> Any:

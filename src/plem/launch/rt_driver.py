@@ -17,6 +17,7 @@ import sys
 import threading
 from typing import Any
 
+from plem.control.realtime import keep_threads_scheduled
 from plem.errors import PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.records import RawRecorder, event_record
@@ -102,6 +103,9 @@ def main(argv: list[str] | None = None) -> int:
     def announce(payload: dict[str, Any]) -> None:
         print(json.dumps(payload), flush=True)
 
+    refused = keep_threads_scheduled()
+    if refused:
+        _log.warning(refused)
     try:
         serve(plan_robot(json.loads(argv[0]), generate=False), stop, announce)
     except PlemError as error:

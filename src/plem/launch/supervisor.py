@@ -208,7 +208,7 @@ class Supervisor:
     # -- stop --------------------------------------------------------------------------------------
     def _stop_all(self) -> None:
         """Stop children in reverse start order: each driver stops its arm, then exits."""
-        if self.children:
+        if any(child.ready for child in self.children):
             self.say("stopping: the arms stop smoothly and their drives are disabled")
         for child in reversed(self.children):
             if child.process.poll() is None:

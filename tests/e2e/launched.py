@@ -1,0 +1,182 @@
+"""Robots brought up with the real `plem launch`, watched through what it prints and what it leaves in /dev/shm."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+import uuid
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+from plem.ipc.segment import SHM_DIRECTORY
+from tests.conftest import ISOLATED_PREFIXES
+from tests.e2e.cli import plem_executable
+
+READY_LINE = "Ctrl-C stops the arm"
+READY_TIMEOUT_S = 60.0
+STOP_TIMEOUT_S = 30.0
+_DRIVER_LINE = re.compile(r"^robot (\S+) \(.*\n\s+rt_driver\s+running, pid (\d+)", re.MULTILINE)
+_GENERATED = re.compile(r"Generated files are in (\S+);")
+
+
+def new_robot_id() -> str:
+    return f"e2e_{uuid.uuid4().hex[:8]}"
+
+
+def clean_environment(home: Path, **extra: str) -> dict[str, str]:
+    """The caller's environment without plem/ROS variables, with a private PLEM_HOME."""
+    env = {name: value for name, value in os.environ.items() if not name.startswith(ISOLATED_PREFIXES)}
+    return {**env, "PLEM_HOME": str(home), **extra}
+
+
+def shm_files(robot_id: str) -> list[Path]:
+    """Every /dev/shm file of a robot (they all start with its robot_id)."""
+    return sorted(SHM_DIRECTORY.glob(f"{robot_id}_*"))
+
+
+def remove_shm(robot_id: str) -> None:
+    for path in shm_files(robot_id):
+        path.unlink(missing_ok=True)
+
+
+def remove_generated(output: str) -> None:
+    """Delete the temp directories a launch generated description files into (it names them)."""
+    for directory in _GENERATED.findall(output):
+        if Path(directory).name.startswith("wim_launch_"):
+            shutil.rmtree(directory, ignore_errors=True)
+
+
+def process_gone(pid: int) -> bool:
+    """True when `pid` no longer runs (no such process, or a zombie waiting for its parent)."""
+    try:
+        status = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return True
+    return status.rsplit(")", 1)[1].split()[0] in ("Z", "X")
+
+
+def process_reaped(pid: int) -> bool:
+    """True when `pid` is gone entirely, not even a zombie (its owner check in plem counts zombies as alive)."""
+    return not Path(f"/proc/{pid}").exists()
+
+
+def wait_until(condition, timeout: float, period: float = 0.02) -> bool:
+    deadline = time.monotonic() + timeout
+    while True:
+        if condition():
+            return True
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(period)
+
+
+class Launch:
+    """One running `plem launch` with its stdout and stderr in files."""
+
+    def __init__(self, arguments: Sequence[str], robot_ids: Sequence[str], directory: Path,
+                 env: dict[str, str]) -> None:
+        self.arguments = list(arguments)
+        self.robot_ids = list(robot_ids)
+        self.env = env
+        directory.mkdir(parents=True, exist_ok=True)
+        tag = uuid.uuid4().hex[:6]
+        self.stdout_path = directory / f"launch_{tag}.out"
+        self.stderr_path = directory / f"launch_{tag}.err"
+        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
+            self.process = subprocess.Popen([plem_executable(), "launch", *self.arguments], stdin=subprocess.DEVNULL,
+                                            stdout=out, stderr=err, env=env)
+
+    @property
+    def robot_id(self) -> str:
+        return self.robot_ids[0]
+
+    @property
+    def output(self) -> str:
+        return self.stdout_path.read_text()
+
+    @property
+    def errors(self) -> str:
+        return self.stderr_path.read_text()
+
+    def describe(self) -> str:
+        return f"plem launch {' '.join(self.arguments)}\n--- stdout\n{self.output}\n--- stderr\n{self.errors}"
+
+    def wait_for(self, text: str, timeout: float = READY_TIMEOUT_S) -> None:
+        """Block until `text` appears on stdout; fails if the launch exits or the time runs out first."""
+        deadline = time.monotonic() + timeout
+        while text not in self.output:
+            if self.process.poll() is not None and text not in self.output:
+                raise AssertionError(f"launch exited with {self.process.returncode} before {text!r}\n"
+                                     + self.describe())
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no {text!r} within {timeout} s\n" + self.describe())
+            time.sleep(0.05)
+
+    def driver_pids(self) -> dict[str, int]:
+        """The RT driver pid of each robot, as the summary reports it."""
+        return {robot_id: int(pid) for robot_id, pid in _DRIVER_LINE.findall(self.output)}
+
+    def stop(self) -> int:
+        """Ctrl-C, as a user would; kills the launch and its drivers if they do not stop in time."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            try:
+                self.process.wait(STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        for pid in self.driver_pids().values():
+            if not process_gone(pid):
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
+                wait_until(lambda: process_gone(pid), 10)
+        return self.process.returncode
+
+    def cleanup(self) -> None:
+        self.stop()
+        remove_generated(self.output)
+        for robot_id in self.robot_ids:
+            remove_shm(robot_id)
+
+
+def start_launch(arguments: Sequence[str], robot_ids: Sequence[str], directory: Path, env: dict[str, str],
+                 *, ready: bool = True) -> Launch:
+    launch = Launch(arguments, robot_ids, directory, env)
+    if ready:
+        try:
+            launch.wait_for(READY_LINE)
+        except BaseException:
+            launch.cleanup()
+            raise
+    return launch
+
+
+@contextlib.contextmanager
+def launched(arguments: Sequence[str], robot_ids: Sequence[str], directory: Path,
+             env: dict[str, str]) -> Iterator[Launch]:
+    """A launch that reached its summary; stopped with Ctrl-C and cleaned up afterwards."""
+    launch = start_launch(arguments, robot_ids, directory, env)
+    try:
+        yield launch
+    finally:
+        launch.cleanup()
+
+
+def python_client(code: str, *args: str, env: dict[str, str] | None = None) -> subprocess.Popen:
+    """Another process running `code` (dedented) with `args` in sys.argv[1:]; stdout piped, text mode."""
+    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code), *args], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def read_line(process: subprocess.Popen, timeout: float) -> str:
+    """The next stdout line of `process`, or '' when it ended or said nothing within `timeout`."""
+    readable, _, _ = select.select([process.stdout], [], [], timeout)
+    return process.stdout.readline() if readable else ""

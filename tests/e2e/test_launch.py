@@ -1,0 +1,587 @@
+"""`plem launch` end to end: the real supervisor, RT driver and clients as separate processes on the mock bus."""
+
+from __future__ import annotations
+
+import grp
+import hashlib
+import json
+import os
+import pwd
+import re
+import signal
+import stat
+import subprocess
+import sys
+import sysconfig
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import plem
+from plem.bridge import connect
+from plem.bridge.client import RobotClient
+from plem.control.commands import CommandTimeout
+from plem.control.events import EventKind
+from plem.control.modes import Mode
+from plem.ipc.channels import channel_names
+from plem.ipc.ring import SlotRing
+from tests.e2e.cli import run_plem
+from tests.e2e.launched import (
+    Launch,
+    clean_environment,
+    launched,
+    new_robot_id,
+    process_gone,
+    process_reaped,
+    python_client,
+    read_line,
+    remove_generated,
+    shm_files,
+    start_launch,
+    wait_until,
+)
+
+ARRIVED = 1e-3
+LOOP_HZ = 1000.0
+
+MOVE_CLIENT = """
+    import json, sys
+    from plem.bridge import connect
+    client = connect(sys.argv[1])
+    client.set_mode("hold")
+    result = client.move_joints(json.loads(sys.argv[2]), 1.0).wait(30)
+    state = client.state()
+    print(json.dumps({"outcome": result.outcome.value, "mode": state.mode.name,
+                      "position": state.position.tolist()}), flush=True)
+"""
+
+WAITING_CLIENT = """
+    import json, sys
+    from plem.bridge import connect
+    client = connect(sys.argv[1])
+    client.set_mode("hold")
+    handle = client.move_joints(json.loads(sys.argv[2]), float(sys.argv[3]))
+    print("waiting", handle.id, flush=True)
+    handle.wait(60)
+    print("finished", flush=True)
+"""
+
+STREAMING_CLIENT = """
+    import json, sys
+    from plem.bridge import connect
+    client = connect(sys.argv[1])
+    client.set_mode("hold")
+    samples = client.stream(timeout=10)
+    client.move_joints(json.loads(sys.argv[2]), float(sys.argv[3]))
+    for count, sample in enumerate(samples, 1):
+        if count == 200:
+            print("streaming", sample.cycle, flush=True)
+"""
+
+
+# -- fixtures ----------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
+    """One simulated Indy7 v2 shared by the tests that neither kill nor restart it."""
+    directory = tmp_path_factory.mktemp("launch")
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], directory,
+                  clean_environment(directory / "plem_home")) as launch:
+        yield launch
+
+
+@pytest.fixture
+def client(robot: Launch) -> Iterator[RobotClient]:
+    assert robot.process.poll() is None, robot.describe()
+    with connect(robot.robot_id) as connected:
+        yield connected
+
+
+def shm_group_name() -> str | None:
+    """An existing group other than ours, for shm_group:=."""
+    for name in ("daemon", "nogroup", "users"):
+        try:
+            if grp.getgrnam(name).gr_gid != os.getegid():
+                return name
+        except KeyError:
+            continue
+    return None
+
+
+@pytest.fixture(scope="module")
+def group_robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Launch, grp.struct_group]]:
+    name = shm_group_name()
+    if name is None:
+        pytest.skip("no group other than the test's own exists")
+    directory = tmp_path_factory.mktemp("group_launch")
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}", f"shm_group:={name}"], [robot_id], directory,
+                  clean_environment(directory / "plem_home")) as launch:
+        yield launch, grp.getgrnam(name)
+
+
+# -- shared checks -----------------------------------------------------------------------------------
+def expected_files(robot_id: str) -> list[str]:
+    return sorted(name[1:] for name in channel_names(robot_id).values())
+
+
+def target_away(client: RobotClient, distance: float) -> list[float]:
+    """The current position with joint0 moved by `distance` rad, towards the side with room."""
+    position = client.state().position.copy()
+    upper = client.limits.max_position[0] - 0.2
+    position[0] += distance if position[0] + distance < upper else -distance
+    return position.tolist()
+
+
+def expect_line(process: subprocess.Popen, prefix: str, timeout: float = 30) -> str:
+    line = read_line(process, timeout)
+    if not line.startswith(prefix):
+        process.kill()
+        _, errors = process.communicate()
+        raise AssertionError(f"expected {prefix!r} from the client, got {line!r}; stderr:\n{errors}")
+    return line
+
+
+def move_in_new_process(launch: Launch, target: list[float]) -> dict:
+    mover = python_client(MOVE_CLIENT, launch.robot_id, json.dumps(target), env=launch.env)
+    output, errors = mover.communicate(timeout=60)
+    assert mover.returncode == 0, errors
+    return json.loads(output)
+
+
+def assert_error_form(text: str) -> None:
+    """A WHAT/WHY/HOW error and no traceback."""
+    assert "Traceback" not in text
+    for label in ("ERROR:", "WHAT:", "WHY:", "HOW:"):
+        assert re.search(rf"^{label} \S", text, re.MULTILINE), f"no {label} line in:\n{text}"
+
+
+def watch_until_hold(client: RobotClient, samples, timeout: float = 20) -> tuple[list[int], set[Mode]]:
+    """Every cycle's sample until the loop is back in HOLD: their cycle numbers and the modes they show."""
+    cycles: list[int] = []
+    modes: set[Mode] = set()
+    faulted = False
+    deadline = time.monotonic() + timeout
+    while True:
+        for sample in samples:
+            cycles.append(sample.cycle)
+            modes.add(sample.mode)
+            faulted |= sample.faulted
+        if Mode.HOLD in modes and client.state().mode is Mode.HOLD:
+            break
+        assert time.monotonic() < deadline, f"no HOLD within {timeout} s; modes seen {modes}"
+        time.sleep(0.05)
+    assert not faulted
+    return cycles, modes
+
+
+def assert_loop_undisturbed(client: RobotClient, killed: subprocess.Popen, target: list[float]) -> None:
+    """Kill `killed` mid-motion, then: every cycle ran at ~1 kHz, the motion finished, no fault."""
+    events = client.events(timeout=0)
+    samples = client.stream(timeout=0)
+    started = time.monotonic()
+    killed.send_signal(signal.SIGKILL)
+    killed.wait(10)
+    assert killed.returncode == -signal.SIGKILL
+    assert client.state().mode is Mode.TRAJECTORY, "the client was not killed in the middle of the motion"
+
+    cycles, modes = watch_until_hold(client, samples)
+    elapsed = time.monotonic() - started
+    assert samples.dropped == 0
+    assert np.all(np.diff(cycles) == 1), "the loop skipped or repeated cycles"
+    assert 0.85 * LOOP_HZ < len(cycles) / elapsed < 1.15 * LOOP_HZ, (len(cycles), elapsed)
+    assert Mode.FAULT not in modes and Mode.TRAJECTORY in modes
+
+    state = client.state()
+    assert not state.faulted and state.drives_enabled
+    assert np.allclose(state.position, target, atol=ARRIVED), (state.position, target)
+    seen = list(events)
+    assert [e.cause for e in seen if e.kind is EventKind.MOTION_FINISHED] == ["succeeded"], seen
+    assert not [e for e in seen if e.kind is EventKind.FAULT], seen
+    assert wait_until(lambda: (client.stats() or {}).get("mode") == "hold", 2)
+    assert client.stats()["fault_reason"] == ""
+
+
+# -- 1. commanding from another process --------------------------------------------------------------
+def test_client_process_moves_the_arm_and_cli_moves_it_home(robot: Launch, client: RobotClient):
+    target = [0.3, -0.2, -1.2, 0.2, -1.1, 0.3]
+    moved = move_in_new_process(robot, target)
+    assert moved["outcome"] == "succeeded" and moved["mode"] == "HOLD"
+    assert np.allclose(moved["position"], target, atol=ARRIVED)
+    assert np.allclose(client.state().position, target, atol=ARRIVED)
+
+    home = client.channels.state.poses["home"]
+    names = client.joint_names
+    assert home[names.index("joint2")] == pytest.approx(-1.570796) == home[names.index("joint4")]
+    assert [home[i] for i, name in enumerate(names) if name not in ("joint2", "joint4")] == [0.0] * 4
+
+    result = run_plem("move", "--to", "home", "--speed-scale", "1", "--robot-id", robot.robot_id, env=robot.env)
+    assert result.returncode == 0, result.stderr
+    assert "reached its goal" in result.stdout
+    state = client.state()
+    assert state.mode is Mode.HOLD and np.allclose(state.position, home, atol=ARRIVED), state.position
+
+
+# -- 2. a killed client never disturbs the loop --------------------------------------------------------
+def test_sigkill_of_a_client_waiting_on_a_motion_leaves_the_loop_running(robot: Launch, client: RobotClient):
+    target = target_away(client, 0.5)
+    waiter = python_client(WAITING_CLIENT, robot.robot_id, json.dumps(target), "0.5", env=robot.env)
+    try:
+        expect_line(waiter, "waiting")
+        assert_loop_undisturbed(client, waiter, target)
+    finally:
+        waiter.kill()
+        waiter.communicate()
+
+    after = target_away(client, 0.2)
+    moved = move_in_new_process(robot, after)
+    assert moved["outcome"] == "succeeded" and np.allclose(moved["position"], after, atol=ARRIVED)
+
+
+def test_sigkill_of_a_streaming_client_leaves_the_loop_running(robot: Launch, client: RobotClient):
+    target = target_away(client, 0.5)
+    streamer = python_client(STREAMING_CLIENT, robot.robot_id, json.dumps(target), "0.5", env=robot.env)
+    try:
+        expect_line(streamer, "streaming")
+        assert_loop_undisturbed(client, streamer, target)
+    finally:
+        streamer.kill()
+        streamer.communicate()
+
+    client.set_mode("hold")
+    after = target_away(client, 0.2)
+    assert client.move_joints(after, 1.0).wait(30).outcome.value == "succeeded"
+    assert np.allclose(client.state().position, after, atol=ARRIVED)
+
+
+# -- 3. / 4. a killed launch ---------------------------------------------------------------------------
+def test_sigkill_of_launch_and_driver_leaves_stale_memory_that_a_new_launch_replaces(tmp_path: Path):
+    robot_id = new_robot_id()
+    env = clean_environment(tmp_path / "plem_home")
+    arguments = ["bus:=mock", f"robot_id:={robot_id}"]
+    first = start_launch(arguments, [robot_id], tmp_path, env)
+    try:
+        driver = first.driver_pids()[robot_id]
+        os.kill(driver, signal.SIGKILL)
+        first.process.kill()
+        first.process.wait(10)
+        assert wait_until(lambda: process_reaped(driver), 10)
+        assert [path.name for path in shm_files(robot_id)] == expected_files(robot_id)
+
+        second = start_launch(arguments, [robot_id], tmp_path, env)
+        try:
+            replacing = re.search(rf"WARNING: replacing stale shared memory /{robot_id}_joint_actual_values "
+                                  rf"left by process (\d+)", second.errors)
+            assert replacing and int(replacing.group(1)) == driver, second.describe()
+            new_driver = second.driver_pids()[robot_id]
+            assert new_driver != driver
+            with connect(robot_id) as client:
+                assert client.channels.state.header.owner_pid == new_driver
+                client.set_mode("hold")
+                target = target_away(client, 0.3)
+                assert client.move_joints(target, 1.0).wait(30).outcome.value == "succeeded"
+                assert np.allclose(client.state().position, target, atol=ARRIVED)
+            assert second.stop() == 0, second.describe()
+            assert shm_files(robot_id) == []
+        finally:
+            second.cleanup()
+    finally:
+        first.cleanup()
+
+
+def test_sigkill_of_launch_alone_stops_the_driver_cleanly(tmp_path: Path):
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path,
+                  clean_environment(tmp_path / "plem_home")) as launch, connect(robot_id) as client:
+        driver = launch.driver_pids()[robot_id]
+        client.set_mode("hold")
+        events = client.events(timeout=0)
+        launch.process.kill()
+        launch.process.wait(10)
+        killed = time.monotonic()
+        assert wait_until(lambda: process_gone(driver) and not shm_files(robot_id), 5), shm_files(robot_id)
+        assert time.monotonic() - killed < 5
+        # The mappings outlive the unlinked names: the driver's last words are still readable.
+        stopped = [e for e in events if e.kind is EventKind.MODE_CHANGED]
+        assert [(e.previous_mode, e.mode) for e in stopped] == [(Mode.HOLD, Mode.IDLE)], stopped
+        last = client.state()
+        assert last.mode is Mode.IDLE and not last.drives_enabled and not last.faulted
+
+
+# -- 5. one driver per robot_id ------------------------------------------------------------------------
+def test_second_launch_with_the_same_robot_id_is_refused(robot: Launch, client: RobotClient):
+    before = client.state().cycle
+    result = run_plem("launch", "bus:=mock", f"robot_id:={robot.robot_id}", env=robot.env)
+    remove_generated(result.stdout)
+    assert result.returncode == 1
+    assert f"robot '{robot.robot_id}' already has a running RT driver" in result.stderr
+    assert_error_form(result.stderr)
+    assert robot.process.poll() is None
+    assert client.channels.state.header.owner_pid == robot.driver_pids()[robot.robot_id]
+    assert [path.name for path in shm_files(robot.robot_id)] == expected_files(robot.robot_id)
+    assert client.wait_for_state(timeout=2, after_cycle=before + 500) is not None
+    assert client.live_state().cycle > before + 500
+
+
+# -- 6. several robots in one launch -------------------------------------------------------------------
+def test_two_robots_in_one_launch_are_isolated(tmp_path: Path):
+    left, right = new_robot_id(), new_robot_id()
+    robots = tmp_path / "robots.yaml"
+    robots.write_text(f"robots:\n  - {{robot_id: {left}, bus: mock}}\n  - {{robot_id: {right}, bus: mock}}\n")
+    with launched([f"robots:={robots}"], [left, right], tmp_path,
+                  clean_environment(tmp_path / "plem_home")) as launch, \
+            connect(left) as moving, connect(right) as still:
+        pids = launch.driver_pids()
+        assert set(pids) == {left, right} and pids[left] != pids[right]
+        assert moving.channels.state.header.owner_pid == pids[left]
+        assert still.channels.state.header.owner_pid == pids[right]
+        for robot_id in (left, right):
+            assert [path.name for path in shm_files(robot_id)] == expected_files(robot_id)
+
+        resting = still.state()
+        moving.set_mode("hold")
+        target = target_away(moving, 0.4)
+        started = time.monotonic()
+        handle = moving.move_joints(target, 1.0)
+        while not handle.done:
+            during = still.state()
+            assert during.mode is resting.mode and np.array_equal(during.position, resting.position)
+            time.sleep(0.01)
+        assert handle.wait(1).outcome.value == "succeeded"
+        assert np.allclose(moving.state().position, target, atol=ARRIVED)
+        after = still.state()
+        assert np.array_equal(after.position, resting.position) and after.mode is resting.mode
+        assert after.cycle - resting.cycle > 0.8 * LOOP_HZ * (time.monotonic() - started)
+
+        moving_kinds = {e.kind for e in moving.events(timeout=0, from_oldest=True)}
+        still_kinds = {e.kind for e in still.events(timeout=0, from_oldest=True)}
+        motion = {EventKind.MODE_CHANGED, EventKind.MOTION_STARTED, EventKind.MOTION_FINISHED}
+        assert motion <= moving_kinds
+        assert not motion & still_kinds, still_kinds
+        assert still.stats()["commands"]["received"] == 0
+
+
+# -- 7. permissions ------------------------------------------------------------------------------------
+def test_shared_memory_is_owner_only(robot: Launch):
+    files = shm_files(robot.robot_id)
+    assert [path.name for path in files] == expected_files(robot.robot_id)
+    for path in files:
+        status = path.stat()
+        assert stat.S_IMODE(status.st_mode) == 0o600, path
+        assert (status.st_uid, status.st_gid) == (os.geteuid(), os.getegid()), path
+
+
+def test_shm_group_makes_the_memory_group_readable(group_robot: tuple[Launch, grp.struct_group]):
+    launch, group = group_robot
+    files = shm_files(launch.robot_id)
+    assert [path.name for path in files] == expected_files(launch.robot_id)
+    for path in files:
+        status = path.stat()
+        assert stat.S_IMODE(status.st_mode) == 0o640, path
+        assert (status.st_uid, status.st_gid) == (os.geteuid(), group.gr_gid), path
+
+
+def _run_as_group_member(group: grp.struct_group, code: str) -> subprocess.CompletedProcess[str]:
+    """`code` under the system interpreter as user nobody, a member of `group` (needs root)."""
+    interpreter = next((str(path) for path in (Path("/usr/bin") / f"python{sys.version_info.major}."
+                                                f"{sys.version_info.minor}",
+                                                Path("/usr/local/bin") / f"python{sys.version_info.major}."
+                                                f"{sys.version_info.minor}") if path.exists()), None)
+    if os.geteuid() != 0 or interpreter is None:
+        pytest.skip("needs root and a system Python of the test's version")
+    nobody = pwd.getpwnam("nobody")
+    path = os.pathsep.join([str(Path(plem.__file__).parents[1]), sysconfig.get_paths()["purelib"]])
+    return subprocess.run([interpreter, "-c", code], user=nobody.pw_uid, group=nobody.pw_gid,
+                          extra_groups=[group.gr_gid], cwd="/", capture_output=True, text=True, timeout=60,
+                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": path, "HOME": "/tmp"})
+
+
+def test_shm_group_member_can_read_the_state(group_robot: tuple[Launch, grp.struct_group]):
+    launch, group = group_robot
+    if _run_as_group_member(group, "import numpy, plem.bridge").returncode != 0:
+        pytest.skip("the system Python cannot import plem as user nobody")
+    result = _run_as_group_member(group, f"from plem.bridge import connect\n"
+                                         f"print(connect({launch.robot_id!r}).state().cycle)")
+    assert result.returncode == 0, result.stderr
+    assert int(result.stdout) > 0
+
+
+# -- 8. malformed commands -----------------------------------------------------------------------------
+def test_malformed_commands_are_rejected_without_reaching_the_loop(robot: Launch, client: RobotClient):
+    assert wait_until(lambda: client.stats() is not None, 2)
+    counted = client.stats()["commands"]
+    before = client.state()
+    replies = client.channels.rings["replies"].reader()
+    events = client.events(timeout=0)
+    tag = uuid.uuid4().hex[:6]
+    requests = {
+        f"unknown-op-{tag}": {"op": "teleport", "target": [0.0] * client.dof},
+        f"out-of-limit-{tag}": {"op": "move_joints", "target": (client.limits.max_position + 0.5).tolist(),
+                                "speed_scale": 0.5},
+        f"wrong-length-{tag}": {"op": "move_joints", "target": [0.1] * (client.dof - 1)},
+    }
+    ring = SlotRing.attach(f"/{robot.robot_id}_commands", writable=True)
+    try:
+        assert ring.write(b"\xff\x00{garbage")
+        for request_id, request in requests.items():
+            assert ring.write(json.dumps({"id": request_id, **request}).encode())
+    finally:
+        ring.close()
+
+    answers: dict[str, list[dict]] = {}
+
+    def answered() -> bool:
+        for record in replies.read_all():
+            reply = json.loads(record)
+            answers.setdefault(reply["id"], []).append(reply)
+        return set(requests) <= set(answers)
+
+    assert wait_until(answered, 3), answers
+    assert wait_until(lambda: client.stats()["commands"]["received"] == counted["received"] + 4, 3)
+    time.sleep(0.2)  # anything a request started would show by now
+    answered()
+    assert {request_id: [r["stage"] for r in answers[request_id]] for request_id in requests} == \
+        dict.fromkeys(requests, ["rejected"])
+    assert "not a plem request" in answers[f"unknown-op-{tag}"][0]["error"]["summary"]
+    assert "outside the position limits" in answers[f"out-of-limit-{tag}"][0]["error"]["summary"]
+    assert f"{client.dof - 1} values for {client.dof} joints" in answers[f"wrong-length-{tag}"][0]["error"]["summary"]
+    counts = client.stats()["commands"]
+    assert counts == {**counted, "received": counted["received"] + 4, "rejected": counted["rejected"] + 4}
+    seen = list(events)
+    assert not [e for e in seen if e.kind in (EventKind.MOTION_STARTED, EventKind.MODE_CHANGED)], seen
+    now = client.state()
+    assert now.mode is before.mode and np.allclose(now.position, before.position, atol=1e-9)
+
+    client.set_mode("hold")
+    target = target_away(client, 0.2)
+    assert client.move_joints(target, 1.0).wait(30).outcome.value == "succeeded"
+    assert np.allclose(client.state().position, target, atol=ARRIVED)
+
+
+@pytest.mark.parametrize("record", [
+    pytest.param(json.dumps({"id": "list-op", "op": ["stop"]}).encode(), id="list-op"),
+    pytest.param(b'{"a":' * 5000 + b"1" + b"}" * 5000, id="deeply-nested"),
+])
+def test_a_record_that_breaks_validation_does_not_deafen_the_driver(tmp_path: Path, record: bytes):
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path,
+                  clean_environment(tmp_path / "plem_home")) as launch, connect(robot_id) as client:
+        ring = SlotRing.attach(f"/{robot_id}_commands", writable=True)
+        try:
+            assert ring.write(record)
+        finally:
+            ring.close()
+        assert client.set_mode("hold", timeout=3) is Mode.HOLD
+        assert wait_until(lambda: client.stats()["commands"]["rejected"] == 1, 2)
+        assert launch.process.poll() is None
+
+
+# -- 9. arguments --------------------------------------------------------------------------------------
+SPEC_DEFAULTS = {
+    "bus": "ethercat", "robot_id": "indy", "robot_type": "indy7_v2", "description_package": "wim_description",
+    "record": "true", "bag_dir": "~/bags/rt_monitoring", "retention_minutes": "60", "disk_threshold": "70",
+}
+DESCRIBED_DEFAULTS = ("urdf_file", "srdf_file", "robot_name")
+
+
+def test_launch_help_lists_every_argument_with_its_default():
+    result = run_plem("launch", "--help")
+    assert result.returncode == 0, result.stderr
+    listed = dict(re.findall(r"^  (\w+):=\s+(.*)$", result.stdout, re.MULTILINE))
+    assert set(SPEC_DEFAULTS) | set(DESCRIBED_DEFAULTS) | {"eth_interface"} <= set(listed), listed
+    for name, default in SPEC_DEFAULTS.items():
+        assert listed[name].endswith(f"[default: {default}]"), (name, listed[name])
+    for name in DESCRIBED_DEFAULTS:
+        assert "default:" in listed[name], (name, listed[name])
+
+
+def test_bad_launch_arguments_are_reported_together_and_start_nothing():
+    robot_id = new_robot_id()
+    result = run_plem("launch", "bus:=can", "disk_threshold:=150", f"robot_id:={robot_id}")
+    assert result.returncode == 1
+    assert_error_form(result.stderr)
+    assert "invalid launch argument bus:=can" in result.stderr
+    assert "invalid launch argument disk_threshold:=150" in result.stderr
+    assert "Traceback" not in result.stdout and "rt_driver" not in result.stdout
+    assert shm_files(robot_id) == []
+
+
+@pytest.mark.parametrize("bus", [[], ["bus:=ethercat"]], ids=["default", "explicit"])
+def test_ethercat_bus_is_refused_with_a_hint_to_use_mock(bus: list[str]):
+    robot_id = new_robot_id()
+    result = run_plem("launch", *bus, f"robot_id:={robot_id}")
+    remove_generated(result.stdout)
+    assert result.returncode == 1
+    assert_error_form(result.stderr)
+    assert "EtherCAT bus is not available" in result.stderr and "bus:=mock" in result.stderr
+    assert "Traceback" not in result.stdout
+    assert shm_files(robot_id) == []
+
+
+# -- 10. plem state ------------------------------------------------------------------------------------
+def test_state_without_a_running_robot_explains_how_to_start_one():
+    robot_id = new_robot_id()
+    result = run_plem("state", "--robot-id", robot_id)
+    assert result.returncode == 1
+    assert_error_form(result.stderr)
+    assert f"shared memory /{robot_id}_joint_actual_values does not exist" in result.stderr
+    assert re.search(r"^HOW: .*plem launch", result.stderr, re.MULTILINE)
+    assert shm_files(robot_id) == []
+
+
+def test_state_as_json_of_a_running_robot(robot: Launch, client: RobotClient):
+    result = run_plem("state", "--robot-id", robot.robot_id, "--format", "json")
+    assert result.returncode == 0, result.stderr
+    data = json.loads(result.stdout)
+    current = client.state()
+    assert data["robot_id"] == robot.robot_id
+    assert data["joint_names"] == list(client.joint_names) and len(data["position"]) == client.dof
+    assert np.allclose(data["position"], current.position, atol=ARRIVED)
+    assert data["mode"] == current.mode.name.lower() and 0 < data["cycle"] <= current.cycle
+
+
+# -- 11. a scaffolded package's bring-up file ----------------------------------------------------------
+def scaffold(directory: Path) -> Path:
+    created = run_plem("create-description", "--name", "e2e_arm", "--dof", "6", "--output", str(directory))
+    assert created.returncode == 0, created.stderr
+    package = directory / "e2e_arm_description"
+    assert (package / "launch" / "bringup.launch.py").is_file()
+    return package
+
+
+def package_digest(package: Path) -> dict[str, str]:
+    return {str(path.relative_to(package)): "dir" if path.is_dir() else hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(package.rglob("*"))}
+
+
+def launch_bringup(tmp_path: Path, env: dict[str, str]) -> tuple[dict[str, str], dict[str, str]]:
+    """Launch the scaffold's bring-up file, check the robot runs, stop it; the package digest before and after."""
+    package = scaffold(tmp_path / "packages")
+    before = package_digest(package)
+    robot_id = new_robot_id()
+    with launched([str(package / "launch" / "bringup.launch.py"), "bus:=mock", f"robot_id:={robot_id}"],
+                  [robot_id], tmp_path / "launch", env) as launch:
+        assert f"robot {robot_id} (e2e_arm):" in launch.output and "6 joints, bus mock" in launch.output
+        assert "planner       not started: no SRDF" in launch.output
+        with connect(robot_id) as client:
+            assert client.dof == 6 and client.wait_for_state(timeout=2, after_cycle=client.state().cycle + 100)
+        assert launch.stop() == 0, launch.describe()
+    assert shm_files(robot_id) == []
+    return before, package_digest(package)
+
+
+def test_scaffolded_bringup_file_launches_and_leaves_the_package_unchanged(tmp_path: Path):
+    # The bytecode cache is switched off here; the next test covers it.
+    before, after = launch_bringup(tmp_path, clean_environment(tmp_path / "plem_home", PYTHONDONTWRITEBYTECODE="1"))
+    assert after == before
+
+
+def test_bringup_launch_writes_no_bytecode_into_the_package(tmp_path: Path):
+    env = clean_environment(tmp_path / "plem_home")
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    before, after = launch_bringup(tmp_path, env)
+    assert after == before

@@ -1,0 +1,111 @@
+"""Requests checked identically by client and driver: every malformed payload is a CommandRejected."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from plem.control.limits import ArmLimits
+from plem.control.modes import Mode
+from plem.control.spline import JointNamesRejected
+from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
+from plem.errors import CommandRejected, PlemError, RobotFault
+from plem.ipc.requests import (check_request, decode, encode, error_from_json, reply, request_id_of,
+                               result_from_json)
+
+JOINTS = ("a", "b", "c")
+LIMITS = ArmLimits(JOINTS, -np.ones(3), np.ones(3), np.full(3, 2.0), np.full(3, 4.0), np.full(3, 40.0),
+                   np.full(3, 10.0))
+
+
+def request(op: str, **args: object) -> dict:
+    return {"id": "1-1-abc", "op": op, **args}
+
+
+def test_valid_requests_come_back_in_the_robot_api_types():
+    move = check_request(request("move_joints", target=[0.1, 0.2, 0.3], speed_scale=0.5,
+                                 tolerances={"goal": [0.01, 0, 0.01]}), LIMITS)
+    assert np.array_equal(move.args["target"], [0.1, 0.2, 0.3]) and move.args["speed_scale"] == 0.5
+    assert math.isinf(move.args["tolerances"].goal[1])  # 0 leaves a joint unchecked, as in ROS
+    trajectory = check_request(request("execute_trajectory", joint_names=["c", "a", "b"], points=[
+        {"positions": [0.5, 0.1, 0.2], "time_from_start": 1.0}]), LIMITS).args["trajectory"]
+    assert trajectory.joint_names == ("c", "a", "b")
+    assert check_request(request("set_mode", mode="free_drive"), LIMITS).args["mode"] is Mode.FREE_DRIVE
+    assert check_request(request("stop"), LIMITS).args == {}
+
+
+@pytest.mark.parametrize("payload, words", [
+    (request("fly"), "not a plem request"),
+    ({"op": "stop"}, "not a plem request"),
+    (request("stop", now=True), "unknown arguments"),
+    (request("move_joints", target=[0.1, 0.2]), "2 values for 3 joints"),
+    (request("move_joints", target=[0.1, float("nan"), 0.2]), "NaN"),
+    (request("move_joints", target=[0.1, 1.5, 0.2]), "outside the position limits of b"),
+    (request("move_joints", target=[0.1, 0.2, 0.3], speed_scale=0), "speed_scale"),
+    (request("move_joints", target=[0.1, 0.2, 0.3], speed_scale=True), "speed_scale"),
+    (request("move_joints", target="0.1,0.2,0.3"), "3 numbers"),
+    (request("move_joints", target=[0, 0, 0], tolerances={"gaol": [1, 1, 1]}), "tolerances are malformed"),
+    (request("execute_trajectory", joint_names=["a", "b"], points=[{"positions": [0, 0], "time_from_start": 1}]),
+     "joints do not match"),
+    (request("execute_trajectory", joint_names=["a", "b", "c"], points=[]), "no points"),
+    (request("execute_trajectory", joint_names=["a", "b", "c"], points=[
+        {"positions": [0, 0, 0], "time_from_start": 2}, {"positions": [0, 0, 0], "time_from_start": 1}]),
+     "out of time order"),
+    (request("execute_trajectory", joint_names=["a", "b", "c"], points=[
+        {"positions": [0, 0, 3], "time_from_start": 1}]), "outside the position limits of c"),
+    (request("set_mode", mode="trajectory"), "cannot be requested"),
+    (request("set_mode", mode="sideways"), "unknown mode"),
+])
+def test_malformed_requests_are_rejected_with_the_reason(payload, words):
+    with pytest.raises(CommandRejected) as caught:
+        check_request(payload, LIMITS)
+    assert words in caught.value.render()
+
+
+def test_wrong_joint_names_map_to_invalid_joints():
+    with pytest.raises(JointNamesRejected):
+        check_request(request("execute_trajectory", joint_names=["a", "b", "x"],
+                              points=[{"positions": [0, 0, 0], "time_from_start": 1}]), LIMITS)
+
+
+json_values = st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False, allow_infinity=False) | st.text(),
+                           lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(), inner, max_size=4),
+                           max_leaves=20)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=200) | json_values.map(lambda v: encode({"v": v}))
+       | st.fixed_dictionaries({"id": st.text(), "op": st.sampled_from(["move_joints", "execute_trajectory",
+                                                                         "set_mode", "stop", "x"])},
+                               optional={"target": json_values, "points": json_values, "joint_names": json_values,
+                                         "mode": json_values, "speed_scale": json_values,
+                                         "tolerances": json_values}).map(encode))
+def test_garbage_records_only_ever_raise_command_rejected(record):
+    try:
+        check_request(decode(record), LIMITS)
+    except CommandRejected:
+        pass
+
+
+def test_replies_round_trip_results_and_errors():
+    result = TrajectoryResult(TrajectoryOutcome.ABORTED, "tracking error", -4)
+    error = RobotFault("the motion was aborted", what="w", why="y", how="h")
+    payload = decode(reply("9-9-x", "failed", result, error))
+    assert payload["stage"] == "failed" and request_id_of(payload) == "9-9-x"
+    assert result_from_json(payload["result"]) == result
+    rebuilt = error_from_json(payload["error"])
+    assert type(rebuilt) is RobotFault and rebuilt.render() == error.render()
+    assert result_from_json(decode(reply("1", "finished", Mode.HOLD))["result"]) is Mode.HOLD
+    assert type(error_from_json({"error": "SomethingElse", "summary": "s"})) is PlemError
+
+
+def test_non_json_and_non_objects_are_unreadable():
+    for record in (b"\xff\xfe", b"[1, 2]", b"nope"):
+        with pytest.raises(CommandRejected, match="unreadable request"):
+            decode(record)
+    with pytest.raises(CommandRejected, match="cannot be encoded"):
+        encode({"target": [float("inf")]})
