@@ -9,7 +9,8 @@ What runs:
               plem.bridge.connect, as any client would.
   command     --moves small move_joints (0.02 rad on every joint, back and forth), each waited for. Latency =
               from just before the client's move_joints() call to the loop cycle that starts the motion (its
-              motion_started event): in cycles (event cycle minus the cycle read just before the call) and in
+              motion_started event): in cycles (1 = the first cycle after the call; counted from the last
+              cycle published before the call) and in
               µs (event time minus the call time). Baseline, same run: the same moves on an in-process Robot
               (same model and bus, loop in a thread of this process), where move_joints plans in the caller and
               hands the motion to the loop through a deque.
@@ -30,10 +31,12 @@ import signal
 import statistics
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -48,14 +51,16 @@ from plem.robot import Indy7V2, Robot
 AMPLITUDE = 0.02
 
 
-def launch(robot_id: str) -> subprocess.Popen:
-    """`plem launch` of the simulated arm, returned once its summary is printed."""
-    process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", "bus:=mock", f"robot_id:={robot_id}",
-                                "record:=false"], stdout=subprocess.PIPE, text=True)
-    for line in process.stdout:
-        if line.startswith("Ctrl-C stops"):
-            return process
-    raise SystemExit(f"plem launch did not start (exit {process.wait()})")
+def launch(robot_id: str, log: Path) -> subprocess.Popen:
+    """`plem launch` of the simulated arm (output to `log`), returned once its summary is printed."""
+    with log.open("w") as output:
+        process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", "bus:=mock", f"robot_id:={robot_id}",
+                                    "record:=false"], stdout=output, stderr=subprocess.STDOUT, text=True)
+    while "Ctrl-C stops" not in log.read_text():
+        if process.poll() is not None:
+            raise SystemExit(f"plem launch did not start (exit {process.returncode}):\n{log.read_text()}")
+        time.sleep(0.2)
+    return process
 
 
 def stop(process: subprocess.Popen) -> None:
@@ -72,7 +77,7 @@ def move_latencies(move: Callable[[list[float]], object], started: Callable[[], 
         before_cycle, before_ns = cycle(), time.monotonic_ns()
         move(target)
         event_cycle, event_ns = started()
-        cycles.append(event_cycle - before_cycle)
+        cycles.append(event_cycle + 1 - before_cycle)  # an event's cycle counts the cycles before its own
         micros.append((event_ns - before_ns) / 1e3)
     return cycles, micros
 
@@ -176,7 +181,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(f"machine: {platform.node()} {platform.machine()}, {os.cpu_count()} CPUs, kernel {platform.release()}, "
           f"Python {platform.python_version()}")
     robot_id = f"bench_{os.getpid()}"
-    process = launch(robot_id)
+    process = launch(robot_id, Path(tempfile.gettempdir()) / f"{robot_id}.log")
     try:
         client = connect(robot_id)
         client.set_mode("hold")

@@ -61,7 +61,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     except click_exceptions.ClickException as error:
         error.show()
         return error.exit_code
-    except (click_exceptions.Abort, KeyboardInterrupt):
+    except (typer.Abort, KeyboardInterrupt):
         return 130
     except Exception as error:  # a bug in plem: still no traceback unless asked for
         if os.environ.get("PLEM_DEBUG"):

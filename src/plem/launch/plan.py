@@ -56,10 +56,6 @@ class RobotPlan:
         poses.setdefault("home", [0.0] * len(joint_names))
         return poses
 
-    def value(self, name: str) -> str:
-        """An argument as given, else its launch default."""
-        return self.arguments.get(name) or DEFAULTS[name]
-
 
 def _problem(name: str, value: str, what: str, how: str) -> ConfigError:
     return ConfigError(f"invalid launch argument {name}:={value}", what=what, why=f"{name} is {value!r}", how=how)

@@ -70,8 +70,15 @@ class Supervisor:
         self._event_streams: dict[str, Any] = {}
 
     def say(self, line: str) -> None:
-        self.out.write(line + "\n")
-        self.out.flush()
+        self._write(line + "\n")
+
+    def _write(self, text: str) -> None:
+        """Print; a closed output (the reader of a pipe went away) silences the launch, never stops it."""
+        try:
+            self.out.write(text)
+            self.out.flush()
+        except (BrokenPipeError, ValueError):
+            self.out = open(os.devnull, "w")  # noqa: SIM115 - lives as long as the launch
 
     # -- start -------------------------------------------------------------------------------------
     def run(self) -> int:
@@ -194,14 +201,13 @@ class Supervisor:
 
     def _clear_status(self, interactive: bool) -> None:
         if interactive:
-            self.out.write("\r\033[K")
+            self._write("\r\033[K")
 
     def _print_status(self, interactive: bool) -> None:
         parts = [status_line(robot_id, client) for robot_id, client in self._clients.items()]
         text = "  |  ".join(parts)
         if interactive:
-            self.out.write("\r\033[K" + text)
-            self.out.flush()
+            self._write("\r\033[K" + text)
         else:
             self.say(text)
 
