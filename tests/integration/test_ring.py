@@ -52,8 +52,10 @@ def test_bytes_and_values_round_trip_with_owner_only_permissions(name):
 
 def test_reader_from_head_sees_only_new_records_from_oldest_sees_what_is_held(name):
     ring = SlotRing.create(name, 8, 4)
+    assert ring.newest() is None
     for k in range(6):
         ring.write(bytes([k]))
+    assert ring.newest() == bytes([5])
     assert ring.reader().read() is None
     oldest = ring.reader(from_oldest=True)
     assert oldest.read_all(limit=3) == [bytes([2]), bytes([3]), bytes([4])]

@@ -160,10 +160,8 @@ class RobotClient:
 
     def stats(self) -> dict[str, Any] | None:
         """The newest loop statistics record (timing, overruns, command counters), or None."""
-        ring = self.channels.rings["stats"]
-        reader = ring.reader(from_oldest=True)
-        records = reader.read_all()
-        return json.loads(records[-1]) if records else None
+        record = self.channels.rings["stats"].newest()
+        return None if record is None else json.loads(record)
 
     # -- commands ----------------------------------------------------------------------------------
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,

@@ -160,6 +160,11 @@ class SlotRing:
         record = self._f64[i].copy() if values else self._data[i, :self._len[i]].tobytes()
         return record if int(self._seq[i]) == before else None
 
+    def newest(self) -> bytes | None:
+        """A copy of the latest record, or None when there is none (or it was overwritten during the copy)."""
+        head = self.head
+        return self._take(head - 1, values=False) if head else None
+
     def reader(self, *, from_oldest: bool = False) -> RingReader:
         """A reader starting at the next record, or at the oldest record the ring still holds."""
         head = self.head
