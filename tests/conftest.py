@@ -9,7 +9,8 @@ import pytest
 
 from plem.core.config.loader import ConfigLoader
 
-ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH")
+ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH", "CYCLONEDDS_")
+TEST_DOMAIN_ID = 102 + os.getpid() % 100
 
 
 @pytest.fixture(autouse=True)
@@ -18,6 +19,9 @@ def isolated_environment(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Pat
     for name in list(os.environ):
         if name.startswith(ISOLATED_PREFIXES):
             monkeypatch.delenv(name)
+    # DDS stays on this host and on a domain of this test run, never meeting other runs or a real robot.
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(TEST_DOMAIN_ID))
     home = tmp_path / "plem_home"
     monkeypatch.setenv("PLEM_HOME", str(home))
     ConfigLoader.get_instance().invalidate()

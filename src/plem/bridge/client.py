@@ -182,7 +182,11 @@ class RobotClient:
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
-        return self._send("set_mode", {"mode": Mode.parse(mode).name.lower()}).wait(timeout)
+        return self.request_mode(mode).wait(timeout)
+
+    def request_mode(self, mode: str | Mode) -> RemoteHandle:
+        """Ask for a mode change without waiting; the handle's result is the mode reached."""
+        return self._send("set_mode", {"mode": Mode.parse(mode).name.lower()})
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""

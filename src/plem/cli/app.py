@@ -15,6 +15,7 @@ from plem.cli import description as description_commands
 from plem.cli import launch as launch_command
 from plem.cli import robot as robot_commands
 from plem.cli import profile as profile_commands
+from plem.cli import topic as topic_commands
 from plem.cli.output import print_error
 from plem.errors import PlemError, UsageError
 
@@ -27,6 +28,7 @@ app = typer.Typer(
 )
 app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
+app.add_typer(topic_commands.app, name="topic")
 app.command("validate")(description_commands.validate)
 app.command("create-description")(description_commands.create_description)
 app.command("launch", context_settings=launch_command.EXTRA_ARGS, add_help_option=False)(launch_command.launch)

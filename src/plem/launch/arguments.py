@@ -28,6 +28,9 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("srdf_file", "", "SRDF override (absolute, or relative to the package); default: discovered"),
     LaunchArgument("robot_name", "", "robot name for topics and the planning group; default: from the package"),
     LaunchArgument("eth_interface", "", "EtherCAT network interface, e.g. enp3s0 (bus:=ethercat)"),
+    LaunchArgument("bridge", "true", "publish the robot on ROS 2 over DDS (topics and actions under /{robot_id}/)"),
+    LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
+                   "at most 100"),
     LaunchArgument("record", "true", "record the monitoring topics into rosbag2 bags"),
     LaunchArgument("bag_dir", "~/bags/rt_monitoring", "directory of the bags"),
     LaunchArgument("retention_minutes", "60", "delete bags older than this (a circular buffer)"),

@@ -12,6 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import yaml
+
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.discover import locate_package, package_for_launch
 from plem.description.generate import ResolvedDescription, resolve_description
@@ -23,6 +25,9 @@ from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
 
 BUSES = ("ethercat", "mock")
+#: joint_states rates: the most a user may ask for, and the most the default follows controllers.yaml.
+MAX_JOINT_STATES_RATE = 1000.0
+DEFAULT_JOINT_STATES_RATE_CAP = 100.0
 BOOLEANS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
 
 
@@ -38,6 +43,7 @@ class RobotPlan:
     bus: str
     robot_name: str
     record: bool
+    bridge: bool
     shm_group: int | None
     report: ValidationReport
     description: ResolvedDescription | None = None
@@ -50,6 +56,19 @@ class RobotPlan:
     def robot_id(self) -> str:
         return self.config.robot_id
 
+    def joint_state_rate(self) -> float:
+        """Hz of joint_states: the launch argument, else controllers.yaml's update rate, at most 100 Hz."""
+        if self.arguments.get("joint_states_rate"):
+            return float(self.arguments["joint_states_rate"])
+        rate = 1e6 / self.config.cycle_time
+        controllers = self.report.files.controllers
+        if controllers is not None:
+            document = yaml.safe_load(controllers.read_text(encoding="utf-8")) or {}
+            parameters = (document.get("controller_manager") or {}).get("ros__parameters") or {}
+            if isinstance(parameters.get("update_rate"), (int, float)) and parameters["update_rate"] > 0:
+                rate = float(parameters["update_rate"])
+        return min(rate, DEFAULT_JOINT_STATES_RATE_CAP)
+
     def poses(self, joint_names: tuple[str, ...]) -> dict[str, list[float]]:
         """Named poses of the SRDF; 'home' defaults to every joint at 0 rad when the SRDF names none."""
         poses = self.report.srdf.poses(joint_names) if self.report.srdf is not None else {}
@@ -59,6 +78,21 @@ class RobotPlan:
 
 def _problem(name: str, value: str, what: str, how: str) -> ConfigError:
     return ConfigError(f"invalid launch argument {name}:={value}", what=what, why=f"{name} is {value!r}", how=how)
+
+
+def _boolean(arguments: Mapping[str, str], name: str, errors: list[PlemError]) -> bool:
+    text = arguments.get(name, DEFAULTS[name]).lower()
+    if text not in BOOLEANS:
+        errors.append(_problem(name, text, "true or false", f"e.g. {name}:=false"))
+        return False
+    return BOOLEANS[text]
+
+
+def _positive(text: str, high: float) -> bool:
+    try:
+        return 0.0 < float(text) <= high
+    except ValueError:
+        return False
 
 
 def _integer(arguments: Mapping[str, str], name: str, low: int, high: int, errors: list[PlemError]) -> None:
@@ -88,9 +122,11 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
     bus = arguments.get("bus", DEFAULTS["bus"])
     if bus not in BUSES:
         errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}", "use bus:=mock for the simulated arm"))
-    record_text = arguments.get("record", DEFAULTS["record"]).lower()
-    if record_text not in BOOLEANS:
-        errors.append(_problem("record", record_text, "true or false", "e.g. record:=false"))
+    record, bridge = (_boolean(arguments, name, errors) for name in ("record", "bridge"))
+    rate_text = arguments.get("joint_states_rate", "")
+    if rate_text and not _positive(rate_text, MAX_JOINT_STATES_RATE):
+        errors.append(_problem("joint_states_rate", rate_text, f"a rate in Hz above 0 and at most "
+                               f"{MAX_JOINT_STATES_RATE:.0f}", "e.g. joint_states_rate:=50"))
     _integer(arguments, "retention_minutes", 1, 10_000_000, errors)
     _integer(arguments, "disk_threshold", 1, 99, errors)
     group = _group(arguments.get("shm_group", ""), errors)
@@ -116,7 +152,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
     resolved = resolve_arm_config(launch_args=config_arguments, launch_defaults=LAUNCH_DEFAULTS,
                                   dof=None if builtin else report.dof)
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
-    return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, BOOLEANS[record_text],
+    return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, record, bridge,
                      group, report, description)
 
 

@@ -8,11 +8,9 @@ when the launching process dies the kernel sends SIGTERM, so the arm never runs 
 
 from __future__ import annotations
 
-import ctypes
 import json
 import logging
 import os
-import signal
 import sys
 import threading
 from typing import Any
@@ -21,20 +19,12 @@ from plem.control.realtime import keep_threads_scheduled
 from plem.errors import PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.records import RawRecorder, event_record
+from plem.launch.component import announce, die_with_parent, stop_on_signals
 from plem.launch.driver_service import DriverService
 from plem.launch.plan import RobotPlan, plan_robot
 from plem.robot.robot import Robot
 
-PR_SET_PDEATHSIG = 1
 _log = logging.getLogger("plem.rt_driver")
-
-
-def _die_with_parent(parent: int) -> None:
-    """Ask the kernel for SIGTERM when the launching process exits (and catch a parent already gone)."""
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    if os.getppid() != parent:
-        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def _bus(plan: RobotPlan) -> Any:
@@ -95,14 +85,8 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     logging.basicConfig(level=logging.INFO, format="[rt_driver] %(levelname)s: %(message)s")
-    _die_with_parent(int(os.environ.get("PLEM_LAUNCH_PID", os.getppid())))
-    stop = threading.Event()
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda *_: stop.set())
-
-    def announce(payload: dict[str, Any]) -> None:
-        print(json.dumps(payload), flush=True)
-
+    die_with_parent()
+    stop = stop_on_signals()
     refused = keep_threads_scheduled()
     if refused:
         _log.warning(refused)
@@ -112,7 +96,6 @@ def main(argv: list[str] | None = None) -> int:
         announce({"ready": False, "error": error.to_dict()})
         return 1
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

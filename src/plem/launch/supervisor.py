@@ -22,13 +22,15 @@ from typing import Any, TextIO
 from plem.errors import PlemError
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
+from plem.middleware.discovery import DiscoverySettings
 
 READY_TIMEOUT_S = 120.0
 STOP_TIMEOUT_S = 20.0
 STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
 #: Components of later releases: listed in the summary, never faked.
-NOT_BUILT = {"bridge": "ROS 2 bridge over DDS", "recorder": "rosbag2 recorder", "planner": "motion planner"}
+NOT_BUILT = {"recorder": "rosbag2 recorder", "planner": "motion planner"}
+MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge"}
 
 
 class LaunchFailed(PlemError):
@@ -87,10 +89,12 @@ class Supervisor:
                     for signum in (signal.SIGINT, signal.SIGTERM)}
         code = 0
         try:
+            if any(plan.bridge for plan in self.plans) and self.components.get("bridge", True):
+                DiscoverySettings.from_environment()  # a bad ROS_DOMAIN_ID stops the launch before the arm starts
             for plan in self.plans:
                 if self.stop_requested.is_set():
                     break
-                self._start_driver(plan)
+                self._start_robot(plan)
             if not self.stop_requested.is_set():
                 self._summary()
                 code = self._watch()
@@ -103,13 +107,19 @@ class Supervisor:
         self._stop_all()
         return code
 
-    def _start_driver(self, plan: RobotPlan) -> None:
+    def _start_robot(self, plan: RobotPlan) -> None:
         for line in plan.description.log_lines if plan.description else ():
             self.say(f"[{plan.robot_id}] {line}")
+        self._start(plan, "rt_driver", critical=True)
+        if self.components.get("bridge", True) and plan.bridge and not self.stop_requested.is_set():
+            self._start(plan, "bridge", critical=False)
+
+    def _start(self, plan: RobotPlan, component: str, critical: bool) -> None:
+        """Start one component (`python -m plem.launch.<module>`) and wait for its readiness line."""
         env = {**child_environment(plan), "PLEM_LAUNCH_PID": str(os.getpid())}
-        process = subprocess.Popen([sys.executable, "-m", "plem.launch.rt_driver", json.dumps(plan.arguments)],
+        process = subprocess.Popen([sys.executable, "-m", MODULES[component], json.dumps(plan.arguments)],
                                    stdout=subprocess.PIPE, text=True, env=env, start_new_session=True)
-        child = Child(plan.robot_id, "rt_driver", process, critical=True)
+        child = Child(plan.robot_id, component, process, critical=critical)
         self.children.append(child)
         child.ready = self._await_ready(child)
 
@@ -140,8 +150,9 @@ class Supervisor:
                            how="see the messages above; rerun with fewer robots or a longer cycle_time")
 
     def _summary(self) -> None:
-        for plan, child in zip(self.plans, self.children):
-            ready, config = child.ready, plan.config
+        for plan in self.plans:
+            children = {child.component: child for child in self.children if child.robot_id == plan.robot_id}
+            ready, config = children["rt_driver"].ready, plan.config
             self.say(f"robot {plan.robot_id} ({plan.robot_name}): {config.model_name()}, {ready['dof']} joints, "
                      f"bus {plan.bus}, cycle {ready['cycle_time_us']} µs")
             priority = (f"{ready['policy']} priority {ready['priority']}" if ready["policy"] == "SCHED_FIFO"
@@ -151,10 +162,18 @@ class Supervisor:
             for warning in ready["warnings"]:
                 self.say(f"  warning: {warning}")
             self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
+            self.say(f"  bridge        {self._bridge_status(plan, children.get('bridge'))}")
             for component, title in NOT_BUILT.items():
                 self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
         self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
-                 "plem move --to home")
+                 "plem move --to home, plem topic list")
+
+    def _bridge_status(self, plan: RobotPlan, child: Child | None) -> str:
+        if child is None:
+            return "disabled by the launch file" if not self.components.get("bridge", True) else "off (bridge:=false)"
+        ready = child.ready
+        return (f"running, pid {child.process.pid}, topics and actions under {ready['namespace']}/ "
+                f"({ready['domain']}, joint_states {ready['joint_state_rate']:g} Hz)")
 
     def _component_status(self, plan: RobotPlan, component: str, title: str) -> str:
         if not self.components.get(component, True):

@@ -1,0 +1,73 @@
+"""The bridge process: one robot's shared memory on ROS 2 over Cyclone DDS (see `plem.middleware.robot_bridge`).
+
+`plem launch` starts it after the robot's RT driver announced itself, as
+`python -m plem.launch.ros_bridge '<launch arguments as JSON>'`. It runs at normal priority: it only
+reads shared memory and writes the bounded command ring, so its death or slowness never moves or
+stalls the arm. It exits when the driver's heartbeat stops.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import threading
+import time
+
+from plem.bridge.client import DriverGone, connect
+from plem.errors import PlemError
+from plem.launch.component import announce, die_with_parent, stop_on_signals
+from plem.launch.plan import plan_robot
+from plem.middleware.node import Node
+from plem.middleware.robot_bridge import RobotBridge
+
+_log = logging.getLogger("plem.bridge")
+#: How often the bridge looks for new cycles; rt_raw is published in order, in batches of about this much.
+PUMP_PERIOD_S = 0.001
+LIVENESS_PERIOD_S = 0.5
+
+
+def serve(arguments: dict[str, str], stop: threading.Event) -> None:
+    """Publish and serve until `stop` or until the RT driver is gone."""
+    plan = plan_robot(arguments, generate=False)
+    node = Node()
+    client = connect(plan.robot_id, plan.config.dof)
+    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", plan.joint_state_rate())
+    commands = threading.Thread(target=bridge.serve_commands, args=(stop,), name="plem-bridge-commands",
+                                daemon=True)
+    commands.start()
+    announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),
+              "joint_state_rate": plan.joint_state_rate()})
+    next_check = time.monotonic()
+    try:
+        while not stop.is_set():
+            bridge.pump()
+            if time.monotonic() >= next_check:
+                client.live_state()
+                next_check = time.monotonic() + LIVENESS_PERIOD_S
+            time.sleep(PUMP_PERIOD_S)
+    finally:
+        stop.set()
+        commands.join(1.0)
+        client.close()
+        node.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    logging.basicConfig(level=logging.INFO, format="[bridge] %(levelname)s: %(message)s")
+    die_with_parent()
+    stop = stop_on_signals()
+    try:
+        serve(json.loads(argv[0]), stop)
+    except DriverGone as error:
+        _log.error("%s", error.render())
+        return 1
+    except PlemError as error:
+        announce({"ready": False, "error": error.to_dict()})
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

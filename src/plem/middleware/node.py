@@ -1,0 +1,182 @@
+"""A DDS participant that speaks ROS 2: publishers, subscriptions, service servers and clients.
+
+Topics, services and types are named by the ROS 2 rules (see `names`), endpoints announce their type
+hash the way rmw does for ROS 2 Iron and later, and requests and replies carry rmw_cyclonedds's
+request header, so ROS 2 nodes on the same domain talk to plem as to any other node.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+from collections.abc import Iterable
+from typing import Any, Generic, TypeVar
+
+from cyclonedds.core import ReadCondition, SampleState, ViewState, InstanceState, WaitSet
+from cyclonedds.domain import Domain, DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+from plem.middleware import names
+from plem.middleware.discovery import DiscoverySettings
+from plem.middleware.qos import SERVICES, QosProfile
+from plem.middleware.types import InterfaceLibrary, library
+
+M = TypeVar("M")
+_ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
+#: What rmw_cyclonedds announces for a participant; ROS 2 graph tools list only participants that carry it.
+PARTICIPANT_USER_DATA = b"enclave=/;"
+
+
+class Publisher(Generic[M]):
+    """Writes messages of one type on one ROS 2 topic."""
+
+    def __init__(self, writer: DataWriter, message: type[M]) -> None:
+        self.writer = writer
+        self.message = message
+        self.published = 0
+
+    def publish(self, message: M) -> None:
+        self.writer.write(message)
+        self.published += 1
+
+    @property
+    def subscribers(self) -> int:
+        """Readers currently matched with this publisher."""
+        return len(self.writer.get_matched_subscriptions())
+
+
+class Subscription(Generic[M]):
+    """Takes messages of one type from one ROS 2 topic."""
+
+    def __init__(self, reader: DataReader, message: type[M]) -> None:
+        self.reader = reader
+        self.message = message
+        self.condition = ReadCondition(reader, _ANY_SAMPLE)
+
+    def take(self, limit: int = 256) -> list[M]:
+        """Every message waiting (up to `limit`), oldest first."""
+        return list(self.reader.take(N=limit))
+
+    @property
+    def publishers(self) -> int:
+        return len(self.reader.get_matched_publications())
+
+
+class ServiceServer:
+    """Takes requests of one service and sends each reply back to the client that asked."""
+
+    def __init__(self, node: Node, service: str, ros_type: str) -> None:
+        self.requests = node.subscription_of(names.request_topic(service), node.library.service_part(
+            f"{ros_type}_Request"), SERVICES, node.type_user_data(f"{ros_type}_Request"))
+        self._replies = node.publisher_of(names.reply_topic(service), node.library.service_part(
+            f"{ros_type}_Response"), SERVICES, node.type_user_data(f"{ros_type}_Response"))
+
+    def take(self) -> list[Any]:
+        """Waiting requests; each keeps rmw's header (`rmw_guid`, `rmw_seq`) for its reply."""
+        return self.requests.take()
+
+    def reply(self, request: Any, **fields: Any) -> None:
+        self._replies.publish(self._replies.message(rmw_guid=request.rmw_guid, rmw_seq=request.rmw_seq, **fields))
+
+
+class ServiceClient:
+    """Sends requests of one service and picks out the replies addressed to it."""
+
+    def __init__(self, node: Node, service: str, ros_type: str) -> None:
+        self._requests = node.publisher_of(names.request_topic(service), node.library.service_part(
+            f"{ros_type}_Request"), SERVICES, node.type_user_data(f"{ros_type}_Request"))
+        self._replies = node.subscription_of(names.reply_topic(service), node.library.service_part(
+            f"{ros_type}_Response"), SERVICES, node.type_user_data(f"{ros_type}_Response"))
+        self.guid = self._requests.writer.instance_handle & 0xFFFF_FFFF_FFFF_FFFF  # rmw sends it unsigned
+        self._sequence = itertools.count(1)
+        self._waiting: dict[int, Any] = {}
+        self._lock = threading.Lock()
+
+    @property
+    def ready(self) -> bool:
+        """The server's request reader and reply writer are both matched."""
+        return self._requests.subscribers > 0 and self._replies.publishers > 0
+
+    def call(self, timeout: float, **fields: Any) -> Any:
+        """Send one request and wait for its reply; TimeoutError when none arrives in time."""
+        sequence = next(self._sequence)
+        self._requests.publish(self._requests.message(rmw_guid=self.guid, rmw_seq=sequence, **fields))
+        waitset = WaitSet(self._replies.reader.participant)
+        waitset.attach(self._replies.condition)
+        deadline = duration(seconds=timeout)
+        while True:
+            with self._lock:
+                for reply in self._replies.take():
+                    if reply.rmw_guid == self.guid:
+                        self._waiting[reply.rmw_seq] = reply
+                if sequence in self._waiting:
+                    return self._waiting.pop(sequence)
+            if waitset.wait(deadline) == 0:
+                raise TimeoutError(f"no reply within {timeout} s")
+
+
+class Node:
+    """One participant on the ROS 2 domain, with the interface library that names and builds its types."""
+
+    def __init__(self, settings: DiscoverySettings | None = None, interfaces: InterfaceLibrary | None = None) -> None:
+        self.settings = settings or DiscoverySettings.from_environment()
+        self.library = interfaces or library()
+        # The domain object carries the discovery configuration; it must outlive the participant.
+        self._domain = Domain(self.settings.domain_id, self.settings.cyclone_config())
+        self.participant = DomainParticipant(self.settings.domain_id, qos=Qos(Policy.Userdata(PARTICIPANT_USER_DATA)))
+        self._topics: dict[str, Topic] = {}
+
+    @property
+    def domain_id(self) -> int:
+        return self.settings.domain_id
+
+    def publisher(self, topic: str, ros_type: str, profile: QosProfile) -> Publisher[Any]:
+        """A publisher on the ROS 2 topic `topic` (absolute, e.g. /indy/joint_states)."""
+        return self.publisher_of(names.topic(topic), self.library.message(ros_type), profile,
+                                 self.type_user_data(ros_type))
+
+    def subscription(self, topic: str, ros_type: str, profile: QosProfile) -> Subscription[Any]:
+        return self.subscription_of(names.topic(topic), self.library.message(ros_type), profile,
+                                    self.type_user_data(ros_type))
+
+    def service(self, service: str, ros_type: str) -> ServiceServer:
+        """A server of `ros_type` (e.g. action_msgs/srv/CancelGoal) at the absolute name `service`."""
+        return ServiceServer(self, service, ros_type)
+
+    def client(self, service: str, ros_type: str) -> ServiceClient:
+        return ServiceClient(self, service, ros_type)
+
+    def publisher_of(self, dds_topic: str, struct: type, profile: QosProfile, user_data: bytes) -> Publisher[Any]:
+        """A publisher on a DDS topic given by its wire name (for the parts of services and actions)."""
+        return Publisher(DataWriter(self.participant, self._topic(dds_topic, struct), profile.qos(user_data)), struct)
+
+    def subscription_of(self, dds_topic: str, struct: type, profile: QosProfile,
+                        user_data: bytes) -> Subscription[Any]:
+        return Subscription(DataReader(self.participant, self._topic(dds_topic, struct), profile.qos(user_data)),
+                            struct)
+
+    def type_user_data(self, ros_type: str) -> bytes:
+        """The endpoint user data rmw_cyclonedds announces on Iron and later: `typehash=RIHS01_...;`."""
+        return f"typehash={self.library.type_hash(ros_type)};".encode()
+
+    def waitset(self, subscriptions: Iterable[Subscription[Any] | ServiceServer]) -> WaitSet:
+        """A wait set that wakes when any of `subscriptions` has data."""
+        waitset = WaitSet(self.participant)
+        for item in subscriptions:
+            waitset.attach((item.requests if isinstance(item, ServiceServer) else item).condition)
+        return waitset
+
+    def _topic(self, dds_topic: str, struct: type) -> Topic:
+        if dds_topic not in self._topics:
+            self._topics[dds_topic] = Topic(self.participant, dds_topic, struct)
+        return self._topics[dds_topic]
+
+    def close(self) -> None:
+        """Delete the participant and everything it created (peers see the endpoints go away)."""
+        self._topics.clear()
+        self.participant = None  # type: ignore[assignment]
+        self._domain = None  # type: ignore[assignment]
