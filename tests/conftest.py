@@ -10,7 +10,7 @@ import pytest
 from plem.core.config.loader import ConfigLoader
 
 ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH", "CYCLONEDDS_")
-TEST_DOMAIN_ID = 102 + os.getpid() % 100
+TEST_DOMAIN_ID = 1 + os.getpid() % 100
 
 
 @pytest.fixture(autouse=True)

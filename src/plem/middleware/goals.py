@@ -107,15 +107,16 @@ class TrajectoryGoal:
         self._started = time.monotonic()
 
     def poll(self) -> tuple[Any | None, tuple[int, dict[str, Any]] | None]:
-        if self._handle.done:
-            reply = self._handle.reply
-            if reply["error"] is not None:
-                return None, (ABORTED, {"error_code": int(ErrorCode.INVALID_GOAL),
-                                        "error_string": error_from_json(reply["error"]).render()})
-            result: TrajectoryResult = result_from_json(reply["result"])
+        if not self._handle.done:
+            return self._feedback(), None
+        reply = self._handle.reply
+        result = result_from_json(reply["result"])
+        if isinstance(result, TrajectoryResult):   # the runtime's own outcome, also when the motion failed
             return None, (_STATUS[result.outcome], {"error_code": int(result.error_code),
                                                     "error_string": result.message})
-        return self._feedback(), None
+        error = error_from_json(reply["error"]) if reply["error"] is not None else None
+        return None, (ABORTED, {"error_code": int(ErrorCode.INVALID_GOAL),
+                                "error_string": error.render() if error else "the motion ended without a result"})
 
     def cancel(self) -> bool:
         self._client.stop()

@@ -12,7 +12,7 @@ import threading
 from collections.abc import Iterable
 from typing import Any, Generic, TypeVar
 
-from cyclonedds.core import ReadCondition, SampleState, ViewState, InstanceState, WaitSet
+from cyclonedds.core import DDSException, ReadCondition, SampleState, ViewState, InstanceState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
@@ -38,10 +38,17 @@ class Publisher(Generic[M]):
         self.writer = writer
         self.message = message
         self.published = 0
+        self.dropped = 0
 
-    def publish(self, message: M) -> None:
-        self.writer.write(message)
+    def publish(self, message: M) -> bool:
+        """Write one message; a write refused by DDS (history full past MAX_BLOCKING) is counted, not raised."""
+        try:
+            self.writer.write(message)
+        except DDSException:
+            self.dropped += 1
+            return False
         self.published += 1
+        return True
 
     @property
     def subscribers(self) -> int:

@@ -152,10 +152,10 @@ class RobotBridge:
                 continue
             queues.append(new("plem_msgs/msg/QueueStats", name=name, capacity=ring.slots, fill=fill,
                               written=ring.head, dropped=dropped))
-        for publisher, name in ((self.rt_raw, "rt_raw"), (self.joint_states, "joint_states"),
-                                (self.rt_events, "rt_events")):
-            queues.append(new("plem_msgs/msg/QueueStats", name=f"dds:{name}", capacity=0, fill=0,
-                              written=publisher.published, dropped=0))
+        for publisher, name, profile in ((self.rt_raw, "rt_raw", RT_RAW), (self.joint_states, "joint_states", DEFAULT),
+                                         (self.rt_events, "rt_events", EVENTS)):
+            queues.append(new("plem_msgs/msg/QueueStats", name=f"dds:{name}", capacity=profile.depth, fill=0,
+                              written=publisher.published, dropped=publisher.dropped))
         return queues
 
     # -- ROS commands → command ring ------------------------------------------------------------------
