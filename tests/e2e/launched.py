@@ -17,7 +17,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from plem.ipc.segment import SHM_DIRECTORY
-from tests.conftest import ISOLATED_PREFIXES
+from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID
 from tests.e2e.cli import plem_executable
 
 READY_LINE = "Ctrl-C stops the arm"
@@ -32,9 +32,10 @@ def new_robot_id() -> str:
 
 
 def clean_environment(home: Path, **extra: str) -> dict[str, str]:
-    """The caller's environment without plem/ROS variables, with a private PLEM_HOME."""
+    """The caller's environment without plem/ROS variables, with a private PLEM_HOME; DDS stays on this host."""
     env = {name: value for name, value in os.environ.items() if not name.startswith(ISOLATED_PREFIXES)}
-    return {**env, "PLEM_HOME": str(home), **extra}
+    return {**env, "PLEM_HOME": str(home), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "ROS_DOMAIN_ID": str(TEST_DOMAIN_ID), **extra}
 
 
 def shm_files(robot_id: str) -> list[Path]:

@@ -47,6 +47,8 @@ class Reliability(str, Enum):
 def list_topics(
     show_types: Annotated[bool, typer.Option("--show-types", "-t", help="Print each topic's type.")] = False,
     timeout: Annotated[float, typer.Option("--timeout", help="Seconds of discovery.")] = 1.5,
+    include_hidden: Annotated[bool, typer.Option("--include-hidden-topics", help="Also list topics with a "
+                                                 "token starting with '_' (e.g. actions' status).")] = False,
 ) -> None:
     """List the ROS 2 topics that publishers or subscriptions on the domain announce."""
     from plem.middleware.graph import Graph
@@ -59,7 +61,8 @@ def list_topics(
     if not topics:
         print_warnings([f"no ROS 2 topics seen within {timeout} s ({node.settings.describe()})"])
     for name, info in topics.items():
-        typer.echo(f"{name} [{', '.join(info.types)}]" if show_types else name)
+        if include_hidden or not any(token.startswith("_") for token in name.split("/")):
+            typer.echo(f"{name} [{', '.join(info.types)}]" if show_types else name)
 
 
 def _no_publisher(name: str, node: Node, timeout: float, seen: list[str]) -> PlemError:
@@ -95,14 +98,15 @@ def _subscribe(topic: str, timeout: float, depth: int, reliable: bool | None = N
     info = topics.get(name)
     if info is None or not info.publishers:
         raise _no_publisher(name, node, timeout, [seen for seen, other in topics.items() if other.publishers])
-    if len(info.types) > 1:
+    published = sorted({publisher.type_name for publisher in info.publishers})
+    if len(published) > 1:
         raise PlemError(f"{name} is published with several types", what="one type per topic",
-                        why=f"publishers announce {', '.join(info.types)}",
+                        why=f"publishers announce {', '.join(published)}",
                         how="stop the publishers of the wrong type, or rename one of the topics")
-    ros_type = info.types[0]
+    ros_type = published[0]
     if not node.library.known(ros_type):
         raise _unknown_type(name, ros_type, node)
-    if reliable and not all(profile.reliable for profile in info.publishers):
+    if reliable and not all(publisher.profile.reliable for publisher in info.publishers):
         print_warnings([f"a best-effort publisher of {name} does not serve a reliable reader; "
                         "drop --qos-reliability reliable to hear it"])
     return node, node.subscription(name, ros_type, info.reader_profile(depth, reliable))
@@ -131,7 +135,7 @@ def echo(
     count: Annotated[int, typer.Option("--count", min=0, help="Exit after N messages (0: until Ctrl-C).")] = 0,
     timeout: Timeout = 5.0,
     qos_reliability: Annotated[Reliability | None, typer.Option(
-        "--qos-reliability", help="Reader reliability [default: what every publisher offers].",
+        "--qos-reliability", help="Reader reliability (default: what every publisher offers).",
         show_default=False)] = None,
     no_arr: Annotated[bool, typer.Option("--no-arr", help="Print sequences as their length only.")] = False,
 ) -> None:
@@ -167,8 +171,8 @@ def _report(stamps: deque[int], new: int) -> None:
 def hz(
     topic: Topic,
     window: Annotated[int, typer.Option("--window", "-w", min=2, help="Messages the statistics cover.")] = 10000,
-    duration: Annotated[float | None, typer.Option("--duration", help="Stop after S seconds [default: Ctrl-C].",
-                                                   show_default=False)] = None,
+    duration: Annotated[float | None, typer.Option(
+        "--duration", help="Stop after S seconds (default: run until Ctrl-C).", show_default=False)] = None,
     timeout: Timeout = 5.0,
 ) -> None:
     """Print the topic's publishing rate every second (like `ros2 topic hz`).

@@ -39,19 +39,20 @@ class Endpoint:
 
 @dataclass
 class TopicInfo:
-    """A ROS 2 topic: its types (ROS names where they follow the mapping) and the QoS of its publishers."""
+    """A ROS 2 topic: its types (ROS names where they follow the mapping), its publishers, its subscriptions."""
 
     name: str
     types: list[str] = field(default_factory=list)
-    publishers: list[QosProfile] = field(default_factory=list)
+    publishers: list[Endpoint] = field(default_factory=list)
     subscriptions: int = 0
 
     def reader_profile(self, depth: int, reliable: bool | None = None) -> QosProfile:
         """A reader QoS every publisher seen can serve: reliable and transient local only if all offer it."""
-        offered_reliable = all(profile.reliable for profile in self.publishers)
-        return QosProfile(reliable=offered_reliable if reliable is None else reliable, depth=depth,
-                          transient_local=bool(self.publishers)
-                          and all(profile.transient_local for profile in self.publishers))
+        offered = [publisher.profile for publisher in self.publishers]
+        all_reliable = all(profile.reliable for profile in offered)
+        all_latched = bool(offered) and all(profile.transient_local for profile in offered)
+        return QosProfile(reliable=all_reliable if reliable is None else reliable, depth=depth,
+                          transient_local=all_latched)
 
 
 def _profile(qos: Qos) -> QosProfile:
@@ -93,7 +94,7 @@ class Graph:
             if endpoint.type_name not in info.types:
                 info.types.append(endpoint.type_name)
             if endpoint.publisher:
-                info.publishers.append(endpoint.profile)
+                info.publishers.append(endpoint)
             else:
                 info.subscriptions += 1
         return topics

@@ -34,7 +34,8 @@ PARTICIPANT_USER_DATA = b"enclave=/;"
 class Publisher(Generic[M]):
     """Writes messages of one type on one ROS 2 topic."""
 
-    def __init__(self, writer: DataWriter, message: type[M]) -> None:
+    def __init__(self, writer: DataWriter, message: type[M], node: Node) -> None:
+        self.node = node  # the participant must outlive its endpoints
         self.writer = writer
         self.message = message
         self.published = 0
@@ -59,14 +60,15 @@ class Publisher(Generic[M]):
 class Subscription(Generic[M]):
     """Takes messages of one type from one ROS 2 topic."""
 
-    def __init__(self, reader: DataReader, message: type[M]) -> None:
+    def __init__(self, reader: DataReader, message: type[M], node: Node) -> None:
+        self.node = node  # the participant must outlive its endpoints
         self.reader = reader
         self.message = message
         self.condition = ReadCondition(reader, _ANY_SAMPLE)
 
     def take(self, limit: int = 256) -> list[M]:
         """Every message waiting (up to `limit`), oldest first."""
-        return list(self.reader.take(N=limit))
+        return [sample for sample in self.reader.take(N=limit) if sample.sample_info.valid_data]
 
     @property
     def publishers(self) -> int:
@@ -159,12 +161,13 @@ class Node:
 
     def publisher_of(self, dds_topic: str, struct: type, profile: QosProfile, user_data: bytes) -> Publisher[Any]:
         """A publisher on a DDS topic given by its wire name (for the parts of services and actions)."""
-        return Publisher(DataWriter(self.participant, self._topic(dds_topic, struct), profile.qos(user_data)), struct)
+        writer = DataWriter(self.participant, self._topic(dds_topic, struct), profile.qos(user_data))
+        return Publisher(writer, struct, self)
 
     def subscription_of(self, dds_topic: str, struct: type, profile: QosProfile,
                         user_data: bytes) -> Subscription[Any]:
-        return Subscription(DataReader(self.participant, self._topic(dds_topic, struct), profile.qos(user_data)),
-                            struct)
+        reader = DataReader(self.participant, self._topic(dds_topic, struct), profile.qos(user_data))
+        return Subscription(reader, struct, self)
 
     def type_user_data(self, ros_type: str) -> bytes:
         """The endpoint user data rmw_cyclonedds announces on Iron and later: `typehash=RIHS01_...;`."""

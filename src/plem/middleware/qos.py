@@ -31,6 +31,8 @@ class QosProfile:
             Policy.Durability.TransientLocal if self.transient_local else Policy.Durability.Volatile,
             Policy.History.KeepLast(self.depth),
         ]
+        if self.transient_local:  # late joiners get durability_service's depth (default 1); rmw_cyclonedds sets it
+            policies.append(Policy.DurabilityService(0, Policy.History.KeepLast(self.depth), -1, -1, -1))
         if user_data:
             policies.append(Policy.Userdata(user_data))
         return Qos(*policies)

@@ -78,7 +78,7 @@ class RobotBridge:
         now = time.monotonic_ns()
         if self._newest is not None and now >= self._next_joint_state:
             self._publish_joint_state(self._newest)
-            self._next_joint_state = now + self._joint_period_ns
+            self._next_joint_state = max(self._next_joint_state + self._joint_period_ns, now)
         for record in self._events.read_all():
             self._publish_event(record)
         if now >= self._next_stats:
@@ -165,10 +165,13 @@ class RobotBridge:
         timeout = duration(seconds=period)
         while not stop.is_set():
             waitset.wait(timeout)
-            for message in self.trajectories.take():
-                self._on_trajectory(message)
-            self.follow.spin_once()
-            self.set_mode.spin_once()
+            try:
+                for message in self.trajectories.take():
+                    self._on_trajectory(message)
+                self.follow.spin_once()
+                self.set_mode.spin_once()
+            except Exception:  # one bad request must not end command service for everyone
+                _log.exception("a ROS command could not be handled; serving goes on")
 
     def _on_trajectory(self, message: Any) -> None:
         """joint_trajectory_controller's topic: a trajectory replaces the running one; an empty one stops."""
