@@ -8,6 +8,7 @@ array whenever a status changes, as rcl_action does.
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
 from collections import OrderedDict
@@ -19,6 +20,7 @@ from plem.middleware.names import ActionNames
 from plem.middleware.node import Node
 from plem.middleware.qos import DEFAULT, LATCHED
 
+_log = logging.getLogger("plem.bridge")
 # action_msgs/msg/GoalStatus values.
 UNKNOWN, ACCEPTED, EXECUTING, CANCELING, SUCCEEDED, CANCELED, ABORTED = range(7)
 TERMINAL = frozenset({SUCCEEDED, CANCELED, ABORTED})
@@ -53,6 +55,16 @@ class _Goal:
     waiting: list[Any] = field(default_factory=list)
 
 
+class _Failed:
+    """A goal whose start raised (a bug, logged): it ends ABORTED with an empty result."""
+
+    def poll(self) -> tuple[None, tuple[int, dict[str, Any]]]:
+        return None, (ABORTED, {})
+
+    def cancel(self) -> bool:
+        return False
+
+
 class ActionServer:
     """Serves one action. `start(goal) -> Execution` runs an accepted goal; it may return a finished one."""
 
@@ -78,6 +90,8 @@ class ActionServer:
 
     def spin_once(self) -> None:
         """Answer waiting requests, poll running goals, publish feedback and status changes."""
+        for service in self.services:
+            service.flush()
         changed = False
         for request in self.send_goal.take():
             changed |= self._on_send_goal(request)
@@ -104,7 +118,11 @@ class ActionServer:
         goal = _Goal(goal_id, stamp, None)
         self._goals[goal_id] = goal
         self.send_goal.reply(request, accepted=True, stamp=stamp)
-        goal.execution = self._start(request.goal)
+        try:
+            goal.execution = self._start(request.goal)
+        except Exception:  # an accepted goal always ends, even when starting it failed unexpectedly
+            _log.exception("a %s goal could not be started; it is aborted", self.ros_type)
+            goal.execution = _Failed()
         self._trim()
         return True
 

@@ -8,6 +8,7 @@ older `ROS_LOCALHOST_ONLY=1` means LOCALHOST. A user's `CYCLONEDDS_URI` is appli
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -15,6 +16,7 @@ from plem.errors import ConfigError
 
 #: Highest domain id the RTPS port mapping allows; ROS 2 calls 0-101 safe on Linux.
 MAX_DOMAIN_ID = 232
+_PEER = re.compile(r"[A-Za-z0-9_.:\-\[\]]+")
 RANGES = ("SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT")
 
 
@@ -37,6 +39,12 @@ class DiscoverySettings:
                               what=f"one of {', '.join(RANGES)}", why="the variable is set to something else",
                               how="export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (or unset it for SUBNET)")
         peers = tuple(peer.strip() for peer in env.get("ROS_STATIC_PEERS", "").split(";") if peer.strip())
+        for peer in peers:
+            if not _PEER.fullmatch(peer):
+                raise ConfigError(f"ROS_STATIC_PEERS names an unusable peer {peer!r}",
+                                  what="host names or IP addresses separated by ';'",
+                                  why=f"ROS_STATIC_PEERS={env['ROS_STATIC_PEERS']!r}",
+                                  how="export ROS_STATIC_PEERS='192.168.0.10;robot-pc.local'")
         if env.get("ROS_LOCALHOST_ONLY", "").strip() == "1":
             discovery_range, peers = "LOCALHOST", ()
         return cls(_domain_id(env.get("ROS_DOMAIN_ID", "")), discovery_range, peers,

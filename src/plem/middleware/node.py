@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import threading
+import time
 from collections.abc import Iterable
 from typing import Any, Generic, TypeVar
 
@@ -20,6 +21,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
+from plem.errors import ConfigError
 from plem.middleware import names
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.qos import SERVICES, QosProfile
@@ -27,6 +29,8 @@ from plem.middleware.types import InterfaceLibrary, library
 
 M = TypeVar("M")
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
+#: How long a reply waits for its client's reply reader to be matched.
+REPLY_WAIT_S = 5.0
 #: What rmw_cyclonedds announces for a participant; ROS 2 graph tools list only participants that carry it.
 PARTICIPANT_USER_DATA = b"enclave=/;"
 
@@ -54,7 +58,7 @@ class Publisher(Generic[M]):
     @property
     def subscribers(self) -> int:
         """Readers currently matched with this publisher."""
-        return len(self.writer.get_matched_subscriptions())
+        return self.writer.get_publication_matched_status().current_count
 
 
 class Subscription(Generic[M]):
@@ -72,24 +76,60 @@ class Subscription(Generic[M]):
 
     @property
     def publishers(self) -> int:
-        return len(self.reader.get_matched_publications())
+        return self.reader.get_subscription_matched_status().current_count
 
 
 class ServiceServer:
-    """Takes requests of one service and sends each reply back to the client that asked."""
+    """Takes requests of one service and sends each reply back to the client that asked.
+
+    A reply waits until the client's reply reader is matched (as rmw_cyclonedds does): the reply
+    topic keeps no history, so a reply written before that would be lost. Replies whose client does not
+    show up within REPLY_WAIT_S are dropped.
+    """
 
     def __init__(self, node: Node, service: str, ros_type: str) -> None:
         self.requests = node.subscription_of(names.request_topic(service), node.library.service_part(
             f"{ros_type}_Request"), SERVICES, node.type_user_data(f"{ros_type}_Request"))
         self._replies = node.publisher_of(names.reply_topic(service), node.library.service_part(
             f"{ros_type}_Response"), SERVICES, node.type_user_data(f"{ros_type}_Response"))
+        self._pending: list[tuple[float, Any, Any]] = []
 
     def take(self) -> list[Any]:
         """Waiting requests; each keeps rmw's header (`rmw_guid`, `rmw_seq`) for its reply."""
         return self.requests.take()
 
     def reply(self, request: Any, **fields: Any) -> None:
-        self._replies.publish(self._replies.message(rmw_guid=request.rmw_guid, rmw_seq=request.rmw_seq, **fields))
+        """Answer `request`, now or (see the class) as soon as its client can receive the answer."""
+        message = self._replies.message(rmw_guid=request.rmw_guid, rmw_seq=request.rmw_seq, **fields)
+        client = _participant_of(self.requests.reader, request.sample_info.publication_handle)
+        self._pending.append((time.monotonic() + REPLY_WAIT_S, client, message))
+        self.flush()
+
+    def flush(self) -> None:
+        """Send the replies whose clients are matched by now; drop those that waited too long."""
+        if not self._pending:
+            return
+        try:
+            writer = self._replies.writer
+            matched = {writer.get_matched_subscription_data(handle).participant_key
+                       for handle in writer.get_matched_subscriptions()}
+        except (IndexError, DDSException):  # a match changed while listing them: try again on the next call
+            return
+        now, waiting = time.monotonic(), []
+        for deadline, client, message in self._pending:
+            if client is None or client in matched:
+                self._replies.publish(message)
+            elif now < deadline:
+                waiting.append((deadline, client, message))
+        self._pending = waiting
+
+
+def _participant_of(reader: DataReader, publication_handle: int) -> Any:
+    """The participant of the writer that sent a sample, or None when it is already gone."""
+    try:
+        return reader.get_matched_publication_data(publication_handle).participant_key
+    except (IndexError, DDSException):
+        return None
 
 
 class ServiceClient:
@@ -116,7 +156,7 @@ class ServiceClient:
         self._requests.publish(self._requests.message(rmw_guid=self.guid, rmw_seq=sequence, **fields))
         waitset = WaitSet(self._replies.reader.participant)
         waitset.attach(self._replies.condition)
-        deadline = duration(seconds=timeout)
+        deadline = time.monotonic() + timeout
         while True:
             with self._lock:
                 for reply in self._replies.take():
@@ -124,8 +164,27 @@ class ServiceClient:
                         self._waiting[reply.rmw_seq] = reply
                 if sequence in self._waiting:
                     return self._waiting.pop(sequence)
-            if waitset.wait(deadline) == 0:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or waitset.wait(duration(seconds=remaining)) == 0:
                 raise TimeoutError(f"no reply within {timeout} s")
+
+
+_DOMAINS: dict[int, tuple[str, Domain]] = {}
+
+
+def _domain(settings: DiscoverySettings) -> Domain:
+    """The process's Domain of this id, created once: it carries the discovery configuration, and Cyclone
+    allows one configuration per domain id and process."""
+    config = settings.cyclone_config()
+    if settings.domain_id not in _DOMAINS:
+        _DOMAINS[settings.domain_id] = (config, Domain(settings.domain_id, config))
+    existing, domain = _DOMAINS[settings.domain_id]
+    if existing != config:
+        raise ConfigError(f"domain {settings.domain_id} is already joined with other discovery settings",
+                          what="one discovery configuration per domain id in a process",
+                          why=f"this process joined it as: {existing or 'Cyclone defaults'}",
+                          how="create every Node of a domain with the same DiscoverySettings")
+    return domain
 
 
 class Node:
@@ -134,8 +193,7 @@ class Node:
     def __init__(self, settings: DiscoverySettings | None = None, interfaces: InterfaceLibrary | None = None) -> None:
         self.settings = settings or DiscoverySettings.from_environment()
         self.library = interfaces or library()
-        # The domain object carries the discovery configuration; it must outlive the participant.
-        self._domain = Domain(self.settings.domain_id, self.settings.cyclone_config())
+        self._domain = _domain(self.settings)
         self.participant = DomainParticipant(self.settings.domain_id, qos=Qos(Policy.Userdata(PARTICIPANT_USER_DATA)))
         self._topics: dict[str, Topic] = {}
 

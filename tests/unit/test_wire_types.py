@@ -1,0 +1,340 @@
+"""plem's run-time DDS structs produce exactly the CDR bytes rosbags (the ROS 2 reference) produces."""
+
+from __future__ import annotations
+
+import math
+import random
+import re
+import struct
+import subprocess
+import sys
+from typing import Any
+
+import numpy as np
+import pytest
+from rosbags.interfaces import Nodetype
+
+from plem.middleware.types import library
+
+LIB = library()
+STORE = LIB.store
+
+FJT = "control_msgs/action/FollowJointTrajectory"
+SET_MODE = "plem_msgs/action/SetMode"
+ACTION_PARTS = ("Goal", "Result", "Feedback", "SendGoal_Request", "SendGoal_Response", "GetResult_Request",
+                "GetResult_Response", "FeedbackMessage")
+SERVICE_PARTS = [f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS if "_Re" in part] + [
+    "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response"]
+PLEM_MSGS = [f"plem_msgs/msg/{name}" for name in ("RtRaw", "RtEvent", "RtMonitorStats", "TimingStats", "QueueStats")]
+#: Every type plem publishes or accepts on the wire.
+WIRE_TYPES = [
+    "sensor_msgs/msg/JointState", "std_msgs/msg/String", *PLEM_MSGS, "trajectory_msgs/msg/JointTrajectory",
+    *(f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS),
+    "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response", "action_msgs/msg/GoalStatusArray",
+]
+SEEDS = range(5)  # seeds 0 and 3: every sequence empty; others: empty and non-empty mixed
+
+_INTS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64}
+_UINTS = {"uint8": 8, "byte": 8, "char": 8, "uint16": 16, "uint32": 32, "uint64": 64}
+_DTYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
+           "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64,
+           "uint64": np.uint64, "float32": np.float32, "float64": np.float64}
+_STRINGS = ("", "joint_1", "ünïcødé ☃ 日本語 😀", "tab\tand\nnewline", "x" * 37)
+_ALPHABET = "abcXYZ019_/ -äöüßéçñ€☃日本語中文Ωπ😀🤖"
+
+
+# -- a deterministic filler: ROS type -> nested plain values (dicts, lists, Python scalars) ----------------
+class Filler:
+    """Pseudo-random field values by ROS base type, with extremes, negatives and non-ASCII strings."""
+
+    def __init__(self, seed: int, zero: bool = False) -> None:
+        self.rng = random.Random(seed)
+        self.empty = zero or seed % 3 == 0
+        self.zero = zero
+
+    def message(self, ros_type: str, depth: int = 0) -> dict[str, Any]:
+        return {name: self.value(spec, depth) for name, spec in STORE.fielddefs[ros_type][1]}
+
+    def value(self, spec: tuple[Any, Any], depth: int) -> Any:
+        node, detail = spec
+        if node == Nodetype.BASE:
+            return self.base(*detail)
+        if node == Nodetype.NAME:
+            return self.message(detail, depth + 1)
+        element, size = detail
+        if node == Nodetype.ARRAY:
+            count = size
+        else:
+            count = 0 if self.empty else self.rng.randint(0, 3 if depth < 4 else 1)
+            count = min(count, size) if size else count
+        return [self.value(element, depth + 1) for _ in range(count)]
+
+    def base(self, base: str, bound: int) -> Any:
+        rng = self.rng
+        if self.zero:
+            return {"bool": False, "string": "", "float32": 0.0, "float64": 0.0}.get(base, 0)
+        if base == "bool":
+            return rng.random() < 0.5
+        if base in _INTS or base in _UINTS:
+            low, high = (-(1 << (_INTS[base] - 1)), (1 << (_INTS[base] - 1)) - 1) if base in _INTS \
+                else (0, (1 << _UINTS[base]) - 1)
+            return rng.choice((low, high, 0, max(low, -1), 1, rng.randint(low, high), rng.randint(low, high)))
+        if base == "float32":   # values float32 holds exactly
+            return rng.choice((0.0, -0.0, math.inf, -math.inf, 3.4028234663852886e38, -1.5,
+                               rng.randint(-(1 << 20), 1 << 20) / 64))
+        if base == "float64":
+            return rng.choice((0.0, -0.0, math.inf, -math.inf, 5e-324, -1.7976931348623157e308,
+                               rng.uniform(-1e6, 1e6), rng.uniform(-1e-6, 1e-6)))
+        if base == "string":
+            text = rng.choice(_STRINGS) if rng.random() < 0.5 else \
+                "".join(rng.choice(_ALPHABET) for _ in range(rng.randint(1, 12)))
+            return text[:bound] if bound else text
+        raise AssertionError(f"no values for base type {base}")
+
+
+# -- plain values -> plem struct / rosbags message, and back ----------------------------------------------
+def to_plem(ros_type: str, plain: dict[str, Any], with_header: bool = False, **header: int) -> Any:
+    struct_ = LIB.service_part(ros_type) if with_header else LIB.message(ros_type)
+    fields = {name: _plem_value(spec, plain[name]) for name, spec in STORE.fielddefs[ros_type][1]}
+    return struct_(**header, **fields)
+
+
+def _plem_value(spec: tuple[Any, Any], value: Any) -> Any:
+    node, detail = spec
+    if node == Nodetype.BASE:
+        return value
+    if node == Nodetype.NAME:
+        return to_plem(detail, value)
+    return [_plem_value(detail[0], item) for item in value]
+
+
+def to_rosbags(ros_type: str, plain: dict[str, Any]) -> Any:
+    fields = {name: _rosbags_value(spec, plain[name]) for name, spec in STORE.fielddefs[ros_type][1]}
+    return STORE.types[ros_type](**fields)
+
+
+def _rosbags_value(spec: tuple[Any, Any], value: Any) -> Any:
+    node, detail = spec
+    if node == Nodetype.BASE:
+        return value
+    if node == Nodetype.NAME:
+        return to_rosbags(detail, value)
+    (element_node, element), _ = detail
+    if element_node == Nodetype.BASE and element[0] != "string":   # rosbags wants numpy arrays of numbers
+        return np.array(value, dtype=_DTYPES[element[0]])
+    return [_rosbags_value(detail[0], item) for item in value]
+
+
+def plain_of(ros_type: str, message: Any) -> dict[str, Any]:
+    """A plem struct's content as plain values (bytes of uint8 arrays as lists of ints)."""
+    return {name: _plain(spec, getattr(message, name)) for name, spec in STORE.fielddefs[ros_type][1]}
+
+
+def _plain(spec: tuple[Any, Any], value: Any) -> Any:
+    node, detail = spec
+    if node == Nodetype.BASE:
+        return value
+    if node == Nodetype.NAME:
+        return plain_of(detail, value)
+    if isinstance(value, (bytes, bytearray)):
+        return list(value)
+    return [_plain(detail[0], item) for item in value]
+
+
+def reference_bytes(ros_type: str, plain: dict[str, Any]) -> bytes:
+    return bytes(STORE.serialize_cdr(to_rosbags(ros_type, plain), ros_type))
+
+
+# -- CDR equality ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("ros_type", WIRE_TYPES)
+def test_plem_bytes_equal_rosbags_bytes(ros_type: str, seed: int) -> None:
+    """Same content, same CDR bytes; plem reads rosbags' bytes back to the same content."""
+    plain = Filler(seed).message(ros_type)
+    reference = reference_bytes(ros_type, plain)
+    assert reference[:4] == b"\x00\x01\x00\x00"   # CDR little endian, as ROS 2 sends
+    assert to_plem(ros_type, plain).serialize() == reference
+    assert plain_of(ros_type, LIB.message(ros_type).deserialize(reference)) == plain
+
+
+@pytest.mark.parametrize("ros_type", WIRE_TYPES)
+def test_defaults_match_rosbags_zero_message(ros_type: str) -> None:
+    """A struct built with no fields is rosbags' all-zero, all-empty message, nested structs included."""
+    plain = Filler(0, zero=True).message(ros_type)
+    zero = LIB.message(ros_type)()
+    assert plain_of(ros_type, zero) == plain
+    assert zero.serialize() == reference_bytes(ros_type, plain)
+
+
+def test_filler_covers_the_edge_cases() -> None:
+    """The examples hold negative ints, non-ASCII text, empty and non-empty sequences and 16-byte UUIDs."""
+    seen: dict[str, bool] = {}
+
+    def walk(value: Any) -> None:
+        if isinstance(value, dict):
+            for item in value.values():
+                walk(item)
+        elif isinstance(value, list):
+            seen["empty" if not value else "non-empty"] = True
+            if len(value) == 16 and all(isinstance(v, int) and 0 <= v <= 255 for v in value):
+                seen["uuid"] = True
+            for item in value:
+                walk(item)
+        elif isinstance(value, bool):
+            pass
+        elif isinstance(value, int) and value < 0:
+            seen["negative"] = True
+        elif isinstance(value, str) and not value.isascii():
+            seen["non-ascii"] = True
+
+    for seed in SEEDS:
+        for ros_type in WIRE_TYPES:
+            walk(Filler(seed).message(ros_type))
+    assert set(seen) == {"empty", "non-empty", "uuid", "negative", "non-ascii"}
+
+
+# -- rmw_cyclonedds's request header -------------------------------------------------------------------------
+@pytest.mark.parametrize("ros_type", SERVICE_PARTS)
+def test_service_part_is_rmw_header_then_fields(ros_type: str) -> None:
+    """Requests and replies: encapsulation, uint64 writer guid, int64 sequence, then the fields."""
+    guid, sequence = 0xF1E2_D3C4_B5A6_9788, 0x0123_4567_89AB
+    plain = Filler(7).message(ros_type)
+    reference = reference_bytes(ros_type, plain)
+    expected = reference[:4] + struct.pack("<Qq", guid, sequence) + reference[4:]
+    wire = to_plem(ros_type, plain, with_header=True, rmw_guid=guid, rmw_seq=sequence).serialize()
+    assert wire == expected
+    back = LIB.service_part(ros_type).deserialize(expected)
+    assert (back.rmw_guid, back.rmw_seq) == (guid, sequence)
+    assert plain_of(ros_type, back) == plain
+
+
+def test_send_goal_request_and_get_result_reply_layout() -> None:
+    """The two action calls the brief names, spelled out: header bytes sit right after the encapsulation."""
+    for ros_type in (f"{FJT}_SendGoal_Request", f"{SET_MODE}_GetResult_Response"):
+        plain = Filler(1).message(ros_type)
+        wire = to_plem(ros_type, plain, with_header=True, rmw_guid=2**64 - 1, rmw_seq=42).serialize()
+        assert wire[4:20] == b"\xff" * 8 + (42).to_bytes(8, "little")
+        assert wire[20:] == reference_bytes(ros_type, plain)[4:]
+
+
+# -- the definitions plem ships for standard packages match upstream -----------------------------------------
+def _type_text(spec: tuple[Any, Any]) -> str:
+    node, detail = spec
+    if node == Nodetype.BASE:
+        return detail[0] + (f"<={detail[1]}" if detail[1] else "")
+    if node == Nodetype.NAME:
+        return detail
+    element, size = detail
+    return f"{_type_text(element)}[{size if node == Nodetype.ARRAY else ''}]"
+
+
+def fields_of(ros_type: str) -> list[tuple[str, str]]:
+    return [(name, _type_text(spec)) for name, spec in STORE.fielddefs[ros_type][1]]
+
+
+def constants_of(ros_type: str) -> list[tuple[str, str, Any]]:
+    return list(STORE.fielddefs[ros_type][0])
+
+
+_JTP, _MJTP = "trajectory_msgs/msg/JointTrajectoryPoint", "trajectory_msgs/msg/MultiDOFJointTrajectoryPoint"
+#: control_msgs (Jazzy, 5.x) and action_msgs as ROS 2 publishes them.
+UPSTREAM = {
+    f"{FJT}_Goal": [
+        ("trajectory", "trajectory_msgs/msg/JointTrajectory"),
+        ("multi_dof_trajectory", "trajectory_msgs/msg/MultiDOFJointTrajectory"),
+        ("path_tolerance", "control_msgs/msg/JointTolerance[]"),
+        ("component_path_tolerance", "control_msgs/msg/JointComponentTolerance[]"),
+        ("goal_tolerance", "control_msgs/msg/JointTolerance[]"),
+        ("component_goal_tolerance", "control_msgs/msg/JointComponentTolerance[]"),
+        ("goal_time_tolerance", "builtin_interfaces/msg/Duration"),
+    ],
+    f"{FJT}_Result": [("error_code", "int32"), ("error_string", "string")],
+    f"{FJT}_Feedback": [
+        ("header", "std_msgs/msg/Header"), ("joint_names", "string[]"),
+        ("desired", _JTP), ("actual", _JTP), ("error", _JTP),
+        ("multi_dof_joint_names", "string[]"),
+        ("multi_dof_desired", _MJTP), ("multi_dof_actual", _MJTP), ("multi_dof_error", _MJTP),
+    ],
+    "control_msgs/msg/JointTolerance": [
+        ("name", "string"), ("position", "float64"), ("velocity", "float64"), ("acceleration", "float64")],
+    "control_msgs/msg/JointComponentTolerance": [
+        ("joint_name", "string"), ("component", "uint16"), ("position", "float64"), ("velocity", "float64"),
+        ("acceleration", "float64")],
+    "action_msgs/srv/CancelGoal_Request": [("goal_info", "action_msgs/msg/GoalInfo")],
+    "action_msgs/srv/CancelGoal_Response": [
+        ("return_code", "int8"), ("goals_canceling", "action_msgs/msg/GoalInfo[]")],
+}
+UPSTREAM_CONSTANTS = {
+    f"{FJT}_Result": [("SUCCESSFUL", "int32", 0), ("INVALID_GOAL", "int32", -1), ("INVALID_JOINTS", "int32", -2),
+                      ("OLD_HEADER_TIMESTAMP", "int32", -3), ("PATH_TOLERANCE_VIOLATED", "int32", -4),
+                      ("GOAL_TOLERANCE_VIOLATED", "int32", -5)],
+    "control_msgs/msg/JointComponentTolerance": [("X_AXIS", "uint16", 1), ("Y_AXIS", "uint16", 2),
+                                                 ("Z_AXIS", "uint16", 3), ("TRANSLATION", "uint16", 4),
+                                                 ("ROTATION", "uint16", 5)],
+    "action_msgs/srv/CancelGoal_Response": [("ERROR_NONE", "int8", 0), ("ERROR_REJECTED", "int8", 1),
+                                            ("ERROR_UNKNOWN_GOAL_ID", "int8", 2),
+                                            ("ERROR_GOAL_TERMINATED", "int8", 3)],
+}
+
+
+@pytest.mark.parametrize("ros_type", sorted(UPSTREAM))
+def test_shipped_definitions_match_upstream(ros_type: str) -> None:
+    assert fields_of(ros_type) == UPSTREAM[ros_type]
+    assert sorted(constants_of(ros_type)) == sorted(UPSTREAM_CONSTANTS.get(ros_type, []))
+
+
+def test_action_wrappers_follow_rosidl() -> None:
+    """The parts rosidl adds around every action's goal, result and feedback."""
+    for action in (FJT, SET_MODE):
+        assert fields_of(f"{action}_SendGoal_Request") == [
+            ("goal_id", "unique_identifier_msgs/msg/UUID"), ("goal", f"{action}_Goal")]
+        assert fields_of(f"{action}_SendGoal_Response") == [("accepted", "bool"),
+                                                             ("stamp", "builtin_interfaces/msg/Time")]
+        assert fields_of(f"{action}_GetResult_Request") == [("goal_id", "unique_identifier_msgs/msg/UUID")]
+        assert fields_of(f"{action}_GetResult_Response") == [("status", "int8"), ("result", f"{action}_Result")]
+        assert fields_of(f"{action}_FeedbackMessage") == [
+            ("goal_id", "unique_identifier_msgs/msg/UUID"), ("feedback", f"{action}_Feedback")]
+    assert fields_of("unique_identifier_msgs/msg/UUID") == [("uuid", "uint8[16]")]
+
+
+def test_plem_struct_constants() -> None:
+    """Constants become class attributes of the struct, not fields on the wire."""
+    raw = LIB.message("plem_msgs/msg/RtRaw")
+    assert (raw.MODE_IDLE, raw.MODE_FAULT) == (0, 4)
+    assert LIB.message("action_msgs/srv/CancelGoal_Response").ERROR_UNKNOWN_GOAL_ID == 2
+    assert "MODE_IDLE" not in raw.__dataclass_fields__
+
+
+# -- type hashes ---------------------------------------------------------------------------------------------
+RIHS01 = re.compile(r"RIHS01_[0-9a-f]{64}")
+
+
+def test_type_hash_format_and_a_known_value() -> None:
+    assert RIHS01.fullmatch(LIB.type_hash("sensor_msgs/msg/JointState"))
+    # Published by ROS 2 Iron and later for std_msgs/msg/String.
+    assert LIB.type_hash("std_msgs/msg/String") == \
+        "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+
+
+def test_plem_msgs_hashes_are_deterministic_and_distinct() -> None:
+    """Same hashes in a fresh process with another hash seed; no two plem types share one."""
+    ros_types = [*PLEM_MSGS, *(f"{SET_MODE}_{part}" for part in ACTION_PARTS)]
+    here = [LIB.type_hash(ros_type) for ros_type in ros_types]
+    assert all(RIHS01.fullmatch(value) for value in here)
+    assert len(set(here)) == len(here)
+    code = ("import sys; from plem.middleware.types import InterfaceLibrary; lib = InterfaceLibrary(); "
+            "print('\\n'.join(lib.type_hash(t) for t in sys.argv[1:]))")
+    fresh = subprocess.run([sys.executable, "-c", code, *ros_types], capture_output=True, text=True, timeout=60,
+                           env={"PYTHONHASHSEED": "12345", "PATH": "/usr/bin:/bin"}, check=True)
+    assert fresh.stdout.split() == here
+
+
+def test_defaults_are_not_shared_between_instances() -> None:
+    """Each new struct gets its own nested structs, lists and fixed arrays."""
+    first, second = LIB.message(f"{FJT}_SendGoal_Request")(), LIB.message(f"{FJT}_SendGoal_Request")()
+    first.goal.trajectory.joint_names.append("j1")
+    first.goal.trajectory.header.frame_id = "base"
+    first.goal_id.uuid[0] = 7
+    assert second.goal.trajectory.joint_names == []
+    assert second.goal.trajectory.header.frame_id == ""
+    assert list(second.goal_id.uuid) == [0] * 16
