@@ -13,6 +13,7 @@ import time
 from collections.abc import Iterable
 from typing import Any, Generic, TypeVar
 
+from cyclonedds._clayer import ddspy_write
 from cyclonedds.core import DDSException, ReadCondition, SampleState, ViewState, InstanceState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
@@ -50,10 +51,20 @@ class Publisher(Generic[M]):
         try:
             self.writer.write(message)
         except DDSException:
+            return self._count(False)
+        return self._count(True)
+
+    def publish_cdr(self, data: bytes) -> bool:
+        """Write a message already in CDR (with its encapsulation), as a fixed-layout encoder makes it."""
+        padded = data.ljust((len(data) + 3) & ~3, b"\0")   # Cyclone takes whole 4-byte words, as write() pads
+        return self._count(ddspy_write(self.writer._ref, padded) >= 0)
+
+    def _count(self, written: bool) -> bool:
+        if written:
+            self.published += 1
+        else:
             self.dropped += 1
-            return False
-        self.published += 1
-        return True
+        return written
 
     @property
     def subscribers(self) -> int:

@@ -26,6 +26,7 @@ from plem.middleware.action import ActionServer
 from plem.middleware.goals import FJT, start_mode_change, start_trajectory, trajectory_from_message
 from plem.middleware.node import Node
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW
+from plem.middleware.raw_cdr import RawEncoder
 
 _log = logging.getLogger("plem.bridge")
 STATS_PERIOD_NS = 100_000_000
@@ -65,7 +66,7 @@ class RobotBridge:
         # Cycles carry CLOCK_MONOTONIC times; messages carry wall-clock stamps.
         self._wall_offset = time.time_ns() - time.monotonic_ns()
         self._newest: np.ndarray | None = None
-        self._raw_message = self.rt_raw.message()
+        self._raw_encoder = RawEncoder(client.dof)
 
     # -- shared memory → topics -----------------------------------------------------------------------
     def pump(self) -> int:
@@ -90,18 +91,7 @@ class RobotBridge:
         return self.library.stamp(monotonic_ns + self._wall_offset)
 
     def _publish_raw(self, record: np.ndarray) -> None:
-        dof = self.client.dof
-        scalars = len(RAW_SCALARS)
-        cycle, monotonic_ns, mode, faulted, enabled, latency, compute = (int(v) for v in record[:scalars])
-        rows = record[scalars:].reshape(-1, dof).tolist()
-        message = self._raw_message
-        message.header.stamp = self._stamp(monotonic_ns)
-        message.cycle, message.monotonic_ns, message.mode = cycle, monotonic_ns, mode
-        message.faulted, message.drives_enabled = bool(faulted), bool(enabled)
-        message.latency_ns, message.compute_ns = min(latency, 0xFFFFFFFF), min(compute, 0xFFFFFFFF)
-        (message.position, message.velocity, message.effort, message.command_position, message.command_velocity,
-         message.command_acceleration) = rows
-        self.rt_raw.publish(message)
+        self.rt_raw.publish_cdr(self._raw_encoder.encode(record, int(record[1]) + self._wall_offset))
 
     def _publish_joint_state(self, record: np.ndarray) -> None:
         scalars, dof = len(RAW_SCALARS), self.client.dof
