@@ -38,12 +38,11 @@ class QosProfile:
         return Qos(*policies)
 
     def describe(self) -> str:
+        """e.g. 'reliable, transient local, keep last 1', as the QoS table of docs/ros2.md reads."""
         durability = "transient local" if self.transient_local else "volatile"
         return f"{'reliable' if self.reliable else 'best effort'}, {durability}, keep last {self.depth}"
 
 
-#: rmw_qos_profile_sensor_data: freshness over completeness.
-SENSOR_DATA = QosProfile(reliable=False, depth=5)
 #: rmw_qos_profile_default, also what joint_state_broadcaster and joint_trajectory_controller use.
 DEFAULT = QosProfile(reliable=True, depth=10)
 #: rmw_qos_profile_services_default.
