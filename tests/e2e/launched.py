@@ -83,7 +83,7 @@ class Launch:
     """One running `plem launch` with its stdout and stderr in files."""
 
     def __init__(self, arguments: Sequence[str], robot_ids: Sequence[str], directory: Path,
-                 env: dict[str, str]) -> None:
+                 env: dict[str, str], command_prefix: Sequence[str] = ()) -> None:
         self.arguments = list(arguments)
         self.robot_ids = list(robot_ids)
         self.env = env
@@ -92,8 +92,8 @@ class Launch:
         self.stdout_path = directory / f"launch_{tag}.out"
         self.stderr_path = directory / f"launch_{tag}.err"
         with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
-            self.process = subprocess.Popen([plem_executable(), "launch", *self.arguments], stdin=subprocess.DEVNULL,
-                                            stdout=out, stderr=err, env=env)
+            self.process = subprocess.Popen([*command_prefix, plem_executable(), "launch", *self.arguments],
+                                            stdin=subprocess.DEVNULL, stdout=out, stderr=err, env=env)
 
     @property
     def robot_id(self) -> str:

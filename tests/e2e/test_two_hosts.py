@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.e2e.cli import plem_executable
 from tests.e2e.launched import READY_LINE, Launch, clean_environment, new_robot_id
 from tests.e2e.ros_peer import JOINT_NAMES
 
@@ -81,31 +80,15 @@ def two_hosts() -> Iterator[tuple[Host, Host]]:
             ip("netns", "delete", namespace, check=False)
 
 
-class NamespacedLaunch(Launch):
-    """`plem launch` run inside a network namespace (`ip netns exec` execs it: the pid is plem's)."""
-
-    def __init__(self, namespace: str, arguments: list[str], robot_ids: list[str], directory: Path,
-                 env: dict[str, str]) -> None:
-        self.arguments = list(arguments)
-        self.robot_ids = list(robot_ids)
-        self.env = env
-        directory.mkdir(parents=True, exist_ok=True)
-        tag = uuid.uuid4().hex[:6]
-        self.stdout_path = directory / f"launch_{tag}.out"
-        self.stderr_path = directory / f"launch_{tag}.err"
-        with open(self.stdout_path, "w") as out, open(self.stderr_path, "w") as err:
-            self.process = subprocess.Popen(["ip", "netns", "exec", namespace, plem_executable(), "launch",
-                                             *self.arguments], stdin=subprocess.DEVNULL, stdout=out, stderr=err,
-                                            env=env)
-
-
 def test_a_peer_on_another_host_reads_joint_states_and_moves_the_arm(tmp_path: Path):
     domain = str(random.randint(150, 230))
     robot_id = new_robot_id()
     with two_hosts() as (a, b):
         env = clean_environment(tmp_path / "plem_home", ROS_DOMAIN_ID=domain)
         env.pop("ROS_AUTOMATIC_DISCOVERY_RANGE", None)  # the default: SUBNET
-        launch = NamespacedLaunch(a.namespace, ["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path, env)
+        # `ip netns exec` execs plem in namespace A, so the launch's pid is plem's.
+        launch = Launch(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path, env,
+                        command_prefix=["ip", "netns", "exec", a.namespace])
         try:
             launch.wait_for(READY_LINE)
             assert f"ROS_DOMAIN_ID={domain}, discovery subnet" in launch.output, launch.describe()

@@ -8,12 +8,20 @@ from __future__ import annotations
 
 import ctypes
 import json
+import logging
 import os
 import signal
 import threading
 from typing import Any
 
 PR_SET_PDEATHSIG = 1
+
+
+def begin(name: str) -> threading.Event:
+    """Start a component process: its log format, death with the launch, and the event its signals set."""
+    logging.basicConfig(level=logging.INFO, format=f"[{name}] %(levelname)s: %(message)s")
+    die_with_parent()
+    return stop_on_signals()
 
 
 def die_with_parent() -> None:

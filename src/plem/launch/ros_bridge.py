@@ -16,7 +16,7 @@ import time
 
 from plem.bridge.client import DriverGone, connect
 from plem.errors import PlemError
-from plem.launch.component import announce, die_with_parent, stop_on_signals
+from plem.launch.component import announce, begin
 from plem.launch.plan import plan_robot
 from plem.middleware.node import Node
 from plem.middleware.robot_bridge import RobotBridge
@@ -55,9 +55,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    logging.basicConfig(level=logging.INFO, format="[bridge] %(levelname)s: %(message)s")
-    die_with_parent()
-    stop = stop_on_signals()
+    stop = begin("bridge")
     try:
         serve(json.loads(argv[0]), stop)
     except DriverGone as error:

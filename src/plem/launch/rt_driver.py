@@ -19,7 +19,7 @@ from plem.control.realtime import keep_threads_scheduled
 from plem.errors import PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.records import RawRecorder, event_record
-from plem.launch.component import announce, die_with_parent, stop_on_signals
+from plem.launch.component import announce, begin
 from plem.launch.driver_service import DriverService
 from plem.launch.plan import RobotPlan, plan_robot
 from plem.robot.robot import Robot
@@ -84,9 +84,7 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    logging.basicConfig(level=logging.INFO, format="[rt_driver] %(levelname)s: %(message)s")
-    die_with_parent()
-    stop = stop_on_signals()
+    stop = begin("rt_driver")
     refused = keep_threads_scheduled()
     if refused:
         _log.warning(refused)
