@@ -90,7 +90,8 @@ def data_prefix() -> Path:
     try:
         distribution = importlib.metadata.distribution(DATA_DISTRIBUTION)
     except importlib.metadata.PackageNotFoundError:
-        pytest.skip(f"{DATA_DISTRIBUTION} is not installed (pip install -e '.[test]')")
+        pytest.fail(f"{DATA_DISTRIBUTION}, a test dependency, is not installed: run the tests through `make test` "
+                    "(it installs '.[test]')")
     return Path(distribution.locate_file("cmeel.prefix"))
 
 

@@ -75,3 +75,23 @@ def test_bad_robots_files_are_explained(tmp_path, text, words):
         load_robots(path, {})
     with pytest.raises(ConfigError, match="cannot read"):
         load_robots(tmp_path / "missing.yaml", {})
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("controller_manager:\n  ros__parameters:\n    update_rate: 50\n", 50.0),
+    ("controller_manager:\n  ros__parameters:\n    update_rate: 500\n", 100.0),   # capped
+    ("controller_manager: not a mapping\n", 100.0),                               # loop rate, capped
+    ("- a list\n", 100.0),
+])
+def test_joint_state_rate_follows_controllers_yaml_capped(tmp_path, text, expected):
+    plan = plan_robot({"bus": "mock", "robot_type": "indy7_v2"}, generate=False)
+    controllers = tmp_path / "controllers.yaml"
+    controllers.write_text(text)
+    plan.report.files.controllers = controllers
+    assert plan.joint_state_rate() == expected
+
+
+def test_joint_state_rate_argument_wins_and_is_checked():
+    assert plan_robot({"bus": "mock", "joint_states_rate": "25"}, generate=False).joint_state_rate() == 25.0
+    with pytest.raises((ConfigError, MultipleErrors), match="joint_states_rate"):
+        plan_robot({"bus": "mock", "joint_states_rate": "0"}, generate=False)

@@ -26,6 +26,11 @@ def raw_record_length(dof: int) -> int:
     return len(RAW_SCALARS) + len(ROWS) * dof
 
 
+def raw_scalars(record: np.ndarray) -> list[int]:
+    """The leading scalars of an rt_raw record (RAW_SCALARS, in that order) as integers."""
+    return [int(value) for value in record[:len(RAW_SCALARS)]]
+
+
 @dataclass(frozen=True)
 class RawSample(JointState):
     """One cycle as the loop saw it, with its wake-up latency and the previous cycle's compute time (ns)."""
@@ -36,7 +41,7 @@ class RawSample(JointState):
     @classmethod
     def from_record(cls, record: np.ndarray, dof: int) -> RawSample:
         rows = record[len(RAW_SCALARS):].reshape(len(ROWS), dof)
-        cycle, stamp, mode, faulted, enabled, latency, compute = (int(v) for v in record[:len(RAW_SCALARS)])
+        cycle, stamp, mode, faulted, enabled, latency, compute = raw_scalars(record)
         return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), *rows, latency, compute)
 
 

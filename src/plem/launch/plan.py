@@ -11,6 +11,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -63,10 +64,11 @@ class RobotPlan:
         rate = 1e6 / self.config.cycle_time
         controllers = self.report.files.controllers
         if controllers is not None:
-            document = yaml.safe_load(controllers.read_text(encoding="utf-8")) or {}
-            parameters = (document.get("controller_manager") or {}).get("ros__parameters") or {}
-            if isinstance(parameters.get("update_rate"), (int, float)) and parameters["update_rate"] > 0:
-                rate = float(parameters["update_rate"])
+            value: Any = yaml.safe_load(controllers.read_text(encoding="utf-8"))
+            for key in ("controller_manager", "ros__parameters", "update_rate"):
+                value = value.get(key) if isinstance(value, dict) else None
+            if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
+                rate = float(value)
         return min(rate, DEFAULT_JOINT_STATES_RATE_CAP)
 
     def poses(self, joint_names: tuple[str, ...]) -> dict[str, list[float]]:

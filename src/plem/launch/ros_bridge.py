@@ -32,12 +32,13 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     plan = plan_robot(arguments, generate=False)
     node = Node()
     client = connect(plan.robot_id, plan.config.dof)
-    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", plan.joint_state_rate())
+    rate = plan.joint_state_rate()
+    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate)
     commands = threading.Thread(target=bridge.serve_commands, args=(stop,), name="plem-bridge-commands",
                                 daemon=True)
     commands.start()
     announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),
-              "joint_state_rate": plan.joint_state_rate()})
+              "joint_state_rate": rate})
     next_check = time.monotonic()
     try:
         while not stop.is_set():

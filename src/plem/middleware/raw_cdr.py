@@ -12,7 +12,7 @@ import struct
 import numpy as np
 
 from plem.control.state import ROWS
-from plem.ipc.records import RAW_SCALARS
+from plem.ipc.records import RAW_SCALARS, raw_scalars
 
 #: CDR little-endian encapsulation (XCDR1), the 4 bytes in front of every ROS 2 payload.
 ENCAPSULATION = b"\x00\x01\x00\x00"
@@ -41,9 +41,8 @@ class RawEncoder:
 
     def encode(self, record: np.ndarray, wall_ns: int) -> bytes:
         """RtRaw of one ring record, stamped `wall_ns` (ns since the epoch)."""
-        scalars = len(RAW_SCALARS)
-        cycle, monotonic_ns, mode, faulted, enabled, latency, compute = (int(v) for v in record[:scalars])
-        rows = record[scalars:].tolist()
+        cycle, monotonic_ns, mode, faulted, enabled, latency, compute = raw_scalars(record)
+        rows = record[len(RAW_SCALARS):].tolist()
         values: list[float | int] = []
         for index in range(len(ROWS)):
             values.append(self.dof)
