@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import random
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,14 @@ from plem.core.config.loader import ConfigLoader
 
 ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH", "CYCLONEDDS_")
 TEST_DOMAIN_ID = 1 + os.getpid() % 100
+#: Domains above the default test domain's range, each handed out once per run by `fresh_domain`.
+_FREE_DOMAINS = random.sample(range(101, 233), 132)
+
+
+def fresh_domain() -> int:
+    """A DDS domain id no other test of this run uses: Cyclone allows one configuration per domain and process,
+    and tests that share a domain would see each other's endpoints."""
+    return _FREE_DOMAINS.pop()
 
 
 @pytest.fixture(autouse=True)

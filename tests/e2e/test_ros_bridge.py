@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import re
 import signal
 import time
@@ -30,6 +29,7 @@ from plem.middleware.discovery import DiscoverySettings
 from tests.e2e.launched import (Launch, clean_environment, launched, new_robot_id, process_gone, python_client,
                                 wait_until)
 from tests.e2e.ros_peer import JOINT_NAMES, RosPeer, shifted, wait_for
+from tests.conftest import fresh_domain
 
 ARRIVED = 1e-3
 LOOP_HZ = 1000.0
@@ -51,8 +51,8 @@ _BRIDGE_LINE = re.compile(r"^  bridge +running, pid (\d+), topics and actions un
 
 # -- fixtures ----------------------------------------------------------------------------------------
 def ros_environment(home: Path, domain: int | None = None) -> dict[str, str]:
-    """A launch environment on a domain of its own (random in 150-230), discovery on this host only."""
-    domain = random.randint(150, 230) if domain is None else domain
+    """A launch environment on a domain of its own, discovery on this host only."""
+    domain = fresh_domain() if domain is None else domain
     return clean_environment(home, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
 
 

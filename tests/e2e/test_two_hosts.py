@@ -24,6 +24,7 @@ import pytest
 
 from tests.e2e.launched import READY_LINE, Launch, clean_environment, new_robot_id
 from tests.e2e.ros_peer import JOINT_NAMES
+from tests.conftest import fresh_domain
 
 ROOT = Path(__file__).resolve().parents[2]
 ARRIVED = 1e-3
@@ -81,7 +82,7 @@ def two_hosts() -> Iterator[tuple[Host, Host]]:
 
 
 def test_a_peer_on_another_host_reads_joint_states_and_moves_the_arm(tmp_path: Path):
-    domain = str(random.randint(150, 230))
+    domain = str(fresh_domain())
     robot_id = new_robot_id()
     with two_hosts() as (a, b):
         env = clean_environment(tmp_path / "plem_home", ROS_DOMAIN_ID=domain)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import gc
 import os
-import random
 import subprocess
 import sys
 import textwrap
@@ -20,6 +19,7 @@ from plem.middleware.action import CANCEL_UNKNOWN_GOAL, SUCCEEDED, UNKNOWN, Acti
 from plem.middleware.names import ActionNames
 from plem.middleware.node import Node
 from plem.middleware.qos import LATCHED
+from tests.conftest import fresh_domain
 
 SERVICE, ACTION, SET_MODE = "/t/add", "/t/set_mode", "plem_msgs/action/SetMode"
 CANCEL_GOAL = "action_msgs/srv/CancelGoal"
@@ -74,7 +74,7 @@ SERVER = textwrap.dedent(f"""
 @pytest.fixture
 def domain(monkeypatch: pytest.MonkeyPatch) -> int:
     """A private domain for this test and every process it starts, discovered on this host only."""
-    domain_id = random.randint(150, 230)
+    domain_id = fresh_domain()
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain_id))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return domain_id

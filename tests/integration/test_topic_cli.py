@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-import random
 import subprocess
 import sys
 import textwrap
 from collections.abc import Iterator
 
 import pytest
+from tests.conftest import fresh_domain
 
 DESCRIPTION = '<robot name="plem_topic_test"/>'
 
@@ -42,13 +42,12 @@ PUBLISHER = textwrap.dedent(f"""
     node.close()
 """)
 #: Each test's private domain, never shared with another test of this run.
-DOMAINS = iter(random.sample(range(100, 201), 101))
 
 
 @pytest.fixture
 def environment() -> dict[str, str]:
     """Environment for every process of one test: its own domain, discovered on this host only."""
-    return {**os.environ, "ROS_DOMAIN_ID": str(next(DOMAINS)), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    return {**os.environ, "ROS_DOMAIN_ID": str(fresh_domain()), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
 
 @pytest.fixture

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import random
 
 import pytest
 from cyclonedds.core import DDSException
@@ -12,6 +11,7 @@ from plem.errors import ConfigError
 from plem.middleware.discovery import MAX_DOMAIN_ID, RANGES, DiscoverySettings
 from plem.middleware.node import Node
 from plem.middleware.qos import DEFAULT
+from tests.conftest import fresh_domain
 
 from_env = DiscoverySettings.from_environment
 
@@ -130,7 +130,7 @@ def test_system_default_adds_nothing() -> None:
 
 
 #: A different random domain for each range, so no two of these nodes ever share one.
-NODE_DOMAINS = dict(zip(RANGES, random.sample(range(150, 201), len(RANGES)), strict=True))
+NODE_DOMAINS = {discovery_range: fresh_domain() for discovery_range in RANGES}
 
 
 @pytest.mark.parametrize("discovery_range", RANGES)
@@ -153,6 +153,6 @@ def test_user_config_reaches_cyclone() -> None:
     """CYCLONEDDS_URI is applied: an invalid value in it stops the node from coming up."""
     bad = "<CycloneDDS><Domain><Discovery><MaxAutoParticipantIndex>many</MaxAutoParticipantIndex></Discovery>" \
           "</Domain></CycloneDDS>"
-    settings = from_env({"ROS_DOMAIN_ID": str(random.randint(201, 230)), "CYCLONEDDS_URI": bad})
+    settings = from_env({"ROS_DOMAIN_ID": str(fresh_domain()), "CYCLONEDDS_URI": bad})
     with pytest.raises(DDSException):
         Node(settings)

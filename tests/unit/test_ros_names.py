@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import inspect
-import random
 import re
 
 import pytest
@@ -15,6 +14,7 @@ from plem.middleware.names import (ActionNames, check_name, dds_type_name, reply
                                    ros_type_name, topic)
 from plem.middleware.node import Node
 from plem.middleware.types import library
+from tests.conftest import fresh_domain
 
 FJT_ACTION = "/indy/joint_trajectory_controller/follow_joint_trajectory"
 
@@ -89,7 +89,7 @@ SERVICE_PARTS = ["control_msgs/action/FollowJointTrajectory_SendGoal_Request",
 def test_struct_type_name_is_the_dds_type_name() -> None:
     """The name cyclonedds registers for each struct (a topic's type name) is the ROS 2 DDS type name."""
     lib = library()
-    node = Node(DiscoverySettings(domain_id=random.randint(150, 200), discovery_range="OFF"))
+    node = Node(DiscoverySettings(domain_id=fresh_domain(), discovery_range="OFF"))
     try:
         parts = [(ros_type, lib.message(ros_type)) for ros_type in STRUCTS + SERVICE_PARTS]
         parts += [(ros_type, lib.service_part(ros_type)) for ros_type in SERVICE_PARTS]
