@@ -1,0 +1,128 @@
+"""Rebuild a bag segment whose writer was killed: read the MCAP file's complete records, write a proper bag.
+
+A killed MCAP segment has its chunks but no summary, footer or metadata.yaml, and readers refuse it.
+Every complete chunk is read (schemas and channels travel in the first one); the first incomplete record
+ends the scan. The rebuilt bag replaces the directory only after it reads back with every recovered
+message; the original file is then removed.
+"""
+
+from __future__ import annotations
+
+import shutil
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from rosbags.rosbag2 import Reader, Writer
+
+from plem.errors import PlemError
+from plem.middleware.types import library
+from plem.recording.segment import BAG_VERSION, STORAGES
+
+MAGIC = b"\x89MCAP0\r\n"
+SCHEMA, CHANNEL, MESSAGE, CHUNK = 0x03, 0x04, 0x05, 0x06
+
+
+class RepairError(PlemError):
+    """A segment cannot be rebuilt."""
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    directory: Path
+    messages: int
+    repaired: bool
+
+
+def _records(data: bytes, start: int = 0) -> Iterator[tuple[int, memoryview]]:
+    """(opcode, content) of every complete record from `start`; stops at the first truncated one."""
+    view, position = memoryview(data), start
+    while position + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, position)
+        end = position + 9 + length
+        if end > len(data):
+            return
+        yield opcode, view[position + 9:end]
+        position = end
+
+
+def _string(content: memoryview, offset: int) -> tuple[str, int]:
+    (length,) = struct.unpack_from("<I", content, offset)
+    return bytes(content[offset + 4:offset + 4 + length]).decode(), offset + 4 + length
+
+
+def _chunk_records(content: memoryview) -> bytes:
+    """The records inside a chunk (plem writes them uncompressed)."""
+    offset = 8 + 8 + 8 + 4                               # start time, end time, uncompressed size, crc
+    compression, offset = _string(content, offset)
+    if compression:
+        raise RepairError("a chunk is compressed", what="uncompressed chunks, as plem's recorder writes them",
+                          why=f"compression {compression!r}", how="decompress it with an MCAP tool first")
+    (size,) = struct.unpack_from("<Q", content, offset)
+    return bytes(content[offset + 8:offset + 8 + size])
+
+
+def recover(mcap: Path) -> tuple[dict[int, tuple[str, str, str]], list[tuple[int, int, bytes]]]:
+    """Channels (id → topic, type, embedded definition) and messages (channel id, time, data) of a killed file."""
+    data = mcap.read_bytes()
+    if not data.startswith(MAGIC):
+        raise RepairError(f"{mcap} is not an MCAP file", what="a file starting with the MCAP magic",
+                          why="its first bytes differ", how="pass the directory of a plem bag segment")
+    schemas: dict[int, tuple[str, str]] = {}
+    channels: dict[int, tuple[str, str, str]] = {}
+    messages: list[tuple[int, int, bytes]] = []
+    for opcode, content in _records(data, len(MAGIC)):
+        if opcode != CHUNK:
+            continue
+        for inner, record in _records(_chunk_records(content)):
+            if inner == SCHEMA:
+                (schema_id,) = struct.unpack_from("<H", record, 0)
+                name, offset = _string(record, 2)
+                _, offset = _string(record, offset)      # encoding: ros2msg
+                (size,) = struct.unpack_from("<I", record, offset)
+                schemas[schema_id] = (name, bytes(record[offset + 4:offset + 4 + size]).decode())
+            elif inner == CHANNEL:
+                channel_id, schema_id = struct.unpack_from("<HH", record, 0)
+                topic, _ = _string(record, 4)
+                channels[channel_id] = (topic, *schemas[schema_id])
+            elif inner == MESSAGE:
+                channel_id, _, log_time = struct.unpack_from("<HIQ", record, 0)
+                messages.append((channel_id, log_time, bytes(record[22:])))
+    return channels, messages
+
+
+def repair(directory: Path) -> RepairReport:
+    """Make a killed segment readable again; a segment that has its metadata.yaml is left as it is."""
+    if (directory / "metadata.yaml").exists():
+        with Reader(directory) as reader:
+            return RepairReport(directory, reader.message_count, repaired=False)
+    files = sorted(directory.glob("*.mcap"))
+    if len(files) != 1:
+        raise RepairError(f"{directory} is not a killed MCAP segment", what="one .mcap file and no metadata.yaml",
+                          why=f"found {len(files)} .mcap files", how="pass one segment directory of the bag")
+    channels, messages = recover(files[0])
+    workspace = directory.with_name(f".{directory.name}.repairing")
+    shutil.rmtree(workspace, ignore_errors=True)
+    rebuilt = workspace / directory.name                 # same name: the files inside are named after it
+    writer = Writer(rebuilt, version=BAG_VERSION, storage_plugin=STORAGES["mcap"])
+    writer.open()
+    store = library().store
+    unknown = sorted({msgtype for _, msgtype, _ in channels.values() if msgtype not in store.fielddefs})
+    if unknown:
+        raise RepairError(f"{directory} holds types plem does not know", what="plem's recorded types",
+                          why=f"unknown: {', '.join(unknown)}", how="repair it with the tool that wrote it")
+    connections = {channel_id: writer.add_connection(topic, msgtype, typestore=store)
+                   for channel_id, (topic, msgtype, _) in channels.items()}
+    for channel_id, timestamp, data in messages:
+        writer.write(connections[channel_id], timestamp, data)
+    writer.close()
+    with Reader(rebuilt) as reader:
+        if reader.message_count != len(messages):
+            raise RepairError(f"the rebuilt {directory.name} lost messages", what="every recovered message",
+                              why=f"{reader.message_count} of {len(messages)} read back", how="keep the original")
+    killed = workspace / f"{directory.name}.killed"
+    directory.rename(killed)                             # the original stays whole until the new one is in place
+    rebuilt.rename(directory)
+    shutil.rmtree(workspace)
+    return RepairReport(directory, len(messages), repaired=True)

@@ -1,0 +1,55 @@
+"""A segment writer killed at random moments leaves a file that `repair` turns into a readable bag, losing ≤ 1 s."""
+
+from __future__ import annotations
+
+import random
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+from rosbags.rosbag2 import Reader
+
+from plem.middleware.types import library
+from plem.recording.repair import repair
+
+WRITER = """
+    import sys, time, numpy as np
+    from pathlib import Path
+    from plem.middleware.types import library
+    from plem.middleware.raw_cdr import RawEncoder
+    from plem.recording.segment import SegmentWriter
+    encoder, record = RawEncoder(6), np.zeros(43)
+    segment = SegmentWriter(Path(sys.argv[1]), [("/r/rt_raw", "plem_msgs/msg/RtRaw")], library().store)
+    cycle = 0
+    while True:
+        record[0] = cycle
+        segment.write("/r/rt_raw", 1_700_000_000_000_000_000 + cycle * 1_000_000, encoder.encode(record, 0))
+        if cycle % 100 == 0:
+            print(cycle, flush=True)
+        cycle += 1
+        time.sleep(0.001)
+"""
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sigkill_at_a_random_moment_loses_at_most_the_last_second(tmp_path: Path, seed: int):
+    directory = tmp_path / "segment"
+    writer = subprocess.Popen([sys.executable, "-c", textwrap.dedent(WRITER), str(directory)],
+                              stdout=subprocess.PIPE, text=True)
+    time.sleep(random.Random(seed).uniform(0.3, 3.0))
+    writer.send_signal(signal.SIGKILL)
+    printed = [int(line) for line in writer.communicate()[0].split()]
+    report = repair(directory)
+    with Reader(directory) as reader:
+        stamps = [stamp for _, stamp, _ in reader.messages()]
+        cycles = [library().store.deserialize_cdr(data, "plem_msgs/msg/RtRaw").cycle
+                  for _, _, data in reader.messages()]
+    assert report.repaired and report.messages == len(stamps)
+    assert cycles == list(range(len(cycles))), "every recovered cycle, in order, none twice"
+    assert all(later > earlier for earlier, later in zip(stamps, stamps[1:]))
+    written = printed[-1] if printed else 0          # at least this many were written before the kill
+    assert len(cycles) >= written - 1100, f"lost more than about a second: {len(cycles)} of >= {written}"
