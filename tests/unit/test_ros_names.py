@@ -9,6 +9,7 @@ import pytest
 
 from plem.errors import ConfigError
 from plem.middleware import robot_bridge
+from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.names import (ActionNames, check_name, dds_type_name, reply_topic, request_topic, ros_topic,
                                    ros_type_name, topic)
@@ -133,9 +134,9 @@ BRIDGE_ENDPOINTS = {
 
 
 def test_bridge_endpoint_names_are_valid() -> None:
-    """The literal names in robot_bridge.py are these, and each is a valid name for a valid robot id."""
+    """The names robot_bridge.py uses are these, and each is a valid name for a valid robot id."""
     source = inspect.getsource(robot_bridge)
-    used = set(re.findall(r'f"\{ns\}/([^"]+)"', source))
+    used = set(re.findall(r'f"\{ns\}/([^"{]+)"', source)) | set(MONITOR_TOPICS)
     assert used == BRIDGE_ENDPOINTS
     for robot_id in ("indy", "ur5e_1", "Arm7"):
         for endpoint in used:
