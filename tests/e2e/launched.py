@@ -17,6 +17,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from plem.ipc.segment import SHM_DIRECTORY
+from plem.recording.status import status_path
 from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID
 from tests.e2e.cli import plem_executable
 
@@ -32,9 +33,10 @@ def new_robot_id() -> str:
 
 
 def clean_environment(home: Path, **extra: str) -> dict[str, str]:
-    """The caller's environment without plem/ROS variables, with a private PLEM_HOME; DDS stays on this host."""
+    """The caller's environment without plem/ROS variables, with a private PLEM_HOME and HOME (bags go to
+    ~/bags/rt_monitoring by default); DDS stays on this host."""
     env = {name: value for name, value in os.environ.items() if not name.startswith(ISOLATED_PREFIXES)}
-    return {**env, "PLEM_HOME": str(home), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+    return {**env, "PLEM_HOME": str(home), "HOME": str(home), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
             "ROS_DOMAIN_ID": str(TEST_DOMAIN_ID), **extra}
 
 
@@ -46,6 +48,7 @@ def shm_files(robot_id: str) -> list[Path]:
 def remove_shm(robot_id: str) -> None:
     for path in shm_files(robot_id):
         path.unlink(missing_ok=True)
+    status_path(robot_id).unlink(missing_ok=True)          # left only by a killed recorder
 
 
 def remove_generated(output: str) -> None:

@@ -23,7 +23,8 @@ WRITER = """
     from plem.middleware.raw_cdr import RawEncoder
     from plem.recording.segment import SegmentWriter
     encoder, record = RawEncoder(6), np.zeros(43)
-    segment = SegmentWriter(Path(sys.argv[1]), [("/r/rt_raw", "plem_msgs/msg/RtRaw")], library().store)
+    segment = SegmentWriter(Path(sys.argv[1]), [("/r/rt_raw", "plem_msgs/msg/RtRaw")], library().store,
+                            sys.argv[2])
     cycle = 0
     while True:
         record[0] = cycle
@@ -35,10 +36,10 @@ WRITER = """
 """
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_sigkill_at_a_random_moment_loses_at_most_the_last_second(tmp_path: Path, seed: int):
+@pytest.mark.parametrize(("storage", "seed"), [("mcap", seed) for seed in range(4)] + [("sqlite3", 0), ("sqlite3", 1)])
+def test_sigkill_at_a_random_moment_loses_at_most_the_last_second(tmp_path: Path, storage: str, seed: int):
     directory = tmp_path / "segment"
-    writer = subprocess.Popen([sys.executable, "-c", textwrap.dedent(WRITER), str(directory)],
+    writer = subprocess.Popen([sys.executable, "-c", textwrap.dedent(WRITER), str(directory), storage],
                               stdout=subprocess.PIPE, text=True)
     time.sleep(random.Random(seed).uniform(0.3, 3.0))
     writer.send_signal(signal.SIGKILL)

@@ -66,7 +66,7 @@ def _limits_view(buffer: memoryview, dof: int) -> np.ndarray:
     return np.ndarray((len(LIMIT_ROWS), dof), dtype=np.float64, buffer=buffer, offset=LIMITS_OFFSET)
 
 
-def _owner_alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
     """True while `pid` runs; a zombie (dead, not yet reaped) counts as gone."""
     try:
         os.kill(pid, 0)
@@ -145,7 +145,7 @@ class StateSegment:
             owner = existing.header.owner_pid
             state = existing.block.read(retries=100)
             beat_age = time.monotonic_ns() - state.monotonic_ns if state is not None else None
-            live = _owner_alive(owner) and owner != os.getpid() and (beat_age is None or beat_age < STALE_AFTER_NS)
+            live = process_alive(owner) and owner != os.getpid() and (beat_age is None or beat_age < STALE_AFTER_NS)
         finally:
             existing.close()
         if live:

@@ -35,6 +35,10 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("bag_dir", "~/bags/rt_monitoring", "directory of the bags"),
     LaunchArgument("retention_minutes", "60", "delete bags older than this (a circular buffer)"),
     LaunchArgument("disk_threshold", "70", "delete the oldest bags when the disk is fuller than this percent"),
+    LaunchArgument("bag_storage", "mcap", "bag storage: mcap or sqlite3"),
+    LaunchArgument("bag_segment_seconds", "60", "length of one bag segment (the unit retention deletes)"),
+    LaunchArgument("flight_recorder_seconds", "10", "seconds before a fault whose segments are never deleted "
+                   "automatically"),
     LaunchArgument("shm_group", "", "group allowed to read the shared memory; default: owner only"),
     LaunchArgument("robots", "", "YAML file with several robots (each its own robot_id, bus, interface)"),
     *(LaunchArgument(s.launch, "", f"{s.description} [default: ${s.env}, else "

@@ -21,6 +21,7 @@ from plem.description.generate import ResolvedDescription, resolve_description
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, PlemError, raise_collected
 from plem.launch.arguments import DEFAULTS
+from plem.recording.settings import RecordingSettings
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
@@ -30,6 +31,7 @@ BUSES = ("ethercat", "mock")
 MAX_JOINT_STATES_RATE = 1000.0
 DEFAULT_JOINT_STATES_RATE_CAP = 100.0
 BOOLEANS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
+BAG_STORAGES = ("mcap", "sqlite3")
 
 
 @dataclass
@@ -71,6 +73,16 @@ class RobotPlan:
                 rate = float(value)
         return min(rate, DEFAULT_JOINT_STATES_RATE_CAP)
 
+    def recording(self) -> RecordingSettings:
+        """Where and how the recorder writes this robot's bags: `bag_dir/{robot_id}/`."""
+        def number(name: str) -> float:
+            return float(self.arguments.get(name) or DEFAULTS[name])
+
+        return RecordingSettings(bag_directory(self.arguments) / self.robot_id,
+                                 self.arguments.get("bag_storage") or DEFAULTS["bag_storage"],
+                                 number("bag_segment_seconds"), 60 * number("retention_minutes"),
+                                 number("disk_threshold"), number("flight_recorder_seconds"))
+
     def poses(self, joint_names: tuple[str, ...]) -> dict[str, list[float]]:
         """Named poses of the SRDF; 'home' defaults to every joint at 0 rad when the SRDF names none."""
         poses = self.report.srdf.poses(joint_names) if self.report.srdf is not None else {}
@@ -103,6 +115,24 @@ def _integer(arguments: Mapping[str, str], name: str, low: int, high: int, error
         errors.append(_problem(name, text, f"a whole number from {low} to {high}", f"e.g. {name}:={DEFAULTS[name]}"))
 
 
+def bag_directory(arguments: Mapping[str, str]) -> Path:
+    return Path(arguments.get("bag_dir") or DEFAULTS["bag_dir"]).expanduser()
+
+
+def _check_bag_directory(arguments: Mapping[str, str], errors: list[PlemError]) -> None:
+    """bag_dir must be a directory plem may write into, or one it may create (the recorder creates it)."""
+    directory = bag_directory(arguments)
+    existing = next(path for path in (directory, *directory.parents) if path.exists())
+    if not existing.is_dir():
+        why = f"{existing} is not a directory"
+    elif not os.access(existing, os.W_OK | os.X_OK):
+        why = f"plem may not write into {existing}"
+    else:
+        return
+    errors.append(ConfigError(f"bag_dir {directory} cannot hold bags", what="a directory plem can write into",
+                              why=why, how="pass bag_dir:=DIR with a writable DIR, or record:=false"))
+
+
 def _group(text: str, errors: list[PlemError]) -> int | None:
     if not text:
         return None
@@ -131,6 +161,13 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
                                f"{MAX_JOINT_STATES_RATE:.0f}", "e.g. joint_states_rate:=50"))
     _integer(arguments, "retention_minutes", 1, 10_000_000, errors)
     _integer(arguments, "disk_threshold", 1, 99, errors)
+    _integer(arguments, "bag_segment_seconds", 1, 86_400, errors)
+    _integer(arguments, "flight_recorder_seconds", 1, 3_600, errors)
+    storage = arguments.get("bag_storage", DEFAULTS["bag_storage"])
+    if storage not in BAG_STORAGES:
+        errors.append(_problem("bag_storage", storage, f"one of {', '.join(BAG_STORAGES)}", "e.g. bag_storage:=mcap"))
+    if record:
+        _check_bag_directory(arguments, errors)
     group = _group(arguments.get("shm_group", ""), errors)
     raise_collected(errors, "the launch arguments")
 

@@ -29,8 +29,8 @@ STOP_TIMEOUT_S = 20.0
 STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
 #: Components of later releases: listed in the summary, never faked.
-NOT_BUILT = {"recorder": "rosbag2 recorder", "planner": "motion planner"}
-MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge"}
+NOT_BUILT = {"planner": "motion planner"}
+MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder"}
 
 
 class LaunchFailed(PlemError):
@@ -113,6 +113,8 @@ class Supervisor:
         self._start(plan, "rt_driver", critical=True)
         if self.components.get("bridge", True) and plan.bridge and not self.stop_requested.is_set():
             self._start(plan, "bridge", critical=False)
+        if self.components.get("recorder", True) and plan.record and not self.stop_requested.is_set():
+            self._start(plan, "recorder", critical=False)
 
     def _start(self, plan: RobotPlan, component: str, critical: bool) -> None:
         """Start one component (`python -m plem.launch.<module>`) and wait for its readiness line."""
@@ -163,23 +165,31 @@ class Supervisor:
                 self.say(f"  warning: {warning}")
             self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
             self.say(f"  bridge        {self._bridge_status(plan, children.get('bridge'))}")
+            self.say(f"  recorder      {self._recorder_status(plan, children.get('recorder'))}")
             for component, title in NOT_BUILT.items():
                 self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
         self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
                  "plem move --to home, plem topic list")
 
+    def _off(self, component: str, argument: str) -> str:
+        """Why a component did not start: the launch file left it out, or its argument is false."""
+        return "disabled by the launch file" if not self.components.get(component, True) else f"off ({argument}:=false)"
+
     def _bridge_status(self, plan: RobotPlan, child: Child | None) -> str:
         if child is None:
-            return "disabled by the launch file" if not self.components.get("bridge", True) else "off (bridge:=false)"
+            return self._off("bridge", "bridge")
         ready = child.ready
         return (f"running, pid {child.process.pid}, topics and actions under {ready['namespace']}/ "
                 f"({ready['domain']}, joint_states {ready['joint_state_rate']:g} Hz)")
 
+    def _recorder_status(self, plan: RobotPlan, child: Child | None) -> str:
+        if child is None:
+            return self._off("recorder", "record")
+        return f"recording, pid {child.process.pid}, into {child.ready['directory']} ({child.ready['settings']})"
+
     def _component_status(self, plan: RobotPlan, component: str, title: str) -> str:
         if not self.components.get(component, True):
             return "disabled by the launch file"
-        if component == "recorder" and not plan.record:
-            return "off (record:=false)"
         if component == "planner" and plan.description is not None and not plan.description.planner_enabled:
             return "not started: no SRDF"
         return f"unavailable: the {title} is not part of this plem version"

@@ -62,11 +62,13 @@ class MonitorSink(Protocol):
 class MonitorFeed:
     """Reads one robot's rt_raw, event and statistics rings and hands what is new to a sink as messages."""
 
-    def __init__(self, client: RobotClient, library: InterfaceLibrary, joint_state_rate: float) -> None:
+    def __init__(self, client: RobotClient, library: InterfaceLibrary, joint_state_rate: float,
+                 history: bool = False) -> None:
+        """`history`: start with the cycles still in the ring (a recorder), not with the next one (a publisher)."""
         self.client = client
         self.library = library
         rings = client.channels.rings
-        self.readers: dict[str, RingReader] = {"rt_raw": rings["rt_raw"].reader(),
+        self.readers: dict[str, RingReader] = {"rt_raw": rings["rt_raw"].reader(from_oldest=history),
                                                 "events": rings["events"].reader(from_oldest=True),
                                                 "stats": rings["stats"].reader()}
         self._joint_period_ns = round(1e9 / joint_state_rate)
@@ -74,22 +76,27 @@ class MonitorFeed:
         self._next_stats = 0
         # Cycles carry CLOCK_MONOTONIC times; messages carry wall-clock stamps.
         self.wall_offset = time.time_ns() - time.monotonic_ns()
-        self._newest: np.ndarray | None = None
         self._encoder = RawEncoder(client.dof)
 
     def pump(self, sink: MonitorSink) -> int:
-        """Hand everything new to `sink`; the number of rt_raw samples handed over."""
+        """Hand everything new to `sink`; the number of rt_raw samples handed over.
+
+        joint_states are the cycles whose time reaches the next joint_states period, so their rate is
+        exact whatever the pump's own period.
+        """
         count = 0
         raw = self.readers["rt_raw"]
         while (record := raw.read_values()) is not None:
-            wall_ns = int(record[1]) + self.wall_offset
+            monotonic_ns = int(record[1])
+            wall_ns = monotonic_ns + self.wall_offset
             sink.rt_raw(self._encoder.encode(record, wall_ns), wall_ns)
-            self._newest = record
+            if monotonic_ns >= self._next_joint_state:
+                self._joint_state(sink, record)
+                self._next_joint_state += self._joint_period_ns
+                if self._next_joint_state <= monotonic_ns:        # the first one, or after a gap: no burst
+                    self._next_joint_state = monotonic_ns + self._joint_period_ns
             count += 1
         now = time.monotonic_ns()
-        if self._newest is not None and now >= self._next_joint_state:
-            self._joint_state(sink, self._newest)
-            self._next_joint_state = max(self._next_joint_state + self._joint_period_ns, now)
         for record in self.readers["events"].read_all():
             self._event(sink, record)
         if now >= self._next_stats:
@@ -138,16 +145,15 @@ class MonitorFeed:
             commands_received=commands["received"], commands_accepted=commands["accepted"],
             commands_rejected=commands["rejected"], queues=queues), wall_ns)
 
+    def reader_queues(self) -> list[QueueCount]:
+        """The rings this feed reads, as it reads them: fill and records lost to the writer."""
+        rings = self.client.channels.rings
+        return [QueueCount(name, rings[name].slots, reader.pending, rings[name].head, reader.dropped)
+                for name, reader in self.readers.items()]
+
     def _ring_queues(self, driver: dict[str, Any]) -> list[QueueCount]:
         """The rings as this feed reads them, and the command ring as the driver takes it."""
-        queues = []
-        for name, ring in self.client.channels.rings.items():
-            reader = self.readers.get(name)
-            if reader is not None:
-                fill, dropped = reader.pending, reader.dropped
-            elif name == "commands":
-                fill, dropped = max(0, ring.head - driver["commands"]["received"]), 0
-            else:
-                continue
-            queues.append(QueueCount(name, ring.slots, fill, ring.head, dropped))
-        return queues
+        commands = self.client.channels.rings["commands"]
+        taken = QueueCount("commands", commands.slots, max(0, commands.head - driver["commands"]["received"]),
+                           commands.head, 0)
+        return [*self.reader_queues(), taken]

@@ -23,6 +23,7 @@ from plem.middleware.goals import FJT, start_mode_change, start_trajectory, traj
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.node import Node
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW
+from plem.recording.status import read_status
 
 _log = logging.getLogger("plem.bridge")
 
@@ -68,9 +69,10 @@ class RobotBridge:
         self.publishers["rt_monitor_stats"].publish(message)
 
     def queues(self) -> list[QueueCount]:
-        """The DDS publishers that could refuse a write (fill is not exposed by Cyclone DDS)."""
-        return [QueueCount(f"dds:{name}", self._profiles[name].depth, 0, self.publishers[name].published,
-                           self.publishers[name].dropped) for name in ("rt_raw", "joint_states", "rt_events")]
+        """The DDS publishers that could refuse a write (fill is not exposed by Cyclone DDS), then the recorder's."""
+        publishers = [QueueCount(f"dds:{name}", self._profiles[name].depth, 0, self.publishers[name].published,
+                                 self.publishers[name].dropped) for name in ("rt_raw", "joint_states", "rt_events")]
+        return [*publishers, *read_status(self.client.robot_id)]
 
     # -- ROS commands → command ring ------------------------------------------------------------------
     def serve_commands(self, stop: threading.Event, period: float = 0.01) -> None:

@@ -1,14 +1,16 @@
-"""Rebuild a bag segment whose writer was killed: read the MCAP file's complete records, write a proper bag.
+"""Rebuild a bag segment whose writer was killed: read what reached the file, write a proper bag.
 
 A killed MCAP segment has its chunks but no summary, footer or metadata.yaml, and readers refuse it.
 Every complete chunk is read (schemas and channels travel in the first one); the first incomplete record
-ends the scan. The rebuilt bag replaces the directory only after it reads back with every recovered
-message; the original file is then removed.
+ends the scan. A killed sqlite3 segment has its committed transactions and no metadata.yaml. The rebuilt
+bag replaces the directory only after it reads back with every recovered message; the original file is
+then removed.
 """
 
 from __future__ import annotations
 
 import shutil
+import sqlite3
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -63,14 +65,32 @@ def _chunk_records(content: memoryview) -> bytes:
     return bytes(content[offset + 8:offset + 8 + size])
 
 
-def recover(mcap: Path) -> tuple[dict[int, tuple[str, str, str]], list[tuple[int, int, bytes]]]:
-    """Channels (id → topic, type, embedded definition) and messages (channel id, time, data) of a killed file."""
+Channels = dict[int, tuple[str, str]]
+Messages = list[tuple[int, int, bytes]]
+
+
+def recover_sqlite3(db3: Path) -> tuple[Channels, Messages]:
+    """Topics (id → topic, type) and committed messages (topic id, time, data) of a killed sqlite3 file."""
+    connection = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)
+    try:
+        channels = {row[0]: (row[1], row[2]) for row in connection.execute("SELECT id, name, type FROM topics")}
+        messages = list(connection.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"))
+    except sqlite3.DatabaseError as error:
+        raise RepairError(f"{db3} cannot be read", what="a rosbag2 sqlite3 database", why=str(error),
+                          how="pass the directory of a plem bag segment") from error
+    finally:
+        connection.close()
+    return channels, messages
+
+
+def recover_mcap(mcap: Path) -> tuple[Channels, Messages]:
+    """Channels (id → topic, type) and messages (channel id, time, data) of a killed MCAP file."""
     data = mcap.read_bytes()
     if not data.startswith(MAGIC):
         raise RepairError(f"{mcap} is not an MCAP file", what="a file starting with the MCAP magic",
                           why="its first bytes differ", how="pass the directory of a plem bag segment")
-    schemas: dict[int, tuple[str, str]] = {}
-    channels: dict[int, tuple[str, str, str]] = {}
+    schemas: dict[int, str] = {}
+    channels: Channels = {}
     messages: list[tuple[int, int, bytes]] = []
     for opcode, content in _records(data, len(MAGIC)):
         if opcode != CHUNK:
@@ -78,14 +98,11 @@ def recover(mcap: Path) -> tuple[dict[int, tuple[str, str, str]], list[tuple[int
         for inner, record in _records(_chunk_records(content)):
             if inner == SCHEMA:
                 (schema_id,) = struct.unpack_from("<H", record, 0)
-                name, offset = _string(record, 2)
-                _, offset = _string(record, offset)      # encoding: ros2msg
-                (size,) = struct.unpack_from("<I", record, offset)
-                schemas[schema_id] = (name, bytes(record[offset + 4:offset + 4 + size]).decode())
+                schemas[schema_id], _ = _string(record, 2)   # the type; its embedded definition is rebuilt
             elif inner == CHANNEL:
                 channel_id, schema_id = struct.unpack_from("<HH", record, 0)
                 topic, _ = _string(record, 4)
-                channels[channel_id] = (topic, *schemas[schema_id])
+                channels[channel_id] = (topic, schemas[schema_id])
             elif inner == MESSAGE:
                 channel_id, _, log_time = struct.unpack_from("<HIQ", record, 0)
                 messages.append((channel_id, log_time, bytes(record[22:])))
@@ -97,23 +114,24 @@ def repair(directory: Path) -> RepairReport:
     if (directory / "metadata.yaml").exists():
         with Reader(directory) as reader:
             return RepairReport(directory, reader.message_count, repaired=False)
-    files = sorted(directory.glob("*.mcap"))
+    files = sorted([*directory.glob("*.mcap"), *directory.glob("*.db3")])
     if len(files) != 1:
-        raise RepairError(f"{directory} is not a killed MCAP segment", what="one .mcap file and no metadata.yaml",
-                          why=f"found {len(files)} .mcap files", how="pass one segment directory of the bag")
-    channels, messages = recover(files[0])
-    workspace = directory.with_name(f".{directory.name}.repairing")
-    shutil.rmtree(workspace, ignore_errors=True)
-    rebuilt = workspace / directory.name                 # same name: the files inside are named after it
-    writer = Writer(rebuilt, version=BAG_VERSION, storage_plugin=STORAGES["mcap"])
-    writer.open()
+        raise RepairError(f"{directory} is not a killed segment", what="one .mcap or .db3 file and no metadata.yaml",
+                          why=f"found {len(files)} such files", how="pass one segment directory of the bag")
+    storage = "mcap" if files[0].suffix == ".mcap" else "sqlite3"
+    channels, messages = (recover_mcap if storage == "mcap" else recover_sqlite3)(files[0])
     store = library().store
-    unknown = sorted({msgtype for _, msgtype, _ in channels.values() if msgtype not in store.fielddefs})
+    unknown = sorted({msgtype for _, msgtype in channels.values() if msgtype not in store.fielddefs})
     if unknown:
         raise RepairError(f"{directory} holds types plem does not know", what="plem's recorded types",
                           why=f"unknown: {', '.join(unknown)}", how="repair it with the tool that wrote it")
+    workspace = directory.with_name(f".{directory.name}.repairing")
+    shutil.rmtree(workspace, ignore_errors=True)
+    rebuilt = workspace / directory.name                 # same name: the files inside are named after it
+    writer = Writer(rebuilt, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+    writer.open()
     connections = {channel_id: writer.add_connection(topic, msgtype, typestore=store)
-                   for channel_id, (topic, msgtype, _) in channels.items()}
+                   for channel_id, (topic, msgtype) in channels.items()}
     for channel_id, timestamp, data in messages:
         writer.write(connections[channel_id], timestamp, data)
     writer.close()

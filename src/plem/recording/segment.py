@@ -1,7 +1,7 @@
 """One rosbag2 segment being written: a bag directory whose MCAP file reaches the disk at least every second.
 
-rosbags' MCAP writer keeps messages in a pending chunk of up to 1 MiB (about 2.5 s of rt_raw) and writes
-the bag's metadata.yaml only when closed. The segment closes the chunk and flushes the file every
+rosbags' MCAP writer keeps messages in a pending chunk of up to 1 MiB (about 2.5 s of rt_raw), its sqlite3
+writer in one transaction, and both write the bag's metadata.yaml only when closed. The segment closes the chunk and flushes the file every
 `flush_period_s`, and once right after the connections are added (the first chunk then carries every
 schema and channel), so a killed recorder loses at most the last period; `repair` rebuilds what a
 killed segment lacks.
@@ -36,6 +36,10 @@ class SegmentWriter:
         self._next_flush = 0
         self.flush()
 
+    @property
+    def name(self) -> str:
+        return self.directory.name
+
     def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
         """Append one message; flushes when the flush period has passed."""
         self._writer.write(self._connections[topic], timestamp_ns, data)
@@ -46,12 +50,15 @@ class SegmentWriter:
     def flush(self) -> None:
         """Put everything written so far into the file (the page cache survives the process)."""
         storage = self._writer.storage
-        chunk = getattr(storage, "chunk", None)
+        chunk = getattr(storage, "chunk", None)              # MCAP: a pending chunk, then the file buffer
         if chunk is not None and chunk.bio.tell():
             storage.close_chunk()
         bio = getattr(storage, "bio", None)
         if bio is not None:
             bio.flush()
+        connection = getattr(storage, "conn", None)          # sqlite3: one transaction per flush period
+        if connection is not None:
+            connection.commit()
         self._next_flush = time.monotonic_ns() + self._flush_period_ns
 
     def close(self) -> None:

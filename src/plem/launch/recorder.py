@@ -1,0 +1,103 @@
+"""The recorder process: one robot's monitoring topics from shared memory into rosbag2 bags.
+
+`plem launch` starts it after the robot's RT driver (and bridge) when `record:=true`, as
+`python -m plem.launch.recorder '<launch arguments as JSON>'`. It runs at normal priority and only reads
+shared memory, so a slow or full disk never reaches the loop: the rings hold about four seconds, and
+what the recorder could not keep is counted. On a stop signal it records on until the driver has
+stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import threading
+import time
+
+from plem.bridge.client import DriverGone, RobotClient, connect
+from plem.errors import PlemError
+from plem.ipc.state_segment import process_alive
+from plem.launch.component import announce, begin
+from plem.launch.plan import plan_robot
+from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed
+from plem.middleware.types import library
+from plem.recording.recorder import Recorder
+from plem.recording.status import remove_status, write_status
+
+_log = logging.getLogger("plem.recorder")
+#: How often the recorder reads the rings (they hold about 4 s at 1 kHz).
+PUMP_PERIOD_S = 0.02
+LIVENESS_PERIOD_S = 0.5
+#: After a stop signal, how long the recorder waits for the driver to finish its smooth stop.
+DRAIN_TIMEOUT_S = 10.0
+
+
+def record(arguments: dict[str, str], stop: threading.Event) -> None:
+    """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`."""
+    plan = plan_robot(arguments, generate=False)
+    client = connect(plan.robot_id, plan.config.dof)
+    settings = plan.recording()
+    interfaces = library()
+    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store)
+    feed = MonitorFeed(client, interfaces, plan.joint_state_rate(), history=True)
+    try:
+        recorder.start()
+        announce({"ready": True, "directory": str(settings.directory), "settings": settings.describe()})
+        run(client, feed, recorder, stop)
+    finally:
+        try:
+            feed.pump(recorder)
+        finally:
+            recorder.close()
+            remove_status(plan.robot_id)
+            client.close()
+
+
+def run(client: RobotClient, feed: MonitorFeed, recorder: Recorder, stop: threading.Event) -> None:
+    """Pump the feed into the recorder, keep the disk in check, publish the recorder's counters."""
+    next_check = time.monotonic()
+    drain_deadline: float | None = None
+    while True:
+        feed.pump(recorder)
+        recorder.maintain()
+        now = time.monotonic()
+        if now >= next_check:
+            write_status(client.robot_id, [*recorder.queues(), *feed.reader_queues()])
+            if not driver_running(client):
+                return
+            next_check = now + LIVENESS_PERIOD_S
+        if stop.is_set():
+            drain_deadline = drain_deadline or now + DRAIN_TIMEOUT_S
+            if now >= drain_deadline:
+                return
+        time.sleep(PUMP_PERIOD_S)
+
+
+def driver_running(client: RobotClient) -> bool:
+    """The driver still writes cycles: its process runs and its heartbeat is fresh."""
+    if not process_alive(client.channels.rings["rt_raw"].writer_pid):
+        return False
+    try:
+        client.live_state()
+    except DriverGone:
+        return False
+    return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    stop = begin("recorder")
+    try:
+        record(json.loads(argv[0]), stop)
+    except DriverGone as error:
+        _log.error("%s", error.render())
+        return 1
+    except PlemError as error:
+        announce({"ready": False, "error": error.to_dict()})
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

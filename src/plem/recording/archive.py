@@ -1,0 +1,115 @@
+"""One robot's bag directory: its segments, the flight recorder's keep marks, and its event log.
+
+Layout under `bag_dir/{robot_id}/`:
+- `{robot_id}_YYYY_MM_DD-HH_MM_SS[_N]/`: one rosbag2 bag per segment (names sort in time order);
+- `{segment}.keep`: the segment holds seconds before a fault and is never deleted automatically;
+- `event_log.jsonl`: one JSON object per line for every segment opened or closed, deletion (with its
+  reason), fault (with its bag position), repair, stop and resume of recording.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import shutil
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from plem.core.files import write_atomic
+from plem.recording.retention import Deletion, Segment
+
+_log = logging.getLogger("plem.recorder")
+EVENT_LOG = "event_log.jsonl"
+KEEP_SUFFIX = ".keep"
+
+
+def iso_time(wall_ns: int) -> str:
+    """UTC time with milliseconds, e.g. 2026-11-21T10:15:00.123Z."""
+    seconds, ns = divmod(wall_ns, 1_000_000_000)
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(seconds)) + f".{ns // 1_000_000:03d}Z"
+
+
+def directory_size(path: Path) -> int:
+    return sum(entry.stat().st_size for entry in path.rglob("*") if entry.is_file())
+
+
+def bag_extent(path: Path) -> tuple[int, int] | None:
+    """(start, end) in ns since the epoch from a bag's metadata.yaml; None without one."""
+    metadata = path / "metadata.yaml"
+    if not metadata.is_file():
+        return None
+    info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    start = int(info["starting_time"]["nanoseconds_since_epoch"])
+    return start, start + int(info["duration"]["nanoseconds"])
+
+
+class Archive:
+    """The bag directory of one robot."""
+
+    def __init__(self, directory: Path, robot_id: str) -> None:
+        self.directory = directory
+        self.robot_id = robot_id
+        directory.mkdir(parents=True, exist_ok=True)
+
+    def segment_paths(self) -> list[Path]:
+        """Every segment directory, oldest first."""
+        prefix = f"{self.robot_id}_"
+        return sorted(p for p in self.directory.iterdir() if p.is_dir() and p.name.startswith(prefix))
+
+    def new_segment_path(self, wall_ns: int) -> Path:
+        """A fresh segment directory name for a segment starting at `wall_ns`."""
+        stamp = time.strftime("%Y_%m_%d-%H_%M_%S", time.gmtime(wall_ns // 1_000_000_000))
+        path = self.directory / f"{self.robot_id}_{stamp}"
+        number = 1
+        while path.exists():
+            path = self.directory / f"{self.robot_id}_{stamp}_{number}"
+            number += 1
+        return path
+
+    def closed_segment(self, path: Path) -> Segment | None:
+        """A finished segment as retention sees it; None when it has no metadata.yaml (killed or open)."""
+        extent = bag_extent(path)
+        if extent is None:
+            return None
+        return Segment(str(path), *extent, directory_size(path), self.is_kept(path))
+
+    def keep(self, path: Path, reason: str) -> None:
+        """Mark a segment as one the guard must never delete."""
+        write_atomic(path.with_name(path.name + KEEP_SUFFIX), json.dumps({"reason": reason}) + "\n")
+
+    def is_kept(self, path: Path) -> bool:
+        return path.with_name(path.name + KEEP_SUFFIX).exists()
+
+    def delete(self, deletion: Deletion) -> None:
+        """Remove a segment and log why."""
+        path = Path(deletion.segment.path)
+        shutil.rmtree(path)
+        self.log("deleted", f"deleted segment {path.name}: {deletion.reason}", segment=path.name,
+                 bytes=deletion.segment.size, reason=deletion.reason)
+
+    def log(self, kind: str, message: str, level: int = logging.INFO, **fields: Any) -> None:
+        """One entry in the event log, also on the recorder's log; a log the disk refuses is reported, not raised."""
+        _log.log(level, "%s", message)
+        now = time.time_ns()
+        entry = {"time": iso_time(now), "time_ns": now, "kind": kind, "message": message, **fields}
+        try:
+            with open(self.directory / EVENT_LOG, "a", encoding="utf-8") as handle:
+                handle.write(json.dumps(entry) + "\n")
+        except OSError as error:
+            _log.error("event log %s not written: %s", self.directory / EVENT_LOG, error)
+
+
+def read_event_log(directory: Path) -> Iterator[dict[str, Any]]:
+    """The entries of a robot's event log, oldest first; a torn last line is skipped."""
+    path = directory / EVENT_LOG
+    if not path.is_file():
+        return
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            yield json.loads(line)
+        except json.JSONDecodeError:
+            continue

@@ -1,0 +1,24 @@
+"""How one robot is recorded, as the launch arguments set it (kept free of heavy imports for the planner)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class RecordingSettings:
+    """Where and how one robot's monitoring topics are recorded (durations in seconds)."""
+
+    directory: Path
+    storage: str = "mcap"
+    segment_s: float = 60.0
+    retention_s: float = 3600.0
+    disk_threshold: float = 70.0
+    flight_window_s: float = 10.0
+    flush_period_s: float = 1.0
+    guard_period_s: float = 1.0
+
+    def describe(self) -> str:
+        return (f"{self.storage}, segments of {self.segment_s:g} s, retention {self.retention_s / 60:g} min, "
+                f"disk_threshold {self.disk_threshold:g} %, {self.flight_window_s:g} s kept before a fault")
