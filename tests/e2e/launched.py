@@ -128,6 +128,12 @@ class Launch:
         """The RT driver pid of each robot, as the summary reports it."""
         return {robot_id: int(pid) for robot_id, pid in _DRIVER_LINE.findall(self.output)}
 
+    def component_pid(self, component: str) -> int:
+        """The pid of a component (bridge, recorder) of a one-robot launch, as the summary reports it."""
+        found = re.search(rf"^\s+{component}\s+\w+, pid (\d+)", self.output, re.MULTILINE)
+        assert found, f"no running {component} in\n{self.describe()}"
+        return int(found.group(1))
+
     def stop(self) -> int:
         """Ctrl-C, as a user would; kills the launch and its drivers if they do not stop in time."""
         if self.process.poll() is None:

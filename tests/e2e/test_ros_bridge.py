@@ -56,12 +56,6 @@ def ros_environment(home: Path, domain: int | None = None) -> dict[str, str]:
     return clean_environment(home, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
 
 
-def bridge_pid(launch: Launch) -> int:
-    match = _BRIDGE_LINE.search(launch.output)
-    assert match, "no bridge line in the summary\n" + launch.describe()
-    return int(match[1])
-
-
 @pytest.fixture(scope="module")
 def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
     directory = tmp_path_factory.mktemp("ros_bridge")
@@ -356,7 +350,7 @@ def test_killing_the_bridge_mid_motion_leaves_the_arm_and_the_launch_running(rob
     env = ros_environment(tmp_path / "plem_home", int(robot.env["ROS_DOMAIN_ID"]))
     with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path, env) as launch, \
             connect(robot_id) as client:
-        pid, driver = bridge_pid(launch), launch.driver_pids()[robot_id]
+        pid, driver = launch.component_pid("bridge"), launch.driver_pids()[robot_id]
         ros = RosPeer(robot_id, node=peer.node)
         assert ros.wait_for_servers(10)
         status, result = ros.change_mode("hold")

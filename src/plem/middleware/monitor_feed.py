@@ -28,7 +28,6 @@ MONITOR_TOPICS = {
     "rt_monitor_stats": "plem_msgs/msg/RtMonitorStats",
     "joint_states": "sensor_msgs/msg/JointState",
 }
-STATS_PERIOD_NS = 100_000_000
 _TIMING_FIELDS = ("samples", "min_us", "mean_us", "p50_us", "p99_us", "p999_us", "max_us")
 
 
@@ -70,10 +69,9 @@ class MonitorFeed:
         rings = client.channels.rings
         self.readers: dict[str, RingReader] = {"rt_raw": rings["rt_raw"].reader(from_oldest=history),
                                                 "events": rings["events"].reader(from_oldest=True),
-                                                "stats": rings["stats"].reader()}
+                                                "stats": rings["stats"].reader(from_oldest=history)}
         self._joint_period_ns = round(1e9 / joint_state_rate)
         self._next_joint_state = 0
-        self._next_stats = 0
         # Cycles carry CLOCK_MONOTONIC times; messages carry wall-clock stamps.
         self.wall_offset = time.time_ns() - time.monotonic_ns()
         self._encoder = RawEncoder(client.dof)
@@ -96,12 +94,10 @@ class MonitorFeed:
                 if self._next_joint_state <= monotonic_ns:        # the first one, or after a gap: no burst
                     self._next_joint_state = monotonic_ns + self._joint_period_ns
             count += 1
-        now = time.monotonic_ns()
         for record in self.readers["events"].read_all():
             self._event(sink, record)
-        if now >= self._next_stats:
-            self._stats(sink)
-            self._next_stats = now + STATS_PERIOD_NS
+        for record in self.readers["stats"].read_all():       # the driver writes them at 10 Hz
+            self._stats(sink, json.loads(record))
         return count
 
     def _header(self, monotonic_ns: int) -> tuple[Any, int]:
@@ -124,13 +120,8 @@ class MonitorFeed:
             kind=event.kind.value, cause=event.cause, reason=event.reason, mode=event.mode.name.lower(),
             previous_mode="" if event.previous_mode is None else event.previous_mode.name.lower()), event, wall_ns)
 
-    def _stats(self, sink: MonitorSink) -> None:
-        """The driver's newest loop statistics plus the fill and drop counters of every queue."""
-        driver: dict[str, Any] = {}
-        for record in self.readers["stats"].read_all():
-            driver = json.loads(record)
-        if not driver:
-            return
+    def _stats(self, sink: MonitorSink, driver: dict[str, Any]) -> None:
+        """One record of the driver's loop statistics plus the fill and drop counters of every queue."""
         new = self.library.new
         timing = {key: new("plem_msgs/msg/TimingStats", **{f: driver[key][f] for f in _TIMING_FIELDS})
                   for key in ("latency", "compute", "latency_interval", "compute_interval")}

@@ -1,0 +1,181 @@
+"""The recorder on a real disk with an injected clock and disk usage: segments, retention, the disk guard,
+the flight recorder's keep marks and a full disk. Bags are read back with rosbags."""
+
+from __future__ import annotations
+
+import subprocess
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader
+
+from plem.control.events import Event, EventKind
+from plem.control.modes import Mode
+from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.raw_cdr import RawEncoder
+from plem.middleware.types import library
+from plem.recording.archive import read_event_log
+from plem.recording.recorder import Recorder
+from plem.recording.settings import RecordingSettings
+
+S = 1_000_000_000
+START = 1_800_000_000 * S
+STORE = library().store
+RAW = "/arm/rt_raw"
+
+
+class Disk:
+    """An injected disk-usage reading: `used` bytes of `total`."""
+
+    def __init__(self, total: int = 100 * 2**30, used: int = 10 * 2**30) -> None:
+        self.total, self.used = total, used
+
+    def __call__(self, _: Path) -> tuple[int, int, int]:
+        return self.total, self.used, self.total - self.used
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = START
+
+    def __call__(self) -> int:
+        return self.now
+
+
+def make(tmp_path: Path, clock: Clock, disk: Disk, **settings: float) -> Recorder:
+    recorder = Recorder(RecordingSettings(tmp_path / "arm", **{"segment_s": 1.0, **settings}), "arm",
+                        MONITOR_TOPICS, STORE, clock=clock, disk_usage=disk)
+    recorder.start()
+    return recorder
+
+
+def feed(recorder: Recorder, clock: Clock, cycles: range, period_ns: int = 1_000_000) -> None:
+    """rt_raw for `cycles`, one per period from START; the clock follows the data."""
+    encoder, record = RawEncoder(6), np.zeros(43)
+    for cycle in cycles:
+        record[0], stamp = cycle, START + cycle * period_ns
+        clock.now = stamp
+        recorder.rt_raw(encoder.encode(record, stamp), stamp)
+
+
+def recorded(directory: Path) -> Iterator[tuple[str, int, int]]:
+    """(segment, stamp, cycle) of every rt_raw message in the closed segments (with metadata), in segment order."""
+    for segment in sorted(p for p in directory.iterdir() if p.is_dir() and (p / "metadata.yaml").exists()):
+        with Reader(segment) as reader:
+            for connection, stamp, data in reader.messages():
+                if connection.topic == RAW:
+                    yield segment.name, stamp, STORE.deserialize_cdr(data, connection.msgtype).cycle
+
+
+def log_kinds(directory: Path) -> list[str]:
+    return [entry["kind"] for entry in read_event_log(directory)]
+
+
+def fault(recorder: Recorder, clock: Clock, cycle: int) -> None:
+    stamp = START + cycle * 1_000_000
+    clock.now = stamp
+    event = Event(EventKind.FAULT, "drive_fault", "joint2 drive fault 0x7121", Mode.FAULT, cycle, stamp, 0.0)
+    recorder.rt_event(library().new(MONITOR_TOPICS["rt_events"], kind="fault", cycle=cycle), event, stamp)
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_segments_rotate_and_read_back_whole(tmp_path: Path, storage: str):
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk, storage=storage)
+    feed(recorder, clock, range(3500))
+    recorder.close()
+    rows = list(recorded(tmp_path / "arm"))
+    assert [cycle for _, _, cycle in rows] == list(range(3500))
+    assert all(b[1] > a[1] for a, b in zip(rows, rows[1:])), "stamps strictly increase"
+    assert len({segment for segment, _, _ in rows}) == 4, "1 s segments of 3.5 s of cycles"
+    assert log_kinds(tmp_path / "arm").count("segment_closed") == 4
+
+
+def test_retention_deletes_old_closed_segments_with_the_reason(tmp_path: Path):
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk, retention_s=2.0)
+    feed(recorder, clock, range(4500))            # segments end at 1, 2, 3, 4 s; the fifth is open
+    recorder.maintain()
+    kept = sorted({segment for segment, _, _ in recorded(tmp_path / "arm")} - {recorder.segment.name})
+    assert len(kept) == 2, "only the segments that ended within the last 2 s stay"
+    deletions = [e for e in read_event_log(tmp_path / "arm") if e["kind"] == "deleted"]
+    assert len(deletions) == 2 and all("older than the retention window" in e["reason"] for e in deletions)
+    assert recorder.segment.directory.exists()
+    recorder.close()
+
+
+def test_disk_guard_deletes_oldest_first_down_to_the_threshold_never_the_open_one(tmp_path: Path):
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk, disk_threshold=70.0)
+    feed(recorder, clock, range(4500))
+    sizes = [s.size for s in recorder.closed]
+    disk.used = int(0.70 * disk.total) + sizes[0] + sizes[1] // 2    # two oldest must go to get under 70 %
+    recorder.maintain()
+    deletions = [e for e in read_event_log(tmp_path / "arm") if e["kind"] == "deleted"]
+    assert [e["segment"] for e in deletions] == sorted(e["segment"] for e in deletions) and len(deletions) == 2
+    assert all("above disk_threshold 70 %" in e["reason"] for e in deletions)
+    assert len(recorder.closed) == 2 and recorder.segment.directory.exists()
+    disk.used = disk.total - 1                                         # nothing closed may go: only a warning
+    clock.now += 2 * S
+    for segment in recorder.closed:
+        recorder.archive.keep(Path(segment.path), "test")
+    recorder.closed = [recorder.archive.closed_segment(Path(s.path)) for s in recorder.closed]
+    recorder.maintain()
+    assert "disk_above_threshold" in log_kinds(tmp_path / "arm") and len(recorder.closed) == 2
+    recorder.close()
+
+
+def test_a_fault_keeps_the_window_before_it_against_retention(tmp_path: Path):
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk, retention_s=1.0, flight_window_s=1.5)
+    feed(recorder, clock, range(3700))
+    fault(recorder, clock, 3700)
+    entry = next(e for e in read_event_log(tmp_path / "arm") if e["kind"] == "fault")
+    assert entry["segment"] == recorder.segment.name and entry["offset_s"] == pytest.approx(0.7, abs=0.01)
+    assert entry["cycle"] == 3700 and "0x7121" in entry["reason"]
+    feed(recorder, clock, range(3701, 9000))      # much later: retention would remove the fault's segments
+    recorder.maintain()
+    recorder.close()
+    cycles = [cycle for _, _, cycle in recorded(tmp_path / "arm")]
+    window = set(range(3700 - 1500, 3700))
+    assert window <= set(cycles), "the 1.5 s before the fault are still on disk"
+    assert 1000 not in cycles, "unkept old segments went"
+    keep_marks = sorted(p.name for p in (tmp_path / "arm").glob("*.keep"))
+    assert keep_marks == sorted(f"{name}.keep" for name in entry["kept"]) and len(keep_marks) == 2
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 2 MiB tmpfs (needs root and mount)."""
+    mount = tmp_path / f"disk_{uuid.uuid4().hex[:6]}"
+    mount.mkdir()
+    result = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mount)], capture_output=True,
+                            text=True)
+    if result.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {result.stderr.strip()}")
+    yield mount
+    subprocess.run(["umount", str(mount)], check=True)
+
+
+def test_a_full_disk_stops_recording_with_an_event_and_resumes_after_the_guard(small_disk: Path, caplog):
+    clock = Clock()
+    recorder = Recorder(RecordingSettings(small_disk / "arm", segment_s=0.5, disk_threshold=50.0), "arm",
+                        MONITOR_TOPICS, STORE, clock=clock)
+    recorder.start()
+    feed(recorder, clock, range(12_000))           # about 5 MB of rt_raw into 2 MiB: the disk fills
+    assert recorder.segment is None and recorder.stopped_because and "No space left" in recorder.stopped_because
+    assert recorder.unrecorded > 0 and recorder.written + recorder.unrecorded == 12_000
+    assert [q.dropped for q in recorder.queues() if q.name == "bag"] == [recorder.unrecorded]
+    recorder.maintain()                            # the guard frees the oldest closed segments, then resumes
+    assert recorder.segment is not None and recorder.stopped_because is None
+    feed(recorder, clock, range(12_000, 12_100))
+    recorder.close()
+    kinds = log_kinds(small_disk / "arm")
+    assert "recording_resumed" in kinds and "deleted" in kinds
+    assert any("recording stopped: No space left" in r.getMessage() for r in caplog.records)
+    cycles = [cycle for _, _, cycle in recorded(small_disk / "arm")]
+    assert cycles[-100:] == list(range(12_000, 12_100))
+
