@@ -11,10 +11,34 @@ import json
 import logging
 import os
 import signal
+import sys
 import threading
+from collections.abc import Callable, Sequence
 from typing import Any
 
+from plem.errors import PlemError
+
 PR_SET_PDEATHSIG = 1
+_announced = threading.Event()
+
+
+def run_component(name: str, body: Callable[[dict[str, str], threading.Event], None],
+                  argv: Sequence[str] | None = None) -> int:
+    """A component's main: `body(launch arguments, stop event)`; its exit code.
+
+    An error before the component announced itself becomes its `{"ready": false}` line; one after is logged.
+    """
+    argv = sys.argv[1:] if argv is None else argv
+    stop = begin(name)
+    try:
+        body(json.loads(argv[0]), stop)
+    except PlemError as error:
+        if _announced.is_set():
+            logging.getLogger(f"plem.{name}").error("%s", error.render())
+        else:
+            announce({"ready": False, "error": error.to_dict()})
+        return 1
+    return 0
 
 
 def begin(name: str) -> threading.Event:
@@ -44,3 +68,4 @@ def stop_on_signals() -> threading.Event:
 def announce(payload: dict[str, Any]) -> None:
     """The component's one line on stdout."""
     print(json.dumps(payload), flush=True)
+    _announced.set()

@@ -9,23 +9,19 @@ stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too.
 
 from __future__ import annotations
 
-import json
-import logging
 import sys
 import threading
 import time
 
 from plem.bridge.client import DriverGone, RobotClient, connect
-from plem.errors import PlemError
 from plem.ipc.state_segment import process_alive
-from plem.launch.component import announce, begin
+from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed
 from plem.middleware.types import library
 from plem.recording.recorder import Recorder
 from plem.recording.status import remove_status, write_status
 
-_log = logging.getLogger("plem.recorder")
 #: How often the recorder reads the rings (they hold about 4 s at 1 kHz).
 PUMP_PERIOD_S = 0.02
 LIVENESS_PERIOD_S = 0.5
@@ -86,17 +82,7 @@ def driver_running(client: RobotClient) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    stop = begin("recorder")
-    try:
-        record(json.loads(argv[0]), stop)
-    except DriverGone as error:
-        _log.error("%s", error.render())
-        return 1
-    except PlemError as error:
-        announce({"ready": False, "error": error.to_dict()})
-        return 1
-    return 0
+    return run_component("recorder", record, argv)
 
 
 if __name__ == "__main__":

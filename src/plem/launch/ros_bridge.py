@@ -8,20 +8,16 @@ stalls the arm. It exits when the driver's heartbeat stops.
 
 from __future__ import annotations
 
-import json
-import logging
 import sys
 import threading
 import time
 
-from plem.bridge.client import DriverGone, connect
-from plem.errors import PlemError
-from plem.launch.component import announce, begin
+from plem.bridge.client import connect
+from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
 from plem.middleware.node import Node
 from plem.middleware.robot_bridge import RobotBridge
 
-_log = logging.getLogger("plem.bridge")
 #: How often the bridge looks for new cycles; rt_raw is published in order, in batches of about this much.
 PUMP_PERIOD_S = 0.001
 LIVENESS_PERIOD_S = 0.5
@@ -55,17 +51,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    stop = begin("bridge")
-    try:
-        serve(json.loads(argv[0]), stop)
-    except DriverGone as error:
-        _log.error("%s", error.render())
-        return 1
-    except PlemError as error:
-        announce({"ready": False, "error": error.to_dict()})
-        return 1
-    return 0
+    return run_component("bridge", serve, argv)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,6 @@ when the launching process dies the kernel sends SIGTERM, so the arm never runs 
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import sys
@@ -16,10 +15,9 @@ import threading
 from typing import Any
 
 from plem.control.realtime import keep_threads_scheduled
-from plem.errors import PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.records import RawRecorder, event_record
-from plem.launch.component import announce, begin
+from plem.launch.component import announce, run_component
 from plem.launch.driver_service import DriverService
 from plem.launch.plan import RobotPlan, plan_robot
 from plem.robot.robot import Robot
@@ -82,18 +80,16 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
         channels.remove()
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    stop = begin("rt_driver")
+def _serve_launched(arguments: dict[str, str], stop: threading.Event) -> None:
     refused = keep_threads_scheduled()
     if refused:
         _log.warning(refused)
-    try:
-        serve(plan_robot(json.loads(argv[0]), generate=False), stop, announce)
-    except PlemError as error:
-        announce({"ready": False, "error": error.to_dict()})
-        return 1
-    return 0
+    serve(plan_robot(arguments, generate=False), stop, announce)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_component("rt_driver", _serve_launched, argv)
+
 
 if __name__ == "__main__":
     sys.exit(main())
