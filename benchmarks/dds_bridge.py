@@ -41,11 +41,8 @@ What runs:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
-import re
-import select
 import signal
 import statistics
 import subprocess
@@ -59,14 +56,11 @@ from pathlib import Path
 
 import numpy as np
 
+from launching import (SHM_CLIENT, CpuMeter, drain_loop, finish, first_sample, launch, result, start_reader, stop,
+                       stop_all)
 from plem.bridge import connect
-from plem.bridge.client import RobotClient
-from plem.ipc.records import RAW_SCALARS
 from plem.middleware.qos import RT_RAW
 
-LATENCY = RAW_SCALARS.index("latency_ns")
-TICKS = os.sysconf("SC_CLK_TCK")
-START_TIMEOUT_S = 60.0
 #: Environment variables that could widen discovery beyond this host and domain.
 DISCOVERY_OVERRIDES = ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "CYCLONEDDS_URI")
 
@@ -134,139 +128,12 @@ SUBSCRIBER = textwrap.dedent("""
     node.close()
 """)
 
-# argv: robot_id, seconds, settle seconds. The same protocol as SUBSCRIBER, over shared memory.
-SHM_CLIENT = textwrap.dedent("""
-    import json, sys, time
-    import numpy as np
-    from plem.bridge import connect
-
-    robot_id, seconds, settle = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
-    client = connect(robot_id)
-    stream = client.stream(timeout=5.0)
-    next(stream)
-    end = time.monotonic() + settle
-    for sample in stream:
-        if time.monotonic() >= end:
-            break
-    cycles, latencies = [], []
-    dropped = stream.dropped
-    print("start", flush=True)
-    end = time.monotonic_ns() + int(seconds * 1e9)
-    for sample in stream:
-        now = time.monotonic_ns()
-        cycles.append(sample.cycle)
-        latencies.append(now - sample.monotonic_ns)
-        if now >= end:
-            break
-    cycles = np.array(cycles, dtype=np.int64)
-    latency_us = np.array(latencies, dtype=np.float64) / 1e3
-    p50, p99, p999 = np.percentile(latency_us, (50, 99, 99.9))
-    print(json.dumps({
-        "received": int(cycles.size), "first": int(cycles.min()), "last": int(cycles.max()),
-        "unique": int(np.unique(cycles).size), "in_order": bool(np.all(np.diff(cycles) > 0)),
-        "p50": p50, "p99": p99, "p999": p999, "max": float(latency_us.max()),
-        "ring_dropped": stream.dropped - dropped,
-    }), flush=True)
-    sys.stdin.read()
-    client.close()
-""")
-
 
 # -- processes -----------------------------------------------------------------------------------------
-@dataclass
-class Launch:
-    process: subprocess.Popen
-    log: Path
-    driver_pid: int
-    bridge_pid: int | None
-
-
 def discovery_environment(domain: int) -> dict[str, str]:
     env = {name: value for name, value in os.environ.items() if name not in DISCOVERY_OVERRIDES}
     env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     return env
-
-
-def launch(robot_id: str, bridge: bool, env: dict[str, str], log: Path, children: list[subprocess.Popen]) -> Launch:
-    """`plem launch` of the simulated arm (output to `log`), returned once its summary is printed."""
-    with log.open("w") as output:
-        process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", "bus:=mock", f"robot_id:={robot_id}",
-                                    "record:=false", f"bridge:={str(bridge).lower()}"], stdout=output,
-                                   stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
-    children.append(process)
-    deadline = time.monotonic() + START_TIMEOUT_S
-    while "Ctrl-C stops" not in (text := log.read_text()):
-        if process.poll() is not None or time.monotonic() > deadline:
-            raise SystemExit(f"plem launch did not start (exit {process.poll()}):\n{text}")
-        time.sleep(0.1)
-    driver = re.search(r"rt_driver\s+running, pid (\d+)", text)
-    bridge_line = re.search(r"bridge\s+running, pid (\d+)", text)
-    if driver is None or bridge != (bridge_line is not None):
-        raise SystemExit(f"unexpected launch summary (bridge:={str(bridge).lower()}):\n{text}")
-    return Launch(process, log, int(driver.group(1)), int(bridge_line.group(1)) if bridge_line else None)
-
-
-def stop(process: subprocess.Popen, graceful: signal.Signals = signal.SIGINT, timeout: float = 30.0) -> None:
-    if process.poll() is None:
-        process.send_signal(graceful)
-        try:
-            process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
-def start_reader(script: str, robot_id: str, seconds: float, settle: float, env: dict[str, str],
-                 children: list[subprocess.Popen]) -> subprocess.Popen:
-    """A SUBSCRIBER or SHM_CLIENT process, returned when its window starts."""
-    process = subprocess.Popen([sys.executable, "-c", script, robot_id, str(seconds), str(settle)],
-                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
-                               start_new_session=True)
-    children.append(process)
-    line = read_line(process, 30.0 + settle)
-    if line != "start":
-        raise SystemExit(f"reader did not start: {line!r}")
-    return process
-
-
-def read_line(process: subprocess.Popen, timeout: float) -> str:
-    readable, _, _ = select.select([process.stdout], [], [], timeout)
-    if not readable:
-        raise SystemExit(f"no answer from pid {process.pid} within {timeout:.0f} s")
-    return process.stdout.readline().strip()
-
-
-def result(process: subprocess.Popen, timeout: float) -> dict:
-    """The reader's JSON line; it keeps running until `finish`."""
-    line = read_line(process, timeout)
-    data = json.loads(line) if line.startswith("{") else {"error": line or f"exit {process.poll()}"}
-    if "error" in data:
-        raise SystemExit(f"reader failed: {data['error']}")
-    return data
-
-
-def finish(process: subprocess.Popen) -> None:
-    process.stdin.close()
-    process.wait(10)
-
-
-def cpu_ticks(pid: int) -> int:
-    """utime + stime of every thread of `pid`, in clock ticks."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) + int(fields[12])
-
-
-class CpuMeter:
-    """% of one core used by some processes between construction and `done()`."""
-
-    def __init__(self, pids: dict[str, int]) -> None:
-        self.pids = pids
-        self.start = {name: cpu_ticks(pid) for name, pid in pids.items()}
-        self.t0 = time.monotonic()
-
-    def done(self) -> dict[str, float]:
-        elapsed = time.monotonic() - self.t0
-        return {name: (cpu_ticks(pid) - self.start[name]) / TICKS / elapsed * 100 for name, pid in self.pids.items()}
 
 
 # -- loop latency --------------------------------------------------------------------------------------
@@ -282,30 +149,10 @@ class LoopWindow:
         return p50, p99, p999, float(self.latency_us.max())
 
 
-def drain_loop(client: RobotClient, seconds: float) -> tuple[np.ndarray, int]:
-    """Wake-up latency (µs) of every cycle of the next `seconds`, read from the rt_raw ring every 0.5 s."""
-    reader = client.channels.rings["rt_raw"].reader()
-    latencies: list[np.ndarray] = []
-    end = time.monotonic() + seconds
-    while (left := end - time.monotonic()) > 0:
-        time.sleep(min(0.5, left))
-        records = reader.read_all()
-        if records:
-            latencies.append(np.frombuffer(b"".join(records), dtype=np.float64).reshape(len(records), -1)[:, LATENCY])
-    return np.concatenate(latencies) / 1e3, reader.dropped
-
-
-def first_sample(client: RobotClient, settle: float) -> None:
-    client.set_mode("hold")
-    if client.wait_for_state(5.0) is None:
-        raise SystemExit("the launched robot publishes no state")
-    time.sleep(settle)
-
-
 def loop_window(robot_id: str, bridge: bool, seconds: float, settle: float, env: dict[str, str], log: Path,
                 children: list[subprocess.Popen]) -> LoopWindow:
     """One launch, with the bridge and a DDS subscriber or without the bridge; the loop latency of its window."""
-    robot = launch(robot_id, bridge, env, log, children)
+    robot = launch(robot_id, env, log, children, bridge=bridge, record=False)
     subscriber = None
     try:
         client = connect(robot_id)
@@ -363,7 +210,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     children: list[subprocess.Popen] = []
     try:
         # -- rt_raw over DDS and its shared-memory baseline, one launch with the bridge ---------------
-        robot = launch(robot_id, True, env, logs / f"{robot_id}_dds.log", children)
+        robot = launch(robot_id, env, logs / f"{robot_id}_dds.log", children, bridge=True, record=False)
         print(f"robot {robot_id}, ROS_DOMAIN_ID={args.domain}, discovery localhost; rt_driver pid {robot.driver_pid}, "
               f"bridge pid {robot.bridge_pid}")
         client = connect(robot_id)
@@ -442,8 +289,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"  rt_raw dropped over DDS: {dds_dropped} of {dds_published} (target 0): {verdict(dds_dropped == 0)}")
         print(f"  loop p99.9 with bridge / without: {median:.2f}x (target <= 1.1x): {verdict(median <= 1.1)}")
     finally:
-        for process in reversed(children):
-            stop(process, signal.SIGTERM if process.stdout is not None else signal.SIGINT)
+        stop_all(children)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 import typer
 from typer._click import exceptions as click_exceptions
 
+from plem.cli import bag as bag_commands
 from plem.cli import config as config_commands
 from plem.cli import description as description_commands
 from plem.cli import launch as launch_command
@@ -29,6 +30,7 @@ app = typer.Typer(
 app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
 app.add_typer(topic_commands.app, name="topic")
+app.add_typer(bag_commands.app, name="bag")
 app.command("validate")(description_commands.validate)
 app.command("create-description")(description_commands.create_description)
 app.command("launch", context_settings=launch_command.EXTRA_ARGS, add_help_option=False)(launch_command.launch)

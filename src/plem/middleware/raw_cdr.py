@@ -1,4 +1,5 @@
-"""The CDR bytes of a plem_msgs/RtRaw straight from an rt_raw ring record, for the 1 kHz publisher.
+"""plem_msgs/RtRaw in CDR by its fixed layout: encoded straight from an rt_raw ring record for the 1 kHz
+publisher and recorder, and read back field by field from many recorded payloads at once for `plem bag`.
 
 The generic struct serializer walks the message field by field in Python (~28 µs); RtRaw's layout is
 fixed once the DOF is known, so one `struct.pack` over the record does the same (~2 µs). Tests check
@@ -7,7 +8,9 @@ that both give identical bytes.
 
 from __future__ import annotations
 
+import re
 import struct
+from functools import cache
 
 import numpy as np
 
@@ -50,3 +53,47 @@ class RawEncoder:
         return ENCAPSULATION + self._struct.pack(
             wall_ns // 1_000_000_000, wall_ns % 1_000_000_000, 1, b"\0", cycle, monotonic_ns, mode, bool(faulted),
             bool(enabled), min(latency, _UINT32_MAX), min(compute, _UINT32_MAX), *values)
+
+
+_NUMPY_CODES = {"i": "<i4", "I": "<u4", "Q": "<u8", "q": "<i8", "B": "u1", "d": "<f8"}
+_RAW_FIELDS = ("sec", "nanosec", "frame_id_length", "frame_id", "cycle", "monotonic_ns", "mode", "faulted",
+               "drives_enabled", "latency_ns", "compute_ns", *(name for row in ROWS for name in (f"{row}_length", row)))
+
+
+@cache
+def raw_dtype(dof: int) -> np.dtype:
+    """A whole RtRaw CDR payload (encapsulation included) as a numpy record, read off `_layout` so both agree."""
+    names = iter(_RAW_FIELDS)
+    fields: dict[str, tuple[np.dtype, int]] = {}
+    offset = len(ENCAPSULATION)
+    for count_text, code in re.findall(r"(\d*)([a-zA-Z])", _layout(dof)):
+        count = int(count_text or 1)
+        if code == "x":
+            offset += count
+            continue
+        if code == "s":
+            field = np.dtype(f"S{count}")
+        else:
+            field = np.dtype((_NUMPY_CODES[code], (count,))) if code == "d" else np.dtype(_NUMPY_CODES[code])
+        fields[next(names)] = (field, offset)
+        offset += field.itemsize
+    return np.dtype({"names": list(fields), "formats": [field for field, _ in fields.values()],
+                     "offsets": [at for _, at in fields.values()], "itemsize": offset})
+
+
+def raw_dof(payload: bytes) -> int:
+    """The DOF of one RtRaw CDR payload: the length of its position sequence."""
+    _, offset = raw_dtype(0).fields["position_length"]
+    (dof,) = struct.unpack_from("<I", payload, offset)
+    return dof
+
+
+def raw_field(buffer: np.ndarray, starts: np.ndarray, name: str, dof: int = 0) -> np.ndarray:
+    """One field of many RtRaw payloads at once: `buffer` (uint8) holds a payload at each of `starts`.
+
+    Only the field's bytes are gathered, so the cycles of a million messages take milliseconds. `dof`
+    matters for the joint rows only: the fields before them sit at the same offsets whatever the DOF.
+    """
+    field, offset = raw_dtype(dof).fields[name][:2]
+    index = np.asarray(starts, dtype=np.int64)[:, None] + (offset + np.arange(field.itemsize))
+    return buffer[index].view(field.base).reshape(len(index), *field.shape)

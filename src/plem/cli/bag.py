@@ -1,0 +1,227 @@
+"""`plem bag info|plot|repair`: what the flight recorder's bags hold, a plot of them, and repair of killed segments.
+
+DIR is the recorder's bag_dir, one robot's directory in it, or one segment directory. The bag reading
+modules are imported inside the commands so other commands start fast.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import asdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from plem.cli.output import OutputFormat, new_table, print_json, print_warnings, stdout
+from plem.errors import PlemError
+
+if TYPE_CHECKING:
+    from plem.recording.summary import RobotSummary, SegmentInfo
+
+app = typer.Typer(help="Inspect, plot and repair the flight recorder's bags.", no_args_is_help=True)
+
+Directory = Annotated[Path, typer.Argument(metavar="DIR", show_default=False, help="The recorder's bag_dir, one "
+                                                "robot's directory in it, or one segment directory.")]
+
+
+def _size(size: float) -> str:
+    units = ("B", "KiB", "MiB", "GiB", "TiB")
+    index = 0
+    while size >= 1024 and index < len(units) - 1:
+        size, index = size / 1024, index + 1
+    return f"{size:.0f} B" if index == 0 else f"{size:.1f} {units[index]}"
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f"{seconds:.3f} s"
+    minutes, rest = divmod(round(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min {rest:02d} s" if hours else f"{minutes} min {rest:02d} s"
+
+
+def _count(count: int, noun: str) -> str:
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
+def _iso(ns: int | None) -> str | None:
+    from plem.recording.archive import iso_time
+
+    return None if ns is None else iso_time(ns)
+
+
+def _messages(segment: SegmentInfo, robot_id: str) -> str:
+    """Message counts per topic, the robot's namespace left out."""
+    prefix = f"/{robot_id}/"
+    return ", ".join(f"{topic.removeprefix(prefix)} {count}" for topic, (_, count) in sorted(segment.topics.items()))
+
+
+def _totals(summaries: list[RobotSummary]) -> dict[str, Any]:
+    segments = [segment for summary in summaries for segment in summary.segments]
+    messages: Counter[str] = Counter()
+    for segment in segments:
+        messages.update({topic: count for topic, (_, count) in segment.topics.items()})
+    return {"segments": len(segments), "complete": sum(segment.state == "complete" for segment in segments),
+            "covered_s": sum(segment.duration_ns or 0 for segment in segments) / 1e9,
+            "bytes": sum(segment.size for segment in segments), "messages": dict(sorted(messages.items()))}
+
+
+def _segment_json(segment: SegmentInfo) -> dict[str, Any]:
+    return {"name": segment.name, "path": str(segment.path), "storage": segment.storage, "state": segment.state,
+            "note": segment.note(), "kept": segment.kept, "start": _iso(segment.start_ns),
+            "start_ns": segment.start_ns,
+            "duration_s": None if segment.duration_ns is None else segment.duration_ns / 1e9,
+            "bytes": segment.size, "messages": {topic: count for topic, (_, count) in segment.topics.items()}}
+
+
+def _robot_json(summary: RobotSummary) -> dict[str, Any]:
+    drops = summary.drops
+    recorder = summary.recorder and {**summary.recorder, "time": _iso(summary.recorder["time_ns"])}
+    return {
+        "robot_id": summary.robot_id, "directory": str(summary.directory),
+        "segments": [_segment_json(segment) for segment in summary.segments],
+        "totals": _totals([summary]),
+        "drops": {"rt_raw": {"samples": drops.samples, "gaps": drops.gap_count, "missing_cycles": drops.missing,
+                             "new_runs": drops.new_runs, "listed_gaps": [asdict(gap) for gap in drops.gaps],
+                             "not_compared_across": drops.not_compared},
+                  "recorder": recorder},
+        "faults": summary.faults,
+        "deletions": {"count": sum(count for _, count in summary.deletions),
+                      "reasons": [{"reason": reason, "count": count} for reason, count in summary.deletions]},
+    }
+
+
+def _fault_line(entry: dict[str, Any]) -> str:
+    """When (bag time), which cycle, why, and where in the bags a fault is."""
+    where = (f"segment {entry['segment']} at {float(entry.get('offset_s', 0)):.3f} s" if entry.get("segment")
+             else "not recorded (recording stopped)")
+    when = entry.get("time_in_bag") or entry.get("time")
+    return f"  {when} cycle {entry.get('cycle')}: {entry.get('reason')} — {where}"
+
+
+def _print_robot(summary: RobotSummary) -> None:
+    table = new_table(f"{summary.robot_id}: {summary.directory}", "segment", "storage", "start (UTC)", "duration",
+                      "size", "messages", "status")
+    for segment in summary.segments:
+        status = ", ".join(part for part in (segment.note(), "kept for a fault" if segment.kept else "") if part)
+        duration = "" if segment.duration_ns is None else _duration(segment.duration_ns / 1e9)
+        table.add_row(segment.name, segment.storage, _iso(segment.start_ns) or "", duration, _size(segment.size),
+                      _messages(segment, summary.robot_id), status)
+    stdout.print(table)
+    drops = summary.drops
+    lines = [f"rt_raw: {_count(drops.samples, 'sample')}, {_count(drops.missing, 'cycle')} missing in "
+             f"{_count(drops.gap_count, 'gap')}, {_count(drops.new_runs, 'new driver run')}"]
+    lines += [f"  {gap.segment} at {gap.offset_s:.3f} s: {_count(gap.missing, 'cycle')} missing after cycle "
+              f"{gap.after_cycle}" for gap in drops.gaps]
+    if drops.gap_count > len(drops.gaps):
+        lines.append(f"  ... {_count(drops.gap_count - len(drops.gaps), 'more gap')}")
+    if drops.not_compared:
+        lines.append(f"  cycles not compared across: {', '.join(drops.not_compared)}")
+    recorder = summary.recorder
+    if recorder is None:
+        lines.append("recorder: no rt_monitor_stats recorded")
+    else:
+        rings = ", ".join(f"{name} {count}" for name, count in recorder["ring_dropped"].items()) or "none reported"
+        lines.append(f"recorder (last rt_monitor_stats, {_iso(recorder['time_ns'])}): "
+                     f"{recorder['bag_dropped'] if recorder['bag_dropped'] is not None else 'unknown'} messages "
+                     f"not recorded; ring records lost: {rings}")
+    lines.append(f"faults: {len(summary.faults)}")
+    lines += [_fault_line(entry) for entry in summary.faults]
+    deleted = sum(count for _, count in summary.deletions)
+    reasons = "; ".join(f"{count} × {reason}" for reason, count in summary.deletions)
+    lines.append(f"deletions: {deleted}" + (f" — {reasons} (latest reason of each kind)" if deleted else ""))
+    typer.echo("\n".join(lines) + "\n")
+
+
+@app.command("info")
+def info(
+    directory: Directory,
+    output_format: Annotated[OutputFormat, typer.Option("--format", help="Output format.")] = OutputFormat.text,
+) -> None:
+    """Segments, message counts, dropped cycles, faults and deletions of the bags under DIR."""
+    from plem.recording.summary import find_bags, summarise
+
+    summaries = [summarise(robot) for robot in find_bags(directory)]
+    totals = _totals(summaries)
+    if output_format is OutputFormat.json:
+        print_json({"directory": str(directory), "robots": [_robot_json(summary) for summary in summaries],
+                    "totals": totals})
+        return
+    for summary in summaries:
+        _print_robot(summary)
+    messages = ", ".join(f"{topic} {count}" for topic, count in totals["messages"].items())
+    typer.echo(f"total: {_count(totals['segments'], 'segment')} ({totals['complete']} complete), "
+               f"{_duration(totals['covered_s'])} covered, {_size(totals['bytes'])}; messages: {messages or 'none'}")
+
+
+@app.command("plot")
+def plot(
+    directory: Directory,
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write.", show_default=False)],
+    robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several.",
+                                              show_default=False)] = None,
+) -> None:
+    """Plot joint positions and velocities over time and a histogram of the loop's wake-up latency."""
+    from plem.core.files import write_atomic
+    from plem.recording.plot import read_raw, render
+    from plem.recording.summary import BagError, find_bags, robot_segments
+
+    robots = {found.robot_id: found for found in find_bags(directory)}
+    if robot is None and len(robots) > 1:
+        raise BagError(f"{directory} holds the bags of {len(robots)} robots", what="one robot to plot",
+                       why=f"robots found: {', '.join(robots)}", how=f"add --robot {next(iter(robots))}")
+    chosen = robots.get(robot) if robot is not None else next(iter(robots.values()))
+    if chosen is None:
+        raise BagError(f"no bags of robot {robot} in {directory}", what=f"bags of {robot}",
+                       why=f"robots found: {', '.join(robots)}", how="pass one of them with --robot")
+    segments = robot_segments(chosen)
+    print_warnings([f"{segment.name} left out: {segment.note()}" for segment in segments
+                    if segment.state != "complete"])
+    png = render(read_raw(segments), f"{chosen.robot_id}: {directory}")
+    try:
+        write_atomic(out, png)
+    except OSError as error:
+        raise BagError(f"cannot write {out}", what="a PNG file plem may write",
+                       why=error.strerror or str(error),
+                       how="pass --out with a path in a writable directory") from error
+    typer.echo(f"wrote {out} ({_size(len(png))})")
+
+
+@app.command("repair")
+def repair(directory: Directory) -> None:
+    """Rebuild every killed segment under DIR (no metadata.yaml) into a readable bag; others are left alone."""
+    from rosbags.rosbag2.errors import ReaderError, WriterError
+
+    from plem.recording.repair import repair as repair_segment
+    from plem.recording.summary import BagError, find_bags, robot_segments
+
+    failures: list[tuple[str, PlemError]] = []
+    for robot in find_bags(directory):
+        for segment in robot_segments(robot):
+            if segment.state == "complete":
+                typer.echo(f"{segment.name}: already complete")
+            elif segment.state == "recording":
+                typer.echo(f"{segment.name}: left alone, a recorder is writing it")
+            elif segment.state == "unreadable":
+                failures.append((segment.name, BagError(
+                    f"{segment.name} is not a killed segment", what="a segment without metadata.yaml",
+                    why=segment.problem, how="restore its metadata.yaml, or delete the segment")))
+            else:
+                try:
+                    report = repair_segment(segment.path)
+                except PlemError as error:
+                    failures.append((segment.name, error))
+                    continue
+                except (OSError, ReaderError, WriterError) as error:
+                    failures.append((segment.name, BagError(
+                        f"{segment.name} could not be rebuilt", what="a readable bag rebuilt from the segment",
+                        why=str(error), how="check the disk and the segment's files")))
+                    continue
+                typer.echo(f"{segment.name}: repaired, {report.messages} messages recovered")
+    for name, error in failures:
+        typer.echo(f"{name}: not repaired: {error.summary}")
+    if failures:
+        raise BagError(f"{_count(len(failures), 'segment')} could not be repaired", what="every killed segment rebuilt",
+                       why="; ".join(f"{name}: {error.why}" for name, error in failures),
+                       how="; ".join(dict.fromkeys(error.how for _, error in failures)))

@@ -1,0 +1,344 @@
+"""What a directory of plem bags holds: segments, message counts, dropped cycles, faults and deletions.
+
+The directory may be the recorder's bag_dir (one directory per robot), one robot's directory or one
+segment. Payloads are taken straight from the MCAP chunks through their message indexes (or from the
+sqlite3 table), and only the bytes of the fields needed are gathered, so an hour of 1 kHz rt_raw is
+summarised in seconds rather than deserialized message by message.
+"""
+
+from __future__ import annotations
+
+import mmap
+import re
+import sqlite3
+import struct
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from plem.errors import PlemError
+from plem.launch.arguments import DEFAULTS
+from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.raw_cdr import raw_dtype, raw_field
+from plem.recording.archive import KEEP_SUFFIX, bag_extent, directory_size, read_event_log
+from plem.recording.repair import CHUNK, MAGIC, _chunk_records, _records, _string
+from plem.recording.status import read_status
+
+CHANNEL, MESSAGE_INDEX = 0x04, 0x07
+#: Bytes of an MCAP record before its content (opcode, length), and of a message's fields before its payload
+#: (channel, sequence, log time, publish time).
+_RECORD_HEADER, _MESSAGE_FIELDS = 1 + 8, 2 + 4 + 8 + 8
+#: Gaps listed one by one; the totals count every gap.
+LISTED_GAPS = 20
+#: RtRaw payload bytes up to the end of its cycle number.
+CYCLE_END = raw_dtype(0).fields["cycle"][1] + 8
+
+
+class BagError(PlemError):
+    """A directory holds no bags plem can read, or a bag is malformed."""
+
+
+# -- finding segments --------------------------------------------------------------------------------------
+def bag_file(segment: Path) -> Path | None:
+    """The segment's storage file (.mcap or .db3); None when it has none."""
+    return next((path for pattern in ("*.mcap", "*.db3") for path in sorted(segment.glob(pattern))), None)
+
+
+def _segments(directory: Path) -> list[Path]:
+    """The segment directories directly under `directory`, oldest first (their names sort in time order)."""
+    return sorted(child for child in directory.iterdir()
+                  if child.is_dir() and not child.name.startswith(".") and bag_file(child) is not None)
+
+
+@dataclass(frozen=True)
+class RobotBags:
+    """One robot's segments found under the directory given; `whole`: all of them, not one segment picked."""
+
+    robot_id: str
+    directory: Path
+    segments: list[Path]
+    whole: bool = True
+
+
+def find_bags(path: Path) -> list[RobotBags]:
+    """The robots and segments under a bag_dir, a robot's directory or a single segment directory."""
+    usage = f"the recorder's bag_dir (default {DEFAULTS['bag_dir']}), one robot's directory in it, or one segment"
+    if not path.is_dir():
+        raise BagError(f"{path} is not a bag directory", what=usage,
+                       why="it does not exist" if not path.exists() else "it is a file",
+                       how="pass the directory the recorder wrote (launch argument bag_dir)")
+    if bag_file(path) is not None:
+        return [RobotBags(path.parent.name, path.parent, [path], whole=False)]
+    if segments := _segments(path):
+        return [RobotBags(path.name, path, segments)]
+    robots = [RobotBags(child.name, child, segments) for child in sorted(path.iterdir())
+              if child.is_dir() and (segments := _segments(child))]
+    if not robots:
+        raise BagError(f"no bags in {path}", what=f"{usage}, holding .mcap or .db3 segments",
+                       why="no segment directory found in it or in its sub-directories",
+                       how="pass the directory the recorder wrote (launch argument bag_dir), or record with "
+                           "`plem launch ... record:=true` first")
+    return robots
+
+
+# -- reading payloads --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Payloads:
+    """Messages of one topic from a stretch of a bag: log times (ns) and where each payload lies in `buffer`."""
+
+    stamps: np.ndarray
+    buffer: np.ndarray
+    starts: np.ndarray
+    sizes: np.ndarray
+
+    def message(self, index: int) -> bytes:
+        start = int(self.starts[index])
+        return self.buffer[start:start + int(self.sizes[index])].tobytes()
+
+
+def read_topic(segment: Path, topic: str, head: int | None = None) -> Iterator[Payloads]:
+    """The messages of `topic` in a closed segment, in the order they were written, a chunk at a time.
+
+    `head`: only the first `head` bytes of each payload are needed (sqlite3 then reads no more).
+    """
+    file = bag_file(segment)
+    if file is None:
+        raise BagError(f"{segment} holds no bag file", what="a .mcap or .db3 file in the segment directory",
+                       why="none found", how="pass a segment the recorder wrote")
+    return _mcap_topic(file, topic) if file.suffix == ".mcap" else _sqlite3_topic(file, topic, head)
+
+
+def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
+    """Every chunk with messages of `topic`, found through the message index that follows each chunk."""
+    with path.open("rb") as handle:
+        data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) if path.stat().st_size else b""
+    if data[:len(MAGIC)] != MAGIC:
+        raise BagError(f"{path} is not an MCAP file", what="a file starting with the MCAP magic",
+                       why="its first bytes differ" if data else "it is empty", how="pass a segment the recorder wrote")
+    channels: dict[int, str] = {}
+    indexed: list[tuple[memoryview, memoryview]] = []
+    chunk = None
+    for opcode, content in _records(data, len(MAGIC)):
+        if opcode == CHUNK:
+            chunk = content
+        elif opcode == MESSAGE_INDEX and chunk is not None:
+            indexed.append((chunk, content))
+        elif opcode == CHANNEL:
+            (channel_id,) = struct.unpack_from("<H", content, 0)
+            channels[channel_id], _ = _string(content, 4)
+    for chunk, index in indexed:
+        (channel_id,) = struct.unpack_from("<H", index, 0)
+        if channels.get(channel_id) == topic:
+            yield _indexed_payloads(chunk, index)
+
+
+def _indexed_payloads(chunk: memoryview, index: memoryview) -> Payloads:
+    """The messages a message index points at within its chunk."""
+    records = np.frombuffer(_chunk_records(chunk), np.uint8)
+    entries = np.frombuffer(index, dtype=[("time", "<u8"), ("offset", "<u8")], offset=2 + 4)
+    offsets = entries["offset"].astype(np.int64)
+    lengths = records[offsets[:, None] + 1 + np.arange(8)].view("<u8").ravel().astype(np.int64)
+    return Payloads(entries["time"].astype(np.int64), records, offsets + _RECORD_HEADER + _MESSAGE_FIELDS,
+                    lengths - _MESSAGE_FIELDS)
+
+
+def _sqlite3_topic(path: Path, topic: str, head: int | None, batch: int = 100_000) -> Iterator[Payloads]:
+    """The messages of `topic` in a rosbag2 sqlite3 file (their first `head` bytes), `batch` rows at a time."""
+    data = "m.data" if head is None else f"substr(m.data, 1, {int(head)})"
+    connection = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        cursor = connection.execute(f"SELECT m.timestamp, {data} FROM messages m JOIN topics t ON m.topic_id = t.id "
+                                    "WHERE t.name = ? ORDER BY m.id", (topic,))
+        while rows := cursor.fetchmany(batch):
+            stamps, blobs = zip(*rows, strict=True)
+            sizes = np.fromiter(map(len, blobs), np.int64, len(blobs))
+            yield Payloads(np.array(stamps, np.int64), np.frombuffer(b"".join(blobs), np.uint8),
+                           np.cumsum(sizes) - sizes, sizes)
+    except sqlite3.DatabaseError as error:
+        raise BagError(f"{path} cannot be read", what="a rosbag2 sqlite3 database", why=str(error),
+                       how="pass a segment the recorder wrote") from error
+    finally:
+        connection.close()
+
+
+# -- segments ----------------------------------------------------------------------------------------------
+@dataclass
+class SegmentInfo:
+    """One segment: `state` is complete, killed (no metadata.yaml), recording (open) or unreadable."""
+
+    path: Path
+    storage: str
+    state: str
+    size: int
+    kept: bool
+    start_ns: int | None = None
+    duration_ns: int | None = None
+    topics: dict[str, tuple[str, int]] = field(default_factory=dict)   # topic → (type, messages)
+    problem: str = ""
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    def topic_of(self, ros_type: str) -> str | None:
+        """The segment's topic carrying `ros_type`."""
+        return next((topic for topic, (msgtype, _) in sorted(self.topics.items()) if msgtype == ros_type), None)
+
+    def note(self) -> str:
+        return {"killed": "killed — run `plem bag repair`", "recording": "open — being recorded",
+                "unreadable": f"unreadable: {self.problem}"}.get(self.state, "")
+
+
+def segment_info(path: Path, recording: bool = False) -> SegmentInfo:
+    """What a segment holds; `recording`: a recorder is writing it now (it then has no metadata.yaml yet)."""
+    file = bag_file(path)
+    storage = "mcap" if file is not None and file.suffix == ".mcap" else "sqlite3"
+    info = SegmentInfo(path, storage, "complete", directory_size(path),
+                       path.with_name(path.name + KEEP_SUFFIX).exists())
+    try:
+        extent = bag_extent(path)
+        if extent is None:
+            info.state = "recording" if recording else "killed"
+            return info
+        metadata = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        info.topics = {entry["topic_metadata"]["name"]: (entry["topic_metadata"]["type"], int(entry["message_count"]))
+                       for entry in metadata["rosbag2_bagfile_information"]["topics_with_message_count"]}
+    except (yaml.YAMLError, KeyError, TypeError, ValueError) as error:
+        info.state, info.problem = "unreadable", f"metadata.yaml: {type(error).__name__}: {error}"
+        return info
+    info.start_ns, info.duration_ns = extent[0], extent[1] - extent[0]
+    return info
+
+
+# -- one robot ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Gap:
+    """Cycles missing between two consecutive recorded rt_raw samples."""
+
+    segment: str
+    offset_s: float
+    after_cycle: int
+    missing: int
+
+
+@dataclass
+class CycleDrops:
+    """rt_raw cycle continuity over a robot's segments in time order."""
+
+    samples: int = 0
+    gap_count: int = 0
+    missing: int = 0
+    new_runs: int = 0
+    gaps: list[Gap] = field(default_factory=list)
+    not_compared: list[str] = field(default_factory=list)   # segment boundaries continuity is not checked across
+
+    def add(self, segment: SegmentInfo, payloads: Payloads, previous: int | None) -> int:
+        """Count the gaps in one batch of cycles following `previous` (None: a fresh start); its last cycle."""
+        cycles = raw_field(payloads.buffer, payloads.starts, "cycle").astype(np.int64)
+        steps = np.diff(cycles, prepend=cycles[0] if previous is None else previous)
+        jumps = np.flatnonzero(steps > 1)
+        self.samples += len(cycles)
+        self.gap_count += len(jumps)
+        self.missing += int(steps[jumps].sum() - len(jumps))
+        self.new_runs += int(np.count_nonzero(steps < 0))
+        for at in jumps[:max(0, LISTED_GAPS - len(self.gaps))]:
+            self.gaps.append(Gap(segment.name, round((int(payloads.stamps[at]) - (segment.start_ns or 0)) / 1e9, 3),
+                                 int(cycles[at] - steps[at]), int(steps[at] - 1)))
+        return int(cycles[-1])
+
+
+@dataclass
+class RobotSummary:
+    """What `plem bag info` reports for one robot."""
+
+    robot_id: str
+    directory: Path
+    segments: list[SegmentInfo]
+    drops: CycleDrops
+    recorder: dict[str, Any] | None
+    faults: list[dict[str, Any]]
+    deletions: list[tuple[str, int]]    # (latest reason of a kind, how many)
+
+
+def _cycle_drops(segments: list[SegmentInfo], deleted: list[str]) -> CycleDrops:
+    """Cycle gaps within and across segments; not across a segment that was deleted, or is killed or unreadable."""
+    drops = CycleDrops()
+    previous: int | None = None
+    last_name = ""
+    breaks: list[str] = []
+    for segment in segments:
+        if segment.state != "complete":
+            breaks.append(f"{segment.name} ({segment.state})")
+            continue
+        topic = segment.topic_of(MONITOR_TOPICS["rt_raw"])
+        if topic is None:
+            continue
+        breaks += [f"{name} (deleted)" for name in deleted if last_name < name < segment.name]
+        if breaks and previous is not None:
+            drops.not_compared += breaks
+            previous = None
+        breaks = []
+        for payloads in read_topic(segment.path, topic, head=CYCLE_END):
+            previous = drops.add(segment, payloads, previous)
+        last_name = segment.name
+    return drops
+
+
+def last_message(segments: list[SegmentInfo], ros_type: str) -> tuple[int, bytes] | None:
+    """(log time, payload) of the newest message of `ros_type` in the complete segments."""
+    for segment in reversed(segments):
+        topic = segment.topic_of(ros_type)
+        if segment.state != "complete" or topic is None:
+            continue
+        last = None
+        for payloads in read_topic(segment.path, topic):
+            last = payloads
+        if last is not None and len(last.starts):
+            return int(last.stamps[-1]), last.message(len(last.starts) - 1)
+    return None
+
+
+def _recorder_counts(segments: list[SegmentInfo]) -> dict[str, Any] | None:
+    """The recorder's own queues in the newest rt_monitor_stats: messages not recorded, ring records lost."""
+    from plem.middleware.types import library
+
+    found = last_message(segments, MONITOR_TOPICS["rt_monitor_stats"])
+    if found is None:
+        return None
+    stamp, data = found
+    stats = library().store.deserialize_cdr(data, MONITOR_TOPICS["rt_monitor_stats"])
+    queues = {queue.name: int(queue.dropped) for queue in stats.queues}
+    return {"time_ns": stamp, "bag_dropped": queues.get("bag"),
+            "ring_dropped": {name: queues[name] for name in ("rt_raw", "events", "stats") if name in queues}}
+
+
+def _deletion_kinds(entries: list[dict[str, Any]]) -> list[tuple[str, int]]:
+    """Deletion reasons grouped by their wording with the figures left out; the latest reason of each group."""
+    reasons = [str(entry.get("reason", "")) for entry in entries]
+    kinds = [re.sub(r"\d+(\.\d+)?", "#", reason) for reason in reasons]
+    latest = dict(zip(kinds, reasons, strict=True))
+    return [(latest[kind], count) for kind, count in Counter(kinds).most_common()]
+
+
+def robot_segments(robot: RobotBags) -> list[SegmentInfo]:
+    """The robot's segments found; the newest one is `recording` while a recorder of the robot runs."""
+    open_segment = _segments(robot.directory)[-1] if read_status(robot.robot_id) else None
+    return [segment_info(path, recording=path == open_segment) for path in robot.segments]
+
+
+def summarise(robot: RobotBags) -> RobotSummary:
+    """Segments, drops, the recorder's counters, faults and deletions of one robot."""
+    segments = robot_segments(robot)
+    entries = list(read_event_log(robot.directory))
+    if not robot.whole:
+        entries = [entry for entry in entries if entry.get("segment") == robot.segments[0].name]
+    deleted = [entry for entry in entries if entry.get("kind") == "deleted"]
+    return RobotSummary(robot.robot_id, robot.directory, segments,
+                        _cycle_drops(segments, [str(entry.get("segment", "")) for entry in deleted]),
+                        _recorder_counts(segments), [entry for entry in entries if entry.get("kind") == "fault"],
+                        _deletion_kinds(deleted))

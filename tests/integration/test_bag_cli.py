@@ -1,0 +1,309 @@
+"""`plem bag info|plot|repair` on real bags written by the recorder: the figures shown, the PNG written, killed
+segments rebuilt, and WHAT/WHY/HOW errors. The fast RtRaw field reader is checked against rosbags."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Reader
+
+from plem.cli.app import run
+from plem.control.events import Event, EventKind
+from plem.control.modes import Mode
+from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
+from plem.middleware.raw_cdr import RawEncoder, raw_dof, raw_dtype, raw_field
+from plem.middleware.types import library
+from plem.recording import plot
+from plem.recording.archive import Archive
+from plem.recording.recorder import Recorder
+from plem.recording.segment import SegmentWriter
+from plem.recording.settings import RecordingSettings
+from plem.recording.status import remove_status, write_status
+from plem.recording.summary import find_bags, robot_segments
+from tests.e2e.cli import run_plem
+
+S = 1_000_000_000
+START = 1_800_000_000 * S                       # 2027-01-15T08:00:00Z
+SEGMENTS = [f"arm_2027_01_15-08_00_0{second}" for second in range(4)]
+JOINTS = [f"joint_{index + 1}" for index in range(6)]
+LIBRARY = library()
+STORE = LIBRARY.store
+
+
+def cycle_of(index: int) -> int:
+    """The cycle recorded at sample `index`: 5 cycles lost after 1499, a new driver run from sample 3000."""
+    return index if index < 1500 else index + 5 if index < 3000 else index - 3000
+
+
+def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: bool = True) -> None:
+    """One robot's bags, 1 s segments of 1 kHz rt_raw with joint_states, stats and a fault at sample 1700."""
+    now = [START]
+    recorder = Recorder(RecordingSettings(robot_dir, storage=storage, segment_s=1.0), robot_dir.name, MONITOR_TOPICS,
+                        STORE, clock=lambda: now[0], disk_usage=lambda _: (100, 10, 90))
+    recorder.start()
+    encoder, values = RawEncoder(6), np.zeros(43)
+    for index in range(samples):
+        stamp = now[0] = START + index * 1_000_000
+        values[0], values[5] = cycle_of(index), 20_000 + index % 100 * 10
+        values[7:13] = np.arange(6) + index / 1000
+        values[13:19] = -np.arange(6)
+        if raw:
+            recorder.rt_raw(encoder.encode(values, stamp), stamp)
+        if index % 10 == 0:
+            recorder.joint_state(LIBRARY.new(MONITOR_TOPICS["joint_states"], name=JOINTS, position=[0.0] * 6), stamp)
+        if index % 100 == 0:
+            queues = [LIBRARY.new("plem_msgs/msg/QueueStats", name=name, dropped=dropped)
+                      for name, dropped in (("rt_raw", 4), ("events", 0), ("stats", 0), ("bag", 2 * (index > 0)))]
+            recorder.rt_monitor_stats(LIBRARY.new(MONITOR_TOPICS["rt_monitor_stats"], queues=queues), stamp)
+        if index == 1700:
+            event = Event(EventKind.FAULT, "drive_fault", "joint2 drive fault 0x7121", Mode.FAULT, cycle_of(index),
+                          stamp, 0.0)
+            recorder.rt_event(LIBRARY.new(MONITOR_TOPICS["rt_events"], kind="fault"), event, stamp)
+    recorder.close()
+
+
+@pytest.fixture(scope="module")
+def bag_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """bag_dir/arm recorded as MCAP, with one segment deleted before the first by retention."""
+    directory = tmp_path_factory.mktemp("bags")
+    record(directory / "arm")
+    Archive(directory / "arm", "arm").log("deleted", "deleted segment arm_2027_01_15-07_00_00", segment=
+                                           "arm_2027_01_15-07_00_00", reason="older than the retention window "
+                                           "(3605 s > 3600 s)")
+    return directory
+
+
+def info_json(path: Path, capsys: pytest.CaptureFixture[str]) -> dict:
+    assert run(["bag", "info", str(path), "--format", "json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def killed_segment(destination: Path, cycles: int) -> None:
+    """A segment as a killed recorder leaves it: its flushed chunks and no metadata.yaml."""
+    encoder, values = RawEncoder(6), np.zeros(43)
+    writer = SegmentWriter(destination.parent / ".writing" / destination.name,
+                           [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], STORE)
+    for cycle in range(cycles):
+        values[0] = cycle
+        writer.write("/arm/rt_raw", START + 10 * S + cycle * 1_000_000, encoder.encode(values, START))
+    writer.flush()
+    shutil.copytree(writer.directory, destination)
+    writer.close()
+    shutil.rmtree(writer.directory.parent)
+
+
+def assert_plem_error(code: int, stderr: str, summary: str) -> None:
+    assert code == 1
+    assert f"ERROR: {summary}" in stderr and "\nWHAT: " in stderr and "\nWHY: " in stderr and "\nHOW: " in stderr
+    assert "Traceback" not in stderr
+
+
+# -- info ----------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_info_json_counts_segments_drops_faults_and_deletions(tmp_path: Path, bag_dir: Path, storage: str,
+                                                               capsys: pytest.CaptureFixture[str]):
+    if storage == "sqlite3":
+        bag_dir = tmp_path
+        record(bag_dir / "arm", storage)
+    report = info_json(bag_dir, capsys)
+    (arm,) = report["robots"]
+    segments = arm["segments"]
+    assert [s["name"] for s in segments] == SEGMENTS
+    assert [s["storage"] for s in segments] == [storage] * 4 and all(s["state"] == "complete" for s in segments)
+    assert [s["messages"]["/arm/rt_raw"] for s in segments] == [1000, 1000, 1000, 500]
+    assert [s["messages"]["/arm/rt_events"] for s in segments] == [0, 1, 0, 0]
+    assert [s["kept"] for s in segments] == [True, True, False, False], "the 10 s before the fault are kept"
+    assert segments[1]["start"] == "2027-01-15T08:00:01.000Z" and segments[3]["duration_s"] == pytest.approx(0.499)
+    raw = arm["drops"]["rt_raw"]
+    assert (raw["samples"], raw["gaps"], raw["missing_cycles"], raw["new_runs"]) == (3500, 1, 5, 1)
+    assert raw["listed_gaps"] == [{"segment": SEGMENTS[1], "offset_s": 0.5, "after_cycle": 1499, "missing": 5}]
+    recorder = arm["drops"]["recorder"]
+    assert recorder["bag_dropped"] == 2 and recorder["ring_dropped"] == {"rt_raw": 4, "events": 0, "stats": 0}
+    assert recorder["time"] == "2027-01-15T08:00:03.400Z", "the newest rt_monitor_stats"
+    (fault,) = arm["faults"]
+    assert (fault["segment"], fault["offset_s"], fault["cycle"]) == (SEGMENTS[1], 0.7, 1705)
+    totals = report["totals"]
+    assert totals["segments"] == 4 and totals["messages"]["/arm/rt_raw"] == 3500
+    assert totals["messages"]["/arm/joint_states"] == 350 and totals["covered_s"] == pytest.approx(3.496)
+    assert totals["bytes"] == sum(s["bytes"] for s in segments) > 3500 * raw_dtype(6).itemsize
+    if storage == "mcap":
+        assert arm["deletions"] == {"count": 1, "reasons": [{"reason": "older than the retention window "
+                                                                       "(3605 s > 3600 s)", "count": 1}]}
+
+
+def test_info_text_of_a_robot_directory(bag_dir: Path, capsys: pytest.CaptureFixture[str]):
+    assert run(["bag", "info", str(bag_dir / "arm")]) == 0
+    out = capsys.readouterr().out
+    rows = {name: line for line in out.splitlines() for name in SEGMENTS if name in line and "│" in line}
+    assert [("kept for a fault" in rows[name]) for name in SEGMENTS] == [True, True, False, False]
+    assert "joint_states 100, rt_events 1, rt_monitor_stats 10, rt_raw 1000" in rows[SEGMENTS[1]]
+    assert "rt_raw: 3500 samples, 5 cycles missing in 1 gap, 1 new driver run" in out
+    assert f"  {SEGMENTS[1]} at 0.500 s: 5 cycles missing after cycle 1499" in out
+    assert "2 messages not recorded; ring records lost: rt_raw 4, events 0, stats 0" in out
+    assert (f"2027-01-15T08:00:01.700Z cycle 1705: joint2 drive fault 0x7121 — segment {SEGMENTS[1]} at 0.700 s"
+            in out)
+    assert "deletions: 1 — 1 × older than the retention window (3605 s > 3600 s)" in out
+    assert "total: 4 segments (4 complete), 3.496 s covered" in out
+
+
+def test_info_of_one_segment_shows_that_segment_and_its_fault(bag_dir: Path, capsys: pytest.CaptureFixture[str]):
+    (arm,) = info_json(bag_dir / "arm" / SEGMENTS[1], capsys)["robots"]
+    assert [s["name"] for s in arm["segments"]] == [SEGMENTS[1]]
+    assert arm["drops"]["rt_raw"]["samples"] == 1000 and arm["drops"]["rt_raw"]["missing_cycles"] == 5
+    assert len(arm["faults"]) == 1 and arm["deletions"]["count"] == 0
+    (arm,) = info_json(bag_dir / "arm" / SEGMENTS[2], capsys)["robots"]
+    assert arm["faults"] == [] and arm["drops"]["rt_raw"]["gaps"] == 0
+
+
+def test_cycles_are_not_compared_across_a_deleted_segment(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    robot = tmp_path / "arm"
+    record(robot, samples=2500)
+    shutil.rmtree(robot / SEGMENTS[1])                   # cycles 1000..2004 gone with it
+    assert info_json(tmp_path, capsys)["robots"][0]["drops"]["rt_raw"]["missing_cycles"] == 1005
+    Archive(robot, "arm").log("deleted", "gone", segment=SEGMENTS[1], reason="disk 80.5 % full")
+    raw = info_json(tmp_path, capsys)["robots"][0]["drops"]["rt_raw"]
+    assert raw["missing_cycles"] == 0 and raw["not_compared_across"] == [f"{SEGMENTS[1]} (deleted)"]
+
+
+def test_info_reports_killed_and_open_segments(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    robot_id = f"arm{uuid.uuid4().hex[:8]}"
+    robot = tmp_path / robot_id
+    record(robot, samples=1600)
+    killed = f"{robot_id}_2027_01_15-08_00_00_1"          # sorts between the two complete segments
+    killed_segment(robot / killed, 300)
+    assert run(["bag", "info", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "killed — run `plem bag repair`" in out
+    assert "rt_raw: 1600 samples, 5 cycles missing in 1 gap" in out
+    assert f"cycles not compared across: {killed} (killed)" in out
+    newest = f"{robot_id}_2027_01_15-08_00_10"
+    killed_segment(robot / newest, 300)
+    write_status(robot_id, [QueueCount("bag", 0, 0, 0, 0)])   # a recorder of this robot runs: this process
+    try:
+        (arm,) = info_json(tmp_path, capsys)["robots"]
+        assert [s["state"] for s in arm["segments"]] == ["complete", "killed", "complete", "recording"]
+        assert arm["segments"][-1]["note"] == "open — being recorded"
+        assert arm["drops"]["rt_raw"]["not_compared_across"] == [f"{killed} (killed)"], "nothing after the open one"
+        assert run(["bag", "repair", str(tmp_path)]) == 0
+        out = capsys.readouterr().out
+        assert f"{newest}: left alone, a recorder is writing it" in out and f"{killed}: repaired" in out
+    finally:
+        remove_status(robot_id)
+
+
+# -- plot ----------------------------------------------------------------------------------------------------
+def test_plot_writes_a_png_of_the_expected_size(bag_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    import matplotlib.image
+
+    out = tmp_path / "plots" / "arm.png"
+    assert run(["bag", "plot", str(bag_dir), "--out", str(out)]) == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert matplotlib.image.imread(out).shape[:2] == (1000, 1200)
+    assert [path.name for path in out.parent.iterdir()] == ["arm.png"], "no temporary file left"
+
+
+def test_plot_series_decimates_lines_but_keeps_every_latency(bag_dir: Path, monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.setattr(plot, "MAX_POINTS", 1000)
+    (robot,) = find_bags(bag_dir)
+    series = plot.read_raw(robot_segments(robot))
+    assert series.joint_names == JOINTS
+    assert len(series.latency_us) == 3500
+    np.testing.assert_array_equal(series.latency_us, [(20_000 + i % 100 * 10) / 1e3 for i in range(3500)])
+    assert len(series.time_s) == 875 and series.time_s[0] == 0.0, "every 4th of 3500 samples"
+    samples = np.round(series.time_s * 1000).astype(int)
+    np.testing.assert_array_equal(samples, np.arange(0, 3500, 4))
+    np.testing.assert_allclose(series.position, np.arange(6) + samples[:, None] / 1000)
+    np.testing.assert_array_equal(series.velocity, np.broadcast_to(-np.arange(6.0), (875, 6)))
+
+
+def test_plot_errors(bag_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    two = tmp_path / "two"
+    shutil.copytree(bag_dir / "arm", two / "arm")
+    record(two / "other", samples=300, raw=False)
+    out = str(tmp_path / "x.png")
+    code = run(["bag", "plot", str(two), "--out", out])
+    assert_plem_error(code, capsys.readouterr().err, f"{two} holds the bags of 2 robots")
+    code = run(["bag", "plot", str(two), "--out", out, "--robot", "nobody"])
+    assert_plem_error(code, capsys.readouterr().err, f"no bags of robot nobody in {two}")
+    code = run(["bag", "plot", str(two), "--out", out, "--robot", "other"])
+    assert_plem_error(code, capsys.readouterr().err, "no rt_raw samples in the bags")
+    (tmp_path / "file").write_text("")
+    code = run(["bag", "plot", str(bag_dir), "--out", str(tmp_path / "file" / "x.png")])
+    assert_plem_error(code, capsys.readouterr().err, f"cannot write {tmp_path / 'file' / 'x.png'}")
+    assert not Path(out).exists()
+
+
+# -- repair --------------------------------------------------------------------------------------------------
+def test_repair_rebuilds_a_killed_segment_and_leaves_complete_ones(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    robot = tmp_path / "arm"
+    record(robot, samples=1500)
+    killed = robot / "arm_2027_01_15-08_00_10"
+    killed_segment(killed, 300)
+    assert not (killed / "metadata.yaml").exists()
+    assert run(["bag", "repair", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"{SEGMENTS[0]}: already complete" in out and f"{SEGMENTS[1]}: already complete" in out
+    assert f"{killed.name}: repaired, 300 messages recovered" in out
+    with Reader(killed) as reader:
+        cycles = [STORE.deserialize_cdr(data, MONITOR_TOPICS["rt_raw"]).cycle for _, _, data in reader.messages()]
+    assert cycles == list(range(300))
+    segments = info_json(tmp_path, capsys)["robots"][0]["segments"]
+    assert segments[-1]["state"] == "complete" and segments[-1]["messages"] == {"/arm/rt_raw": 300}
+    assert run(["bag", "repair", str(killed)]) == 0
+    assert capsys.readouterr().out == f"{killed.name}: already complete\n"
+
+
+def test_repair_that_fails_exits_non_zero_with_what_why_how(tmp_path: Path):
+    robot = tmp_path / "arm"
+    record(robot, samples=500)
+    broken = robot / "arm_2027_01_15-08_00_10"
+    broken.mkdir()
+    (broken / f"{broken.name}.mcap").write_bytes(b"not an mcap file")
+    result = run_plem("bag", "repair", str(tmp_path))
+    assert f"{SEGMENTS[0]}: already complete" in result.stdout
+    assert f"{broken.name}: not repaired: " in result.stdout
+    assert_plem_error(result.returncode, result.stderr, "1 segment could not be repaired")
+    assert f"{broken.name}: its first bytes differ" in result.stderr
+
+
+# -- errors --------------------------------------------------------------------------------------------------
+def test_directories_without_bags_are_what_why_how_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    result = run_plem("bag", "info", str(tmp_path / "missing"))
+    assert_plem_error(result.returncode, result.stderr, f"{tmp_path / 'missing'} is not a bag directory")
+    assert "WHY: it does not exist" in result.stderr
+    (tmp_path / "empty" / "arm").mkdir(parents=True)
+    for command in (["info"], ["repair"], ["plot", "--out", str(tmp_path / "x.png")]):
+        code = run(["bag", *command, str(tmp_path / "empty")])
+        assert_plem_error(code, capsys.readouterr().err, f"no bags in {tmp_path / 'empty'}")
+
+
+# -- the RtRaw field reader ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("dof", [6, 7])
+def test_raw_field_matches_rosbags_deserialization(dof: int):
+    rng = np.random.default_rng(dof)
+    encoder = RawEncoder(dof)
+    payloads, starts, buffer = [], [], bytearray()
+    for cycle in range(50):
+        values = rng.normal(size=7 + 6 * dof)
+        values[:7] = [cycle * 7 + 3, rng.integers(1 << 40), cycle % 5, cycle % 2, 1, rng.integers(1 << 20),
+                      rng.integers(1 << 20)]
+        payloads.append(encoder.encode(values, int(rng.integers(1 << 60))))
+        buffer += bytes(int(rng.integers(0, 9)))         # payloads at irregular offsets, as in a chunk
+        starts.append(len(buffer))
+        buffer += payloads[-1]
+    data, starts_array = np.frombuffer(bytes(buffer), np.uint8), np.array(starts)
+    assert raw_dof(payloads[0]) == dof and raw_dtype(dof).itemsize == len(payloads[0])
+    messages = [STORE.deserialize_cdr(payload, MONITOR_TOPICS["rt_raw"]) for payload in payloads]
+    for name in ("cycle", "monotonic_ns", "mode", "faulted", "drives_enabled", "latency_ns", "compute_ns"):
+        np.testing.assert_array_equal(raw_field(data, starts_array, name), [getattr(m, name) for m in messages])
+    for name in ("sec", "nanosec"):
+        np.testing.assert_array_equal(raw_field(data, starts_array, name), [getattr(m.header.stamp, name)
+                                                                             for m in messages])
+    for name in ("position", "velocity", "effort", "command_position", "command_velocity", "command_acceleration"):
+        np.testing.assert_array_equal(raw_field(data, starts_array, name, dof), [getattr(m, name) for m in messages])
