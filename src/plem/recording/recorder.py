@@ -22,9 +22,10 @@ from typing import Any
 from rosbags.typesys.store import Typestore
 
 from plem.control.events import Event, EventKind
+from plem.errors import PlemError
 from plem.middleware.monitor_feed import QueueCount
 from plem.recording.archive import Archive, directory_size, iso_time
-from plem.recording.repair import RepairError, repair
+from plem.recording.repair import repair
 from plem.recording.retention import Segment, choose_deletions
 from plem.recording.segment import SegmentWriter
 from plem.recording.settings import RecordingSettings
@@ -212,7 +213,7 @@ class Recorder:
             if segment is None:
                 try:
                     report = repair(path)
-                except (RepairError, OSError) as error:
+                except (PlemError, OSError) as error:
                     self.archive.log("repair_failed", f"segment {path.name} of a killed recorder could not be "
                                      f"repaired: {error}", logging.WARNING, segment=path.name)
                     continue

@@ -12,7 +12,6 @@ from __future__ import annotations
 import shutil
 import sqlite3
 import struct
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,10 +19,8 @@ from rosbags.rosbag2 import Reader, Writer
 
 from plem.errors import PlemError
 from plem.middleware.types import library
+from plem.recording.mcap_records import CHANNEL, CHUNK, MAGIC, MESSAGE, SCHEMA, chunk_records, records, string
 from plem.recording.segment import BAG_VERSION, STORAGES
-
-MAGIC = b"\x89MCAP0\r\n"
-SCHEMA, CHANNEL, MESSAGE, CHUNK = 0x03, 0x04, 0x05, 0x06
 
 
 class RepairError(PlemError):
@@ -35,34 +32,6 @@ class RepairReport:
     directory: Path
     messages: int
     repaired: bool
-
-
-def _records(data: bytes, start: int = 0) -> Iterator[tuple[int, memoryview]]:
-    """(opcode, content) of every complete record from `start`; stops at the first truncated one."""
-    view, position = memoryview(data), start
-    while position + 9 <= len(data):
-        opcode, length = struct.unpack_from("<BQ", data, position)
-        end = position + 9 + length
-        if end > len(data):
-            return
-        yield opcode, view[position + 9:end]
-        position = end
-
-
-def _string(content: memoryview, offset: int) -> tuple[str, int]:
-    (length,) = struct.unpack_from("<I", content, offset)
-    return bytes(content[offset + 4:offset + 4 + length]).decode(), offset + 4 + length
-
-
-def _chunk_records(content: memoryview) -> bytes:
-    """The records inside a chunk (plem writes them uncompressed)."""
-    offset = 8 + 8 + 8 + 4                               # start time, end time, uncompressed size, crc
-    compression, offset = _string(content, offset)
-    if compression:
-        raise RepairError("a chunk is compressed", what="uncompressed chunks, as plem's recorder writes them",
-                          why=f"compression {compression!r}", how="decompress it with an MCAP tool first")
-    (size,) = struct.unpack_from("<Q", content, offset)
-    return bytes(content[offset + 8:offset + 8 + size])
 
 
 Channels = dict[int, tuple[str, str]]
@@ -92,16 +61,16 @@ def recover_mcap(mcap: Path) -> tuple[Channels, Messages]:
     schemas: dict[int, str] = {}
     channels: Channels = {}
     messages: list[tuple[int, int, bytes]] = []
-    for opcode, content in _records(data, len(MAGIC)):
+    for opcode, content in records(data, len(MAGIC)):
         if opcode != CHUNK:
             continue
-        for inner, record in _records(_chunk_records(content)):
+        for inner, record in records(chunk_records(content)):
             if inner == SCHEMA:
                 (schema_id,) = struct.unpack_from("<H", record, 0)
-                schemas[schema_id], _ = _string(record, 2)   # the type; its embedded definition is rebuilt
+                schemas[schema_id], _ = string(record, 2)   # the type; its embedded definition is rebuilt
             elif inner == CHANNEL:
                 channel_id, schema_id = struct.unpack_from("<HH", record, 0)
-                topic, _ = _string(record, 4)
+                topic, _ = string(record, 4)
                 channels[channel_id] = (topic, schemas[schema_id])
             elif inner == MESSAGE:
                 channel_id, _, log_time = struct.unpack_from("<HIQ", record, 0)

@@ -26,13 +26,10 @@ from plem.launch.arguments import DEFAULTS
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_dtype, raw_field
 from plem.recording.archive import KEEP_SUFFIX, bag_extent, directory_size, read_event_log
-from plem.recording.repair import CHUNK, MAGIC, _chunk_records, _records, _string
+from plem.recording.mcap_records import (CHANNEL, CHUNK, MAGIC, MESSAGE_FIELDS, MESSAGE_INDEX, RECORD_HEADER,
+                                        chunk_records, records, string)
 from plem.recording.status import read_status
 
-CHANNEL, MESSAGE_INDEX = 0x04, 0x07
-#: Bytes of an MCAP record before its content (opcode, length), and of a message's fields before its payload
-#: (channel, sequence, log time, publish time).
-_RECORD_HEADER, _MESSAGE_FIELDS = 1 + 8, 2 + 4 + 8 + 8
 #: Gaps listed one by one; the totals count every gap.
 LISTED_GAPS = 20
 #: RtRaw payload bytes up to the end of its cycle number.
@@ -123,14 +120,14 @@ def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
     channels: dict[int, str] = {}
     indexed: list[tuple[memoryview, memoryview]] = []
     chunk = None
-    for opcode, content in _records(data, len(MAGIC)):
+    for opcode, content in records(data, len(MAGIC)):
         if opcode == CHUNK:
             chunk = content
         elif opcode == MESSAGE_INDEX and chunk is not None:
             indexed.append((chunk, content))
         elif opcode == CHANNEL:
             (channel_id,) = struct.unpack_from("<H", content, 0)
-            channels[channel_id], _ = _string(content, 4)
+            channels[channel_id], _ = string(content, 4)
     for chunk, index in indexed:
         (channel_id,) = struct.unpack_from("<H", index, 0)
         if channels.get(channel_id) == topic:
@@ -139,12 +136,12 @@ def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
 
 def _indexed_payloads(chunk: memoryview, index: memoryview) -> Payloads:
     """The messages a message index points at within its chunk."""
-    records = np.frombuffer(_chunk_records(chunk), np.uint8)
+    inner = np.frombuffer(chunk_records(chunk), np.uint8)
     entries = np.frombuffer(index, dtype=[("time", "<u8"), ("offset", "<u8")], offset=2 + 4)
     offsets = entries["offset"].astype(np.int64)
-    lengths = records[offsets[:, None] + 1 + np.arange(8)].view("<u8").ravel().astype(np.int64)
-    return Payloads(entries["time"].astype(np.int64), records, offsets + _RECORD_HEADER + _MESSAGE_FIELDS,
-                    lengths - _MESSAGE_FIELDS)
+    lengths = inner[offsets[:, None] + 1 + np.arange(8)].view("<u8").ravel().astype(np.int64)
+    return Payloads(entries["time"].astype(np.int64), inner, offsets + RECORD_HEADER + MESSAGE_FIELDS,
+                    lengths - MESSAGE_FIELDS)
 
 
 def _sqlite3_topic(path: Path, topic: str, head: int | None, batch: int = 100_000) -> Iterator[Payloads]:
