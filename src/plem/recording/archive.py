@@ -37,14 +37,24 @@ def directory_size(path: Path) -> int:
     return sum(entry.stat().st_size for entry in path.rglob("*") if entry.is_file())
 
 
-def bag_extent(path: Path) -> tuple[int, int] | None:
-    """(start, end) in ns since the epoch from a bag's metadata.yaml; None without one."""
+def bag_metadata(path: Path) -> dict[str, Any] | None:
+    """The `rosbag2_bagfile_information` of a bag's metadata.yaml; None without one."""
     metadata = path / "metadata.yaml"
     if not metadata.is_file():
         return None
-    info = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    return yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+
+
+def extent_of(info: dict[str, Any]) -> tuple[int, int]:
+    """(start, end) in ns since the epoch of a bag's metadata."""
     start = int(info["starting_time"]["nanoseconds_since_epoch"])
     return start, start + int(info["duration"]["nanoseconds"])
+
+
+def bag_extent(path: Path) -> tuple[int, int] | None:
+    """(start, end) in ns since the epoch from a bag's metadata.yaml; None without one."""
+    info = bag_metadata(path)
+    return None if info is None else extent_of(info)
 
 
 class Archive:

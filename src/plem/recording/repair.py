@@ -20,7 +20,7 @@ from rosbags.rosbag2 import Reader, Writer
 from plem.errors import PlemError
 from plem.middleware.types import library
 from plem.recording.mcap_records import CHANNEL, CHUNK, MAGIC, MESSAGE, SCHEMA, chunk_records, records, string
-from plem.recording.segment import BAG_VERSION, STORAGES
+from plem.recording.segment import BAG_VERSION, STORAGES, bag_file
 
 
 class RepairError(PlemError):
@@ -83,12 +83,12 @@ def repair(directory: Path) -> RepairReport:
     if (directory / "metadata.yaml").exists():
         with Reader(directory) as reader:
             return RepairReport(directory, reader.message_count, repaired=False)
-    files = sorted([*directory.glob("*.mcap"), *directory.glob("*.db3")])
-    if len(files) != 1:
-        raise RepairError(f"{directory} is not a killed segment", what="one .mcap or .db3 file and no metadata.yaml",
-                          why=f"found {len(files)} such files", how="pass one segment directory of the bag")
-    storage = "mcap" if files[0].suffix == ".mcap" else "sqlite3"
-    channels, messages = (recover_mcap if storage == "mcap" else recover_sqlite3)(files[0])
+    file = bag_file(directory)
+    if file is None:
+        raise RepairError(f"{directory} is not a killed segment", what="a .mcap or .db3 file and no metadata.yaml",
+                          why="it has no bag file", how="pass one segment directory of the bag")
+    storage = "mcap" if file.suffix == ".mcap" else "sqlite3"
+    channels, messages = (recover_mcap if storage == "mcap" else recover_sqlite3)(file)
     store = library().store
     unknown = sorted({msgtype for _, msgtype in channels.values() if msgtype not in store.fielddefs})
     if unknown:

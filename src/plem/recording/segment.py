@@ -21,6 +21,11 @@ STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 BAG_VERSION = 9
 
 
+def bag_file(segment: Path) -> Path | None:
+    """The segment's storage file (.mcap or .db3); None when it has none."""
+    return next((path for pattern in ("*.mcap", "*.db3") for path in sorted(segment.glob(pattern))), None)
+
+
 class SegmentWriter:
     """Writes serialized messages of fixed topics into one bag directory."""
 

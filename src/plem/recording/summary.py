@@ -25,9 +25,10 @@ from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_dtype, raw_field
-from plem.recording.archive import KEEP_SUFFIX, bag_extent, directory_size, read_event_log
+from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, read_event_log
 from plem.recording.mcap_records import (CHANNEL, CHUNK, MAGIC, MESSAGE_FIELDS, MESSAGE_INDEX, RECORD_HEADER,
                                         chunk_records, records, string)
+from plem.recording.segment import bag_file
 from plem.recording.status import read_status
 
 #: Gaps listed one by one; the totals count every gap.
@@ -41,11 +42,6 @@ class BagError(PlemError):
 
 
 # -- finding segments --------------------------------------------------------------------------------------
-def bag_file(segment: Path) -> Path | None:
-    """The segment's storage file (.mcap or .db3); None when it has none."""
-    return next((path for pattern in ("*.mcap", "*.db3") for path in sorted(segment.glob(pattern))), None)
-
-
 def _segments(directory: Path) -> list[Path]:
     """The segment directories directly under `directory`, oldest first (their names sort in time order)."""
     return sorted(child for child in directory.iterdir()
@@ -198,13 +194,13 @@ def segment_info(path: Path, recording: bool = False) -> SegmentInfo:
     info = SegmentInfo(path, storage, "complete", directory_size(path),
                        path.with_name(path.name + KEEP_SUFFIX).exists())
     try:
-        extent = bag_extent(path)
-        if extent is None:
+        metadata = bag_metadata(path)
+        if metadata is None:
             info.state = "recording" if recording else "killed"
             return info
-        metadata = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        extent = extent_of(metadata)
         info.topics = {entry["topic_metadata"]["name"]: (entry["topic_metadata"]["type"], int(entry["message_count"]))
-                       for entry in metadata["rosbag2_bagfile_information"]["topics_with_message_count"]}
+                       for entry in metadata["topics_with_message_count"]}
     except (yaml.YAMLError, KeyError, TypeError, ValueError) as error:
         info.state, info.problem = "unreadable", f"metadata.yaml: {type(error).__name__}: {error}"
         return info
