@@ -147,6 +147,23 @@ def test_a_fault_keeps_the_window_before_it_against_retention(tmp_path: Path):
     assert keep_marks == sorted(f"{name}.keep" for name in entry["kept"]) and len(keep_marks) == 2
 
 
+def test_the_fault_offset_counts_from_the_segments_earliest_message(tmp_path: Path):
+    """A stats record stamped before the rotation lands in the new segment: a reader's start time is then
+    earlier than the rotation, and the logged offset must count from it."""
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk)
+    feed(recorder, clock, range(1001))                      # cycle 1000 opens the second segment
+    late = START + 987 * 1_000_000
+    recorder.rt_monitor_stats(library().new(MONITOR_TOPICS["rt_monitor_stats"]), late)
+    feed(recorder, clock, range(1001, 1400))
+    fault(recorder, clock, 1400)
+    recorder.close()
+    entry = next(e for e in read_event_log(tmp_path / "arm") if e["kind"] == "fault")
+    with Reader(tmp_path / "arm" / entry["segment"]) as reader:
+        assert reader.start_time == late
+        assert reader.start_time + round(entry["offset_s"] * 1e9) == entry["fault_time_ns"]
+
+
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
     """A 2 MiB tmpfs (needs root and mount)."""

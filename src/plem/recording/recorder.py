@@ -197,7 +197,8 @@ class Recorder:
         if self.segment is not None:
             self.archive.keep(self.segment.directory, reason)
             kept.append(self.segment.name)
-            position = {"segment": self.segment.name, "offset_s": round((wall_ns - self._segment_start) / 1e9, 3)}
+            start = self._segment_start if self.segment.start_ns is None else self.segment.start_ns
+            position = {"segment": self.segment.name, "offset_s": round((wall_ns - start) / 1e9, 3)}
         where = (f"segment {position['segment']} at {position['offset_s']:.3f} s" if position["segment"]
                  else "not recorded (recording stopped)")
         self.archive.log("fault", f"fault at cycle {event.cycle} ({event.reason}): {where}; kept {', '.join(kept)}",

@@ -33,6 +33,7 @@ class SegmentWriter:
                  storage: str = "mcap", flush_period_s: float = 1.0) -> None:
         self.directory = directory
         self.messages = 0
+        self.start_ns: int | None = None                     # the earliest stamp written: a reader's start time
         self._writer = Writer(directory, version=BAG_VERSION, storage_plugin=STORAGES[storage])
         self._writer.open()
         self._connections = {topic: self._writer.add_connection(topic, msgtype, typestore=store)
@@ -49,6 +50,8 @@ class SegmentWriter:
         """Append one message; flushes when the flush period has passed."""
         self._writer.write(self._connections[topic], timestamp_ns, data)
         self.messages += 1
+        if self.start_ns is None or timestamp_ns < self.start_ns:
+            self.start_ns = timestamp_ns
         if time.monotonic_ns() >= self._next_flush:
             self.flush()
 
