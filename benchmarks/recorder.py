@@ -4,7 +4,7 @@ Usage: python benchmarks/recorder.py [--seconds 60] [--window 20] [--pairs 4] [-
                                      [--quick]
 Needs root for SCHED_FIFO (as `plem launch` on a real machine). --quick: a 10 s recording window with 4 s
 segments and one pair of 3 s loop windows (a smoke run). The full run takes about 6 minutes (--seconds, then
-2 x --pairs x --window, 1 + 2 x --pairs launches of a few seconds each).
+2 x --pairs x --window plus about 10 s per recorder stop, two launches).
 
 What runs:
   robot       `plem launch bus:=mock robot_id:=bench_rec_<hex> bridge:=false record:=true|false` (Indy7 v2,
@@ -31,17 +31,22 @@ What runs:
               and repeats. Messages per topic are counted between the stamps of rt_raw cycles c0 + 1 and c1.
               The recorder's own counters (/dev/shm/plem_recorder_<id>.json: rt_raw ring reads lost, messages
               not recorded) are read at the window's start and end.
-  loop        --pairs pairs of --window windows, each on a launch of its own, alternating: record:=true /
-              record:=false (the order alternates between pairs: on/off, off/on, ...). The loop's wake-up
-              latency of every cycle of the window is read from the rt_raw ring (this process drains it every
-              0.5 s in every window); p50/p99/p99.9/max per window and the ratio p99.9 (and p50) on over off,
-              median over the pairs. Target: p99.9 <= 1.1x. The recorder's CPU in each record:=true window and
+  loop        one launch with record:=false (and bridge:=false), in hold mode; --pairs pairs of --window windows
+              alternate: a recorder recording it / none (the order alternates between pairs: on/off, off/on, ...).
+              The recorder is the launch's own component started as `plem launch` starts it (`python -m
+              plem.launch.recorder '<launch arguments>'`, same bag_dir, segments and storage) before its window
+              and stopped with SIGINT after it (it records on for its drain time, then exits before the next
+              window). One launch for every window: launches differ from each other more than recording changes
+              one. The loop's wake-up latency of every cycle of the window is read from the rt_raw ring (this
+              process drains it every 0.5 s); p50/p99/p99.9/max per window and the ratio p99.9 (and p50) on over
+              off, median over the pairs. Target: p99.9 <= 1.1x. The recorder's CPU in each window with it and
               the 1-minute load average at each window's end are listed.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import secrets
@@ -59,11 +64,12 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from launching import (SHM_CLIENT, CpuMeter, Launch, drain_loop, finish, first_sample, launch, result, start_reader,
-                       stop, stop_all)
+from launching import (SHM_CLIENT, CpuMeter, Launch, drain_loop, finish, first_sample, launch, read_line, result,
+                       start_reader, stop, stop_all)
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.ipc.records import raw_record_length
+from plem.launch.recorder import DRAIN_TIMEOUT_S
 from plem.middleware.types import library
 from plem.recording.archive import directory_size
 from plem.recording.status import read_status
@@ -174,22 +180,36 @@ class LoopWindow:
         return p50, p99, p999, float(self.latency_us.max())
 
 
-def loop_window(record: bool, seconds: float, settle: float, bag_arguments: dict[str, object], env: dict[str, str],
-                logs: Path, children: list[subprocess.Popen]) -> LoopWindow:
-    """One launch with or without the recorder (never the bridge); the loop latency of its window."""
-    robot_id = new_robot_id()
-    robot = launch(robot_id, env, logs / f"{robot_id}.log", children, bridge=False, record=record,
-                   **(bag_arguments if record else {}))
+def start_recorder(arguments: dict[str, str], env: dict[str, str], log: Path,
+                   children: list[subprocess.Popen]) -> subprocess.Popen:
+    """The recorder component as `plem launch` starts it (`python -m plem.launch.recorder '<arguments>'`, its
+    log appended to `log`), returned once it announced that it records."""
+    with log.open("a") as output:
+        process = subprocess.Popen([sys.executable, "-m", "plem.launch.recorder", json.dumps(arguments)],
+                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=output, text=True, env=env,
+                                   start_new_session=True)
+    children.append(process)
+    line = read_line(process, 60.0)
+    if not json.loads(line or "{}").get("ready"):
+        raise SystemExit(f"the recorder did not start: {line!r}")
+    return process
+
+
+def loop_window(client: RobotClient, record: bool, seconds: float, settle: float, arguments: dict[str, str],
+                env: dict[str, str], log: Path, children: list[subprocess.Popen]) -> LoopWindow:
+    """The loop latency of one window of the running launch, with a recorder of its own started for the window
+    (and stopped after it: it records on until its drain time ends, `DRAIN_TIMEOUT_S`) or without one."""
+    recorder = start_recorder(arguments, env, log, children) if record else None
     try:
-        client = connect(robot_id)
-        first_sample(client, settle)
-        meter = CpuMeter({"recorder": robot.recorder_pid}) if robot.recorder_pid else None
+        time.sleep(settle)
+        meter = CpuMeter({"recorder": recorder.pid}) if recorder else None
         latency, dropped = drain_loop(client, seconds)
         cpu = meter.done()["recorder"] if meter else None
-        client.close()
         return LoopWindow(record, latency, dropped, cpu, os.getloadavg()[0])
     finally:
-        stop(robot.process)
+        if recorder is not None:
+            stop(recorder, signal.SIGINT, DRAIN_TIMEOUT_S + 10.0)
+            children.remove(recorder)
 
 
 # -- report --------------------------------------------------------------------------------------------
@@ -306,13 +326,23 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(f"  note: only {bags.segments} segments; --segment {args.segment:g} is long for the window")
 
         # -- loop wake-up latency, alternating launches with and without the recorder ---------------
+        robot_id = new_robot_id()
+        robot = launch(robot_id, env, logs / f"{robot_id}.log", children, bridge=False, record=False)
+        client = connect(robot_id)
+        first_sample(client, settle)
+        recorder_arguments = {"bus": "mock", "robot_id": robot_id,
+                              **{name: str(value) for name, value in bag_arguments.items()}}
         windows: list[tuple[int, LoopWindow]] = []
         for pair in range(1, args.pairs + 1):
             for record in ((True, False) if pair % 2 else (False, True)):
-                windows.append((pair, loop_window(record, args.window, settle, bag_arguments, env, logs, children)))
+                windows.append((pair, loop_window(client, record, args.window, settle, recorder_arguments, env,
+                                                  logs / f"{robot_id}_recorder.log", children)))
+        client.close()
+        stop(robot.process)
 
-        print(f"\nloop wake-up latency (µs), record:=true vs record:=false (bridge:=false in both), {args.pairs} "
-              f"pair{'s' * (args.pairs != 1)} of {args.window:g} s windows, each on its own launch")
+        print(f"\nloop wake-up latency (µs) of one launch (record:=false, bridge:=false), {args.pairs} "
+              f"pair{'s' * (args.pairs != 1)} of {args.window:g} s windows with and without a recorder "
+              f"(python -m plem.launch.recorder, as the launch starts it) recording it")
         print(f"  {'pair':<6}{'record':<8}{'cycles':>8}{'p50':>7}{'p99':>7}{'p99.9':>7}{'max':>7}{'ring lost':>11}"
               f"{'rec CPU %':>11}{'load':>7}")
         for pair, loop in windows:
@@ -354,7 +384,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print("| --- | --- | --- | --- | --- | --- |")
         for (pair, on, off), value in zip(rows, p999_ratios):
             print(f"| {pair} | {on[2]:.0f} | {off[2]:.0f} | {value:.2f} | {on[0]:.0f} | {off[0]:.0f} |")
-        print(f"\nLoop p99.9 record:=true / record:=false, median over {args.pairs} pair(s) of {args.window:g} s: "
+        print(f"\nLoop p99.9 recording / not recording (one launch), median over {args.pairs} pair(s) of {args.window:g} s: "
               f"**{median:.2f}×** (target ≤ {LOOP_TARGET:g}×: {verdict(median <= LOOP_TARGET)}); p50 {median_p50:.2f}×.")
         succeeded = True
     finally:
