@@ -30,7 +30,8 @@ STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
 #: Components of later releases: listed in the summary, never faked.
 NOT_BUILT = {"planner": "motion planner"}
-MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder"}
+MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge",
+           "recorder": "plem.launch.recorder"}
 
 
 class LaunchFailed(PlemError):
@@ -147,7 +148,8 @@ class Supervisor:
         if self.stop_requested.is_set():
             return {}
         child.process.poll()
-        raise LaunchFailed(f"{child.label} did not become ready", what=f"its loop running within {READY_TIMEOUT_S:.0f} s",
+        raise LaunchFailed(f"{child.label} did not become ready",
+                           what=f"its loop running within {READY_TIMEOUT_S:.0f} s",
                            why=child.exit_description() if child.process.returncode is not None else "no answer",
                            how="see the messages above; rerun with fewer robots or a longer cycle_time")
 
@@ -164,8 +166,8 @@ class Supervisor:
             for warning in ready["warnings"]:
                 self.say(f"  warning: {warning}")
             self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
-            self.say(f"  bridge        {self._bridge_status(plan, children.get('bridge'))}")
-            self.say(f"  recorder      {self._recorder_status(plan, children.get('recorder'))}")
+            self.say(f"  bridge        {self._bridge_status(children.get('bridge'))}")
+            self.say(f"  recorder      {self._recorder_status(children.get('recorder'))}")
             for component, title in NOT_BUILT.items():
                 self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
         self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
@@ -175,14 +177,14 @@ class Supervisor:
         """Why a component did not start: the launch file left it out, or its argument is false."""
         return "disabled by the launch file" if not self.components.get(component, True) else f"off ({argument}:=false)"
 
-    def _bridge_status(self, plan: RobotPlan, child: Child | None) -> str:
+    def _bridge_status(self, child: Child | None) -> str:
         if child is None:
             return self._off("bridge", "bridge")
         ready = child.ready
         return (f"running, pid {child.process.pid}, topics and actions under {ready['namespace']}/ "
                 f"({ready['domain']}, joint_states {ready['joint_state_rate']:g} Hz)")
 
-    def _recorder_status(self, plan: RobotPlan, child: Child | None) -> str:
+    def _recorder_status(self, child: Child | None) -> str:
         if child is None:
             return self._off("recorder", "record")
         return f"recording, pid {child.process.pid}, into {child.ready['directory']} ({child.ready['settings']})"
@@ -198,10 +200,10 @@ class Supervisor:
     def _watch(self) -> int:
         from plem.bridge.client import connect
 
-        for child in self.children:
-            client = connect(child.robot_id)
-            self._clients[child.robot_id] = client
-            self._event_streams[child.robot_id] = client.events(timeout=0)
+        for plan in self.plans:
+            client = connect(plan.robot_id)
+            self._clients[plan.robot_id] = client
+            self._event_streams[plan.robot_id] = client.events(timeout=0)
         interactive = self.out.isatty()
         period = STATUS_PERIOD_S if interactive else PIPE_STATUS_PERIOD_S
         next_status = time.monotonic() + period
@@ -272,8 +274,9 @@ def status_line(robot_id: str, client: Any) -> str:
     if state is None:
         return f"{robot_id}: starting"
     interval = stats.get("latency_interval", {})
-    text = (f"{robot_id}: {state.mode.name:<10} cycle {state.cycle:>9}  latency p99 {interval.get('p99_us', 0):.0f} µs "
-            f"max {interval.get('max_us', 0):.0f} µs  overruns {stats.get('overruns', 0)}")
+    text = (f"{robot_id}: {state.mode.name:<10} cycle {state.cycle:>9}  latency p99 "
+            f"{interval.get('p99_us', 0):.0f} µs max {interval.get('max_us', 0):.0f} µs  "
+            f"overruns {stats.get('overruns', 0)}")
     if state.faulted and stats.get("fault_reason"):
         text += f"  fault: {stats['fault_reason']}"
     return text
