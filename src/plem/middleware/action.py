@@ -28,6 +28,7 @@ TERMINAL = frozenset({SUCCEEDED, CANCELED, ABORTED})
 CANCEL_NONE, CANCEL_REJECTED, CANCEL_UNKNOWN_GOAL, CANCEL_TERMINATED = range(4)
 #: Ended goals whose results stay available to late get_result requests.
 KEPT_RESULTS = 100
+STATUS_TYPE = "action_msgs/msg/GoalStatusArray"
 
 
 class Execution(Protocol):
@@ -76,11 +77,9 @@ class ActionServer:
         self._feedback_period = feedback_period
         self._next_feedback = 0.0
         names = ActionNames(name)
-        self.send_goal = node.service(names.service("send_goal"), f"{ros_type}_SendGoal")
-        self.cancel_goal = node.service(names.service("cancel_goal"), "action_msgs/srv/CancelGoal")
-        self.get_result = node.service(names.service("get_result"), f"{ros_type}_GetResult")
+        self.send_goal, self.cancel_goal, self.get_result = (node.service(*part) for part in names.services(ros_type))
         self._feedback = node.publisher(names.feedback, f"{ros_type}_FeedbackMessage", DEFAULT)
-        self._status = node.publisher(names.status, "action_msgs/msg/GoalStatusArray", LATCHED)
+        self._status = node.publisher(names.status, STATUS_TYPE, LATCHED)
         self._goals: OrderedDict[bytes, _Goal] = OrderedDict()
 
     @property
@@ -184,8 +183,8 @@ class ActionServer:
             del self._goals[goal_id]
 
     def _info(self, goal: _Goal) -> Any:
-        return self.node.library.new("action_msgs/msg/GoalInfo", goal_id=goal_uuid(self.node, goal.goal_id), stamp=goal.stamp)
-
+        return self.node.library.new("action_msgs/msg/GoalInfo", goal_id=goal_uuid(self.node, goal.goal_id),
+                                     stamp=goal.stamp)
 
 
 class ActionClient:
@@ -195,11 +194,9 @@ class ActionClient:
         self.node = node
         self.ros_type = ros_type
         names = ActionNames(name)
-        self._send_goal = node.client(names.service("send_goal"), f"{ros_type}_SendGoal")
-        self._cancel = node.client(names.service("cancel_goal"), "action_msgs/srv/CancelGoal")
-        self._get_result = node.client(names.service("get_result"), f"{ros_type}_GetResult")
+        self._send_goal, self._cancel, self._get_result = (node.client(*part) for part in names.services(ros_type))
         self.feedback = node.subscription(names.feedback, f"{ros_type}_FeedbackMessage", DEFAULT)
-        self.status = node.subscription(names.status, "action_msgs/msg/GoalStatusArray", LATCHED)
+        self.status = node.subscription(names.status, STATUS_TYPE, LATCHED)
 
     def wait_for_server(self, timeout: float) -> bool:
         """True once every service of the action is matched with a server."""

@@ -71,6 +71,12 @@ class ActionNames:
         """The ROS service of a part: send_goal, cancel_goal or get_result."""
         return f"{check_name(self.name)}/_action/{part}"
 
+    def services(self, ros_type: str) -> tuple[tuple[str, str], tuple[str, str], tuple[str, str]]:
+        """(service, service type) of send_goal, cancel_goal and get_result for an action of `ros_type`."""
+        return ((self.service("send_goal"), f"{ros_type}_SendGoal"),
+                (self.service("cancel_goal"), "action_msgs/srv/CancelGoal"),
+                (self.service("get_result"), f"{ros_type}_GetResult"))
+
     @property
     def feedback(self) -> str:
         return f"{check_name(self.name)}/_action/feedback"

@@ -90,6 +90,12 @@ class Subscription(Generic[M]):
         return self.reader.get_subscription_matched_status().current_count
 
 
+def _service_part(node: Node, service: str, ros_type: str, part: str) -> tuple[str, type, QosProfile, bytes]:
+    """The DDS topic, struct, QoS and user data of a service's "Request" or "Response" side."""
+    topic = names.request_topic(service) if part == "Request" else names.reply_topic(service)
+    return topic, node.library.service_part(f"{ros_type}_{part}"), SERVICES, node.type_user_data(f"{ros_type}_{part}")
+
+
 class ServiceServer:
     """Takes requests of one service and sends each reply back to the client that asked.
 
@@ -99,10 +105,8 @@ class ServiceServer:
     """
 
     def __init__(self, node: Node, service: str, ros_type: str) -> None:
-        self.requests = node.subscription_of(names.request_topic(service), node.library.service_part(
-            f"{ros_type}_Request"), SERVICES, node.type_user_data(f"{ros_type}_Request"))
-        self._replies = node.publisher_of(names.reply_topic(service), node.library.service_part(
-            f"{ros_type}_Response"), SERVICES, node.type_user_data(f"{ros_type}_Response"))
+        self.requests = node.subscription_of(*_service_part(node, service, ros_type, "Request"))
+        self._replies = node.publisher_of(*_service_part(node, service, ros_type, "Response"))
         self._pending: list[tuple[float, Any, Any]] = []
 
     def take(self) -> list[Any]:
@@ -147,10 +151,8 @@ class ServiceClient:
     """Sends requests of one service and picks out the replies addressed to it."""
 
     def __init__(self, node: Node, service: str, ros_type: str) -> None:
-        self._requests = node.publisher_of(names.request_topic(service), node.library.service_part(
-            f"{ros_type}_Request"), SERVICES, node.type_user_data(f"{ros_type}_Request"))
-        self._replies = node.subscription_of(names.reply_topic(service), node.library.service_part(
-            f"{ros_type}_Response"), SERVICES, node.type_user_data(f"{ros_type}_Response"))
+        self._requests = node.publisher_of(*_service_part(node, service, ros_type, "Request"))
+        self._replies = node.subscription_of(*_service_part(node, service, ros_type, "Response"))
         self.guid = self._requests.writer.instance_handle & 0xFFFF_FFFF_FFFF_FFFF  # rmw sends it unsigned
         self._sequence = itertools.count(1)
         self._waiting: dict[int, Any] = {}
