@@ -15,8 +15,8 @@ if TYPE_CHECKING:
     from plem.bridge.client import RobotClient
     from plem.control.state import JointState
 
-RobotId = Annotated[str | None, typer.Option("--robot-id", help="Robot to talk to (default: $PLEM_ROBOT_ID, else indy).",
-                                             show_default=False)]
+RobotId = Annotated[str | None, typer.Option(
+    "--robot-id", help="Robot to talk to (default: $PLEM_ROBOT_ID, else indy).", show_default=False)]
 WATCH_PERIOD_S = 0.1
 
 

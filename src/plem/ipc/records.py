@@ -2,8 +2,7 @@
 
 An rt_raw sample is one float64 record: the state block's header scalars (cycle, time, mode, fault,
 drives enabled), this cycle's wake-up latency and the previous cycle's compute time, then the state
-block's joint rows. Events and
-statistics are rare and travel as JSON.
+block's joint rows. Events and statistics are rare and travel as JSON.
 """
 
 from __future__ import annotations

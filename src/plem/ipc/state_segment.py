@@ -2,9 +2,9 @@
 
 The header says what the block holds (magic, layout version, DOF, a hash of the joint names, cycle time),
 who writes it (owner pid), the joint limits and the named poses (SRDF group states), so a client can
-validate commands and name targets without the description package. The state block behind it is the seqlock of `plem.control.state`; its
-per-cycle time stamp is the driver's heartbeat. A segment whose owner is gone, or whose heartbeat
-stopped, is stale and may be replaced; a live one is never taken over.
+validate commands and name targets without the description package. The state block behind it is the
+seqlock of `plem.control.state`; its per-cycle time stamp is the driver's heartbeat. A segment whose
+owner is gone, or whose heartbeat stopped, is stale and may be replaced; a live one is never taken over.
 """
 
 from __future__ import annotations

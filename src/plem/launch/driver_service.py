@@ -1,8 +1,9 @@
 """The RT driver's service thread: takes client requests from the command ring and publishes loop statistics.
 
-It runs beside the loop thread at normal priority. Each request is validated again (`check_request`),
-handed to the robot without waiting for the motion, and answered in the replies ring when the loop
-accepts, rejects or finishes it. Ten times a second it writes a statistics record for monitors.
+It runs beside the loop thread, at SCHED_FIFO priority 1 when permitted (below the loop; see
+`keep_threads_scheduled`). Each request is validated again (`check_request`), handed to the robot
+without waiting for the motion, and answered in the replies ring when the loop accepts, rejects or
+finishes it. Ten times a second it writes a statistics record for monitors.
 """
 
 from __future__ import annotations

@@ -38,9 +38,10 @@ def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChanne
     channels: list[RobotChannels] = []
 
     def state_block(limits: Any) -> Any:
+        mode = 0o640 if plan.shm_group is not None else 0o600
         channels.append(RobotChannels.create(plan.robot_id, limits, plan.config.cycle_time * 1000,
-                                             poses=plan.poses(limits.joint_names), mode=0o640 if plan.shm_group is not None else 0o600,
-                                             group=plan.shm_group, warn=warn))
+                                             poses=plan.poses(limits.joint_names), mode=mode, group=plan.shm_group,
+                                             warn=warn))
         return channels[0].state.block
 
     try:

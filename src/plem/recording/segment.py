@@ -1,10 +1,10 @@
-"""One rosbag2 segment being written: a bag directory whose MCAP file reaches the disk at least every second.
+"""One rosbag2 segment being written: a bag directory whose storage file reaches the disk every second.
 
-rosbags' MCAP writer keeps messages in a pending chunk of up to 1 MiB (about 2.5 s of rt_raw), its sqlite3
-writer in one transaction, and both write the bag's metadata.yaml only when closed. The segment closes the chunk and flushes the file every
-`flush_period_s`, and once right after the connections are added (the first chunk then carries every
-schema and channel), so a killed recorder loses at most the last period; `repair` rebuilds what a
-killed segment lacks.
+rosbags' MCAP writer keeps messages in a pending chunk of up to 1 MiB (about 2.5 s of rt_raw), its
+sqlite3 writer in one transaction, and both write the bag's metadata.yaml only when closed. The segment
+closes the chunk (or commits) and flushes the file every `flush_period_s`, and once right after the
+connections are added (the first chunk then carries every schema and channel), so a killed recorder
+loses at most the last period; `repair` rebuilds what a killed segment lacks.
 """
 
 from __future__ import annotations

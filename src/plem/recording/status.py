@@ -1,7 +1,8 @@
 """The recorder's counters in shared memory, so the bridge reports them in rt_monitor_stats as well.
 
-The recorder rewrites `/dev/shm/plem_recorder_{robot_id}.json` (JSON, atomically, owner only) twice a second
-and removes it when it ends (the name stays out of the driver's `{robot_id}_*` set); a file left by a killed recorder is ignored because its pid no longer runs.
+The recorder rewrites `/dev/shm/plem_recorder_{robot_id}.json` (JSON, atomically, owner only) twice a
+second and removes it when it ends (the name stays out of the driver's `{robot_id}_*` set); a file left
+by a killed recorder is ignored because its pid no longer runs.
 """
 
 from __future__ import annotations
