@@ -159,15 +159,17 @@ def assert_error_form(text: str) -> None:
         assert re.search(rf"^{label} \S", text, re.MULTILINE), f"no {label} line in:\n{text}"
 
 
-def watch_until_hold(client: RobotClient, samples, timeout: float = 20) -> tuple[list[int], set[Mode]]:
-    """Every cycle's sample until the loop is back in HOLD: their cycle numbers and the modes they show."""
+def watch_until_hold(client: RobotClient, samples, timeout: float = 20) -> tuple[list[int], list[int], set[Mode]]:
+    """Every cycle's sample until the loop is back in HOLD: their cycle numbers, times and the modes they show."""
     cycles: list[int] = []
+    times: list[int] = []
     modes: set[Mode] = set()
     faulted = False
     deadline = time.monotonic() + timeout
     while True:
         for sample in samples:
             cycles.append(sample.cycle)
+            times.append(sample.monotonic_ns)
             modes.add(sample.mode)
             faulted |= sample.faulted
         if Mode.HOLD in modes and client.state().mode is Mode.HOLD:
@@ -175,24 +177,23 @@ def watch_until_hold(client: RobotClient, samples, timeout: float = 20) -> tuple
         assert time.monotonic() < deadline, f"no HOLD within {timeout} s; modes seen {modes}"
         time.sleep(0.05)
     assert not faulted
-    return cycles, modes
+    return cycles, times, modes
 
 
 def assert_loop_undisturbed(client: RobotClient, killed: subprocess.Popen, target: list[float]) -> None:
     """Kill `killed` mid-motion, then: every cycle ran at ~1 kHz, the motion finished, no fault."""
     events = client.events(timeout=0)
     samples = client.stream(timeout=0)
-    started = time.monotonic()
     killed.send_signal(signal.SIGKILL)
     killed.wait(10)
     assert killed.returncode == -signal.SIGKILL
     assert client.state().mode is Mode.TRAJECTORY, "the client was not killed in the middle of the motion"
 
-    cycles, modes = watch_until_hold(client, samples)
-    elapsed = time.monotonic() - started
+    cycles, times, modes = watch_until_hold(client, samples)
+    elapsed = (times[-1] - times[0]) / 1e9                   # the loop's own clock: no stall hides in it
     assert samples.dropped == 0
     assert np.all(np.diff(cycles) == 1), "the loop skipped or repeated cycles"
-    assert 0.85 * LOOP_HZ < len(cycles) / elapsed < 1.15 * LOOP_HZ, (len(cycles), elapsed)
+    assert 0.85 * LOOP_HZ < (len(cycles) - 1) / elapsed < 1.15 * LOOP_HZ, (len(cycles), elapsed)
     assert Mode.FAULT not in modes and Mode.TRAJECTORY in modes
 
     state = client.state()
@@ -288,9 +289,7 @@ def test_sigkill_of_launch_alone_stops_the_driver_cleanly(tmp_path: Path):
         events = client.events(timeout=0)
         launch.process.kill()
         launch.process.wait(10)
-        killed = time.monotonic()
         assert wait_until(lambda: process_gone(driver) and not shm_files(robot_id), 5), shm_files(robot_id)
-        assert time.monotonic() - killed < 5
         # The mappings outlive the unlinked names: the driver's last words are still readable.
         stopped = [e for e in events if e.kind is EventKind.MODE_CHANGED]
         assert [(e.previous_mode, e.mode) for e in stopped] == [(Mode.HOLD, Mode.IDLE)], stopped
@@ -331,7 +330,6 @@ def test_two_robots_in_one_launch_are_isolated(tmp_path: Path):
         resting = still.state()
         moving.set_mode("hold")
         target = target_away(moving, 0.4)
-        started = time.monotonic()
         handle = moving.move_joints(target, 1.0)
         while not handle.done:
             during = still.state()
@@ -341,7 +339,7 @@ def test_two_robots_in_one_launch_are_isolated(tmp_path: Path):
         assert np.allclose(moving.state().position, target, atol=ARRIVED)
         after = still.state()
         assert np.array_equal(after.position, resting.position) and after.mode is resting.mode
-        assert after.cycle - resting.cycle > 0.8 * LOOP_HZ * (time.monotonic() - started)
+        assert after.cycle - resting.cycle > 0.8 * LOOP_HZ * (after.monotonic_ns - resting.monotonic_ns) / 1e9
 
         moving_kinds = {e.kind for e in moving.events(timeout=0, from_oldest=True)}
         still_kinds = {e.kind for e in still.events(timeout=0, from_oldest=True)}

@@ -25,6 +25,7 @@ from plem.launch.plan import plan_robot
 from plem.launch.recorder import record
 from plem.launch.rt_driver import build
 from plem.recording.archive import read_event_log
+from plem.recording.status import read_status
 from tests.e2e.cli import run_plem
 from tests.e2e.launched import clean_environment, launched, new_robot_id, wait_until
 
@@ -70,9 +71,9 @@ def test_every_cycle_is_recorded_and_reads_back_with_embedded_definitions(tmp_pa
     assert cycles[-1] > seen, "the smooth stop after Ctrl-C is recorded too"
     assert all(later > earlier for (earlier, _), (later, _) in zip(raw, raw[1:])), "stamps strictly increase"
     assert len(segments(bags / robot_id)) >= 3
-    seconds = len(cycles) / 1000
+    seconds = (raw[-1][0] - raw[0][0]) / 1e9                 # the cycles' own time, not the test's
     assert abs(len(topics["joint_states"]) - 100 * seconds) <= 2, "joint_states at 100 Hz of cycle time"
-    assert abs(len(topics["rt_monitor_stats"]) - 10 * seconds) <= 3
+    assert abs(len(topics["rt_monitor_stats"]) - 10 * seconds) <= max(3.0, 0.05 * 10 * seconds), "stats at 10 Hz"
     assert topics["joint_states"][0][1].name == [f"joint{i}" for i in range(6)]
     kinds = [(message.previous_mode, message.mode) for _, message in topics["rt_events"]]
     assert ("idle", "hold") in kinds
@@ -90,6 +91,8 @@ def test_a_killed_recorder_leaves_repairable_bags_and_a_running_robot(tmp_path: 
     with launched(arguments, [robot_id], tmp_path, clean_environment(tmp_path / "home")) as launch, \
             connect(robot_id) as client:
         time.sleep(random.Random(seed).uniform(1.0, 3.5))
+        ring = {queue.name: queue for queue in read_status(robot_id)}["recorder:rt_raw"]
+        taken = ring.written - ring.fill                  # the last cycle the recorder had taken from the ring
         os.kill(launch.component_pid("recorder"), signal.SIGKILL)
         killed_at = client.state().cycle
         launch.wait_for(f"[{robot_id}/recorder] killed by SIGKILL", timeout=5)
@@ -99,7 +102,7 @@ def test_a_killed_recorder_leaves_repairable_bags_and_a_running_robot(tmp_path: 
     assert result.returncode == 0, result.stderr
     cycles = [message.cycle for _, message in read_bags(bags / robot_id)["rt_raw"]]
     assert cycles == list(range(1, len(cycles) + 1)), "closed segments whole, the open one up to its end"
-    assert cycles[-1] >= killed_at - 1100, f"more than about a second lost: {cycles[-1]} of {killed_at}"
+    assert cycles[-1] >= taken - 1100, f"more than about a second lost: {cycles[-1]} of {taken} taken"
 
 
 @pytest.fixture
@@ -153,8 +156,9 @@ def test_a_fault_keeps_its_pre_fault_window_and_logs_its_bag_position(tmp_path: 
                 if connection.topic.endswith("/rt_raw"):
                     stamps.append((stamp, store.deserialize_cdr(data, connection.msgtype)))
     fault_ns = entry["fault_time_ns"]
-    window = [message.cycle for stamp, message in stamps if fault_ns - 2_000_000_000 <= stamp < fault_ns]
-    assert len(window) >= 1990 and np.all(np.diff(window) == 1), "the 2 s before the fault, every cycle"
+    window = [(stamp, message.cycle) for stamp, message in stamps if fault_ns - 2_000_000_000 <= stamp < fault_ns]
+    assert window[0][0] <= fault_ns - 1_980_000_000, "the recording reaches 2 s back from the fault"
+    assert np.all(np.diff([cycle for _, cycle in window]) == 1), "every cycle of those 2 s"
     with Reader(bags / robot_id / entry["segment"]) as reader:
         start = reader.start_time
     assert abs(start + entry["offset_s"] * 1e9 - fault_ns) < 2e6, "the logged position points at the fault"

@@ -136,7 +136,7 @@ def test_service_call(server: subprocess.Popen[str], node: Node) -> None:
 def test_server_outlives_its_clients(server: subprocess.Popen[str], node: Node) -> None:
     """When every client writer is gone the server's reader gets a no-data sample; it must skip it."""
     client = node.client(SERVICE, CANCEL_GOAL)
-    assert wait_until(lambda: client.ready)
+    assert wait_until(lambda c=client: c.ready)
     assert client.call(5.0, goal_info=goal_info(node, bytes(16), 1)).return_code == 2
     del client
     gc.collect()

@@ -67,7 +67,6 @@ def test_a_motion_is_answered_and_shows_in_events_and_stats(served):
         stats = client.stats()
         assert stats["commands"]["accepted"] >= 2 and stats["commands"]["rejected"] == 0
         assert stats["latency_interval"]["samples"] > 0 and stats["cycles"] > 0
-        json.dumps(stats)
 
 
 def test_a_second_driver_process_for_the_same_robot_is_refused(served):
