@@ -4,29 +4,30 @@ Usage: python benchmarks/bridge_ipc.py [--seconds 20] [--pairs 3] [--clients 10]
 Needs root for SCHED_FIFO (as `plem launch` on a real machine).
 
 What runs:
-  robot       `plem launch bus:=mock robot_id:=bench_<pid> record:=false` (Indy7 v2, MockBus with dynamics,
-              1 kHz, SCHED_FIFO 98) in a subprocess; the measurements are made from this process through
-              plem.bridge.connect, as any client would.
+  robot       `plem launch bus:=mock robot_id:=bench_<pid> bridge:=false record:=false` (Indy7 v2, MockBus
+              with dynamics, 1 kHz, SCHED_FIFO 98) in a subprocess, in hold mode: the RT driver alone. The
+              measurements are made from this process through plem.bridge.connect, as any client would.
   command     --moves small move_joints (0.02 rad on every joint, back and forth), each waited for. Latency =
               from just before the client's move_joints() call to the loop cycle that starts the motion (its
               motion_started event): in cycles (1 = the first cycle after the call; counted from the last
               cycle published before the call) and in
               µs (event time minus the call time). Baseline, same run: the same moves on an in-process Robot
               (same model and bus, loop in a thread of this process), where move_joints plans in the caller and
-              hands the motion to the loop through a deque.
+              hands the motion to the loop through a deque. It runs only for its own moves, after the client's
+              moves and reads, so its loop thread disturbs neither.
   state read  client.state() from shared memory, against the same StateBlock.read() over private memory
               (the in-process robot's read); 5 interleaved rounds of 50 000 reads, median of the per-read means.
-  polling     --pairs pairs of --seconds windows, alternating: no clients / --clients processes each calling
-              client.state() in a tight loop. The loop's wake-up latency of every cycle of the window is read
-              from the rt_raw ring (this process drains it every 0.5 s in both windows); p50/p99/p99.9/max per
-              window and the ratio with clients over without, median over the pairs. Target: p99.9 <= 1.1x.
+  polling     --pairs pairs of --seconds windows: no clients / --clients processes each calling
+              client.state() in a tight loop (the order alternates between pairs). The loop's wake-up latency
+              of every cycle of the window is read from the rt_raw ring (this process drains it every 0.5 s in
+              both windows); p50/p99/p99.9/max per window and the ratio with clients over without, median over
+              the pairs. Target: p99.9 <= 1.1x.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import platform
 import signal
 import statistics
 import subprocess
@@ -40,32 +41,15 @@ from pathlib import Path
 
 import numpy as np
 
+from launching import begin_run, drain_loop, first_sample, latency_figures, launch, read_line, stop_all, verdict
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.control.events import EventKind
 from plem.control.state import StateBlock
 from plem.fieldbus import MockBus
-from plem.ipc.records import RAW_SCALARS
 from plem.robot import Indy7V2, Robot
 
 AMPLITUDE = 0.02
-
-
-def launch(robot_id: str, log: Path) -> subprocess.Popen:
-    """`plem launch` of the simulated arm (output to `log`), returned once its summary is printed."""
-    with log.open("w") as output:
-        process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", "bus:=mock", f"robot_id:={robot_id}",
-                                    "record:=false"], stdout=output, stderr=subprocess.STDOUT, text=True)
-    while "Ctrl-C stops" not in log.read_text():
-        if process.poll() is not None:
-            raise SystemExit(f"plem launch did not start (exit {process.returncode}):\n{log.read_text()}")
-        time.sleep(0.2)
-    return process
-
-
-def stop(process: subprocess.Popen) -> None:
-    process.send_signal(signal.SIGINT)
-    process.wait(30)
 
 
 def move_latencies(move: Callable[[list[float]], object], started: Callable[[], tuple[int, int]],
@@ -105,7 +89,8 @@ def local_latencies(robot: Robot, moves: int) -> tuple[list[int], list[float]]:
                           lambda: robot.state().cycle, robot.limits.dof, moves)
 
 
-def read_cost(reads: Sequence[tuple[str, Callable[[], object]]], rounds: int = 5, count: int = 50_000) -> dict[str, float]:
+def read_cost(reads: Sequence[tuple[str, Callable[[], object]]], rounds: int = 5,
+              count: int = 50_000) -> dict[str, float]:
     """Median over interleaved rounds of the mean µs per call."""
     samples: dict[str, list[float]] = {name: [] for name, _ in reads}
     for _ in range(rounds):
@@ -138,32 +123,27 @@ class Window:
     clients: int
     latency_us: np.ndarray
     dropped: int
-    client_reads: int
-
-    def figures(self) -> dict[str, float]:
-        p50, p99, p999 = np.percentile(self.latency_us, (50, 99, 99.9))
-        return {"p50": p50, "p99": p99, "p999": p999, "max": float(self.latency_us.max())}
+    reads_per_s: float                     # of all pollers together, from their start to their stop
 
 
-def window(client: RobotClient, robot_id: str, clients: int, seconds: float) -> Window:
-    pollers = [subprocess.Popen([sys.executable, "-c", POLLER, robot_id], stdout=subprocess.PIPE, text=True)
-               for _ in range(clients)]
+def window(client: RobotClient, robot_id: str, clients: int, seconds: float, env: dict[str, str],
+           children: list[subprocess.Popen]) -> Window:
+    """The loop latency of `seconds` with `clients` poller processes calling client.state(); their reads per s."""
+    pollers = [subprocess.Popen([sys.executable, "-c", POLLER, robot_id], stdout=subprocess.PIPE, text=True, env=env,
+                                start_new_session=True) for _ in range(clients)]
+    children.extend(pollers)
     for poller in pollers:
-        assert poller.stdout.readline().strip() == "ready"
-    reader = client.channels.rings["rt_raw"].reader()
-    latencies: list[np.ndarray] = []
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        time.sleep(0.5)
-        records = reader.read_all()
-        if records:
-            latencies.append(np.frombuffer(b"".join(records), dtype=np.float64).reshape(len(records), -1)[:, RAW_SCALARS.index("latency_ns")])
+        if read_line(poller, 30.0) != "ready":
+            raise SystemExit("a polling client did not start")
+    start = time.monotonic()
+    latency, dropped = drain_loop(client, seconds)
     reads = 0
     for poller in pollers:
         poller.send_signal(signal.SIGTERM)
-        reads += int(poller.stdout.readline() or 0)
+        reads += int(read_line(poller, 10.0) or 0)
         poller.wait()
-    return Window(clients, np.concatenate(latencies) / 1e3, reader.dropped, reads)
+        children.remove(poller)
+    return Window(clients, latency, dropped, reads / (time.monotonic() - start))
 
 
 def percentiles(values: Sequence[float]) -> str:
@@ -178,55 +158,63 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--clients", type=int, default=10)
     parser.add_argument("--moves", type=int, default=200)
     args = parser.parse_args(argv)
-    print(f"machine: {platform.node()} {platform.machine()}, {os.cpu_count()} CPUs, kernel {platform.release()}, "
-          f"Python {platform.python_version()}")
+    print(f"machine: {begin_run()}")
     robot_id = f"bench_{os.getpid()}"
-    process = launch(robot_id, Path(tempfile.gettempdir()) / f"{robot_id}.log")
+    env = dict(os.environ)
+    children: list[subprocess.Popen] = []
     try:
+        launch(robot_id, env, Path(tempfile.gettempdir()) / f"{robot_id}.log", children, bridge=False, record=False)
         client = connect(robot_id)
-        client.set_mode("hold")
-        config = Indy7V2()
-        config.custom_bus = MockBus(config.dof)
-        local = Robot.builder(config).with_robot_id(f"local_{os.getpid()}").build()
-        local.start()
-        local.set_mode("hold")
+        first_sample(client, 0.0)
         print(f"\ncommand latency, {args.moves} move_joints each (cycles of 1 ms; µs)")
         remote_cycles, remote_us = remote_latencies(client, args.moves)
-        local_cycles, local_us = local_latencies(local, args.moves)
-        print(f"  plem.bridge client (shared memory)  cycles {percentiles(remote_cycles)}   µs {percentiles(remote_us)}")
-        print(f"  in-process Robot (baseline)         cycles {percentiles(local_cycles)}   µs {percentiles(local_us)}")
-        print(f"  ratio p50 (µs) {np.median(remote_us) / np.median(local_us):.2f}x")
         block = StateBlock(client.dof)
         block.publish(np.zeros((6, client.dof)), 1, time.monotonic_ns(), 1, False, True)
         costs = read_cost([("client.state() over shared memory", client.state),
                            ("StateBlock.read() over private memory (baseline)", block.read)])
+        config = Indy7V2()                 # the baseline robot runs only for its own moves
+        config.custom_bus = MockBus(config.dof)
+        local = Robot.builder(config).with_robot_id(f"local_{os.getpid()}").build()
+        local.start()
+        try:
+            local.set_mode("hold")
+            local_cycles, local_us = local_latencies(local, args.moves)
+        finally:
+            local.shutdown()
+        print(f"  plem.bridge client (shared memory)  cycles {percentiles(remote_cycles)}   "
+              f"µs {percentiles(remote_us)}")
+        print(f"  in-process Robot (baseline)         cycles {percentiles(local_cycles)}   µs {percentiles(local_us)}")
+        print(f"  ratio p50 (µs) {np.median(remote_us) / np.median(local_us):.2f}x")
         print("\none state read (µs, median of 5 rounds of 50 000)")
         for name, cost in costs.items():
             print(f"  {name:<52} {cost:.2f}")
         values = list(costs.values())
         print(f"  ratio {values[0] / values[1]:.2f}x")
-        local.shutdown()
 
         print(f"\nloop wake-up latency (µs) with {args.clients} clients polling state() vs none, "
-              f"{args.pairs} pairs of {args.seconds:.0f} s")
+              f"{args.pairs} pairs of {args.seconds:.0f} s (the order alternates between pairs)")
         print(f"  {'pair':<5}{'clients':>8}{'cycles':>8}{'p50':>7}{'p99':>7}{'p99.9':>7}{'max':>7}"
               f"{'dropped':>9}{'reads/s':>12}")
         ratios = []
         for pair in range(1, args.pairs + 1):
-            quiet = window(client, robot_id, 0, args.seconds)
-            busy = window(client, robot_id, args.clients, args.seconds)
-            for run in (quiet, busy):
-                f = run.figures()
-                print(f"  {pair:<5}{run.clients:>8}{run.latency_us.size:>8}{f['p50']:>7.0f}{f['p99']:>7.0f}"
-                      f"{f['p999']:>7.0f}{f['max']:>7.0f}{run.dropped:>9}{run.client_reads / args.seconds:>12.0f}")
-            ratios.append(busy.figures()["p999"] / quiet.figures()["p999"])
+            order = (0, args.clients) if pair % 2 else (args.clients, 0)
+            runs = {count: window(client, robot_id, count, args.seconds, env, children) for count in order}
+            for count in order:
+                run = runs[count]
+                p50, p99, p999, top = latency_figures(run.latency_us)
+                print(f"  {pair:<5}{run.clients:>8}{run.latency_us.size:>8}{p50:>7.0f}{p99:>7.0f}"
+                      f"{p999:>7.0f}{top:>7.0f}{run.dropped:>9}{run.reads_per_s:>12.0f}")
+            ratios.append(latency_figures(runs[args.clients].latency_us)[2] / latency_figures(runs[0].latency_us)[2])
         median = statistics.median(ratios)
         print(f"  p99.9 ratio per pair: {', '.join(f'{r:.2f}' for r in ratios)}; median {median:.2f}x "
-              f"(target <= 1.1x: {'met' if median <= 1.1 else 'NOT met'})")
+              f"(target <= 1.1x: {verdict(median <= 1.1)})")
         client.close()
     finally:
-        stop(process)
+        stop_all(children)
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:
+        raise SystemExit("interrupted; the launch and the polling clients were stopped") from None

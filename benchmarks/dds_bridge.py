@@ -42,11 +42,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import signal
 import statistics
 import subprocess
-import sys
 import tempfile
 import textwrap
 import time
@@ -56,8 +54,8 @@ from pathlib import Path
 
 import numpy as np
 
-from launching import (SHM_CLIENT, CpuMeter, drain_loop, finish, first_sample, launch, result, start_reader, stop,
-                       stop_all)
+from launching import (SHM_CLIENT, CpuMeter, begin_run, drain_loop, finish, first_sample, latency_figures, launch,
+                       ratio, result, start_reader, stop, stop_all, verdict)
 from plem.bridge import connect
 from plem.middleware.qos import RT_RAW
 
@@ -145,8 +143,7 @@ class LoopWindow:
     dds: dict | None = None
 
     def figures(self) -> tuple[float, float, float, float]:
-        p50, p99, p999 = np.percentile(self.latency_us, (50, 99, 99.9))
-        return p50, p99, p999, float(self.latency_us.max())
+        return latency_figures(self.latency_us)
 
 
 def loop_window(robot_id: str, bridge: bool, seconds: float, settle: float, env: dict[str, str], log: Path,
@@ -173,14 +170,6 @@ def loop_window(robot_id: str, bridge: bool, seconds: float, settle: float, env:
 
 
 # -- report --------------------------------------------------------------------------------------------
-def verdict(met: bool) -> str:
-    return "MET" if met else "NOT MET"
-
-
-def ratio(value: float, baseline: float) -> str:
-    return f"{value / baseline:.2f}x" if baseline else "-"
-
-
 def counts(data: dict) -> tuple[int, int, int]:
     published = data["last"] - data["first"] + 1
     return published, data["unique"], published - data["unique"]
@@ -197,13 +186,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     settle = 1.0
     if args.quick:
         args.seconds, args.window, args.pairs, settle = 2.0, 2.0, 1, 0.5
-    if os.geteuid() != 0:
-        raise SystemExit("needs root: the launched loop runs SCHED_FIFO 98 (run with sudo)")
-    # Stop cleanly (the finally below) on Ctrl-C, even when started with SIGINT ignored, and on SIGTERM.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
-    print(f"machine: {platform.node()} {platform.machine()}, {os.cpu_count()} CPUs, kernel {platform.release()}, "
-          f"Python {platform.python_version()}")
+    print(f"machine: {begin_run()}")
     robot_id = f"bench_{os.getpid()}"
     env = discovery_environment(args.domain)
     logs = Path(tempfile.gettempdir())

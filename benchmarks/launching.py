@@ -1,12 +1,14 @@
 """What the launch benchmarks share: `plem launch` of the simulated arm, reader processes, CPU and loop readings.
 
-Used by dds_bridge.py and recorder.py (run as scripts from benchmarks/, so `import launching` finds this file).
+Used by bridge_ipc.py, dds_bridge.py and recorder.py (run as scripts from benchmarks/, so `import launching`
+finds this file).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import platform
 import re
 import select
 import signal
@@ -93,15 +95,29 @@ def launch(robot_id: str, env: dict[str, str], log: Path, children: list[subproc
         if process.poll() is not None or time.monotonic() > deadline:
             raise SystemExit(f"plem launch did not start (exit {process.poll()}):\n{text}")
         time.sleep(0.1)
-    driver = re.search(r"rt_driver\s+running, pid (\d+)", text)
+    driver = re.search(r"rt_driver\s+running, pid (\d+), SCHED_FIFO priority", text)
     bridge_line = re.search(r"bridge\s+running, pid (\d+)", text)
     recorder_line = re.search(r"recorder\s+recording, pid (\d+), into (.+?) \(", text)
     if driver is None or bridge != (bridge_line is not None) or record != (recorder_line is not None):
-        raise SystemExit(f"unexpected launch summary (bridge:={str(bridge).lower()}, "
+        raise SystemExit(f"unexpected launch summary (a loop at SCHED_FIFO, bridge:={str(bridge).lower()}, "
                          f"record:={str(record).lower()}):\n{text}")
     return Launch(process, log, int(driver.group(1)), int(bridge_line.group(1)) if bridge_line else None,
                   int(recorder_line.group(1)) if recorder_line else None,
                   Path(recorder_line.group(2)) if recorder_line else None)
+
+
+def start_component(module: str, arguments: dict[str, str], env: dict[str, str], log: Path,
+                    children: list[subprocess.Popen]) -> subprocess.Popen:
+    """A component of a running launch started as `plem launch` starts it (`python -m <module> '<arguments>'`,
+    its log appended to `log`), returned once it announced that it runs."""
+    with log.open("a") as output:
+        process = subprocess.Popen([sys.executable, "-m", module, json.dumps(arguments)], stdin=subprocess.PIPE,
+                                   stdout=subprocess.PIPE, stderr=output, text=True, env=env, start_new_session=True)
+    children.append(process)
+    line = read_line(process, 60.0)
+    if not json.loads(line or "{}").get("ready"):
+        raise SystemExit(f"{module} did not start: {line!r}")
+    return process
 
 
 def stop(process: subprocess.Popen, graceful: signal.Signals = signal.SIGINT, timeout: float = 30.0) -> None:
@@ -174,6 +190,32 @@ class CpuMeter:
         return {name: (cpu_ticks(pid) - self.start[name]) / TICKS / elapsed * 100 for name, pid in self.pids.items()}
 
 
+# -- the run and its report ----------------------------------------------------------------------------
+def begin_run() -> str:
+    """Check for root (the launched loop runs SCHED_FIFO), stop cleanly on Ctrl-C and SIGTERM (the caller's
+    `finally` runs), and describe the machine."""
+    if os.geteuid() != 0:
+        raise SystemExit("needs root: the launched loop runs SCHED_FIFO 98 (run with sudo)")
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # even when started with SIGINT ignored
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
+    return (f"{platform.node()} {platform.machine()}, {os.cpu_count()} CPUs, kernel {platform.release()}, "
+            f"Python {platform.python_version()}")
+
+
+def verdict(met: bool) -> str:
+    return "met" if met else "NOT met"
+
+
+def ratio(value: float, baseline: float) -> str:
+    return f"{value / baseline:.2f}x" if baseline else "-"
+
+
+def latency_figures(latency_us: np.ndarray) -> tuple[float, float, float, float]:
+    """p50, p99, p99.9 and max of a window's wake-up latencies (µs)."""
+    p50, p99, p999 = np.percentile(latency_us, (50, 99, 99.9))
+    return float(p50), float(p99), float(p999), float(latency_us.max())
+
+
 # -- loop latency --------------------------------------------------------------------------------------
 def drain_loop(client: RobotClient, seconds: float) -> tuple[np.ndarray, int]:
     """Wake-up latency (µs) of every cycle of the next `seconds`, read from the rt_raw ring every 0.5 s."""
@@ -185,6 +227,8 @@ def drain_loop(client: RobotClient, seconds: float) -> tuple[np.ndarray, int]:
         records = reader.read_all()
         if records:
             latencies.append(np.frombuffer(b"".join(records), dtype=np.float64).reshape(len(records), -1)[:, LATENCY])
+    if not latencies:
+        raise SystemExit(f"no cycle of robot {client.robot_id} in {seconds:g} s: the loop does not run")
     return np.concatenate(latencies) / 1e3, reader.dropped
 
 

@@ -35,11 +35,12 @@ What runs:
               alternate: a recorder recording it / none (the order alternates between pairs: on/off, off/on, ...).
               The recorder is the launch's own component started as `plem launch` starts it (`python -m
               plem.launch.recorder '<launch arguments>'`, same bag_dir, segments and storage) before its window
-              and stopped with SIGINT after it (it records on for its drain time, then exits before the next
-              window). One launch for every window: launches differ from each other more than recording changes
-              one. The loop's wake-up latency of every cycle of the window is read from the rt_raw ring (this
-              process drains it every 0.5 s); p50/p99/p99.9/max per window and the ratio p99.9 (and p50) on over
-              off, median over the pairs, and p99.9 of all windows of each kind pooled. Target: p99.9 <= 1.1x.
+              and stopped with SIGINT after it (it records on for its drain time and exits; then os.sync() puts
+              what it wrote on disk, so no write-back of it falls into the next window). One launch for every
+              window: launches differ from each other more than recording changes one. The loop's wake-up
+              latency of every cycle of the window is read from the rt_raw ring (this process drains it every
+              0.5 s); p50/p99/p99.9/max per window and the ratio p99.9 (and p50) on over off, median over the
+              pairs, and p99.9 of all windows of each kind pooled. Target: p99.9 <= 1.1x.
               The recorder's CPU in each window with it and the 1-minute load average at each window's end are
               listed.
 """
@@ -47,9 +48,7 @@ What runs:
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import secrets
 import shutil
 import signal
@@ -65,8 +64,8 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from launching import (SHM_CLIENT, CpuMeter, Launch, drain_loop, finish, first_sample, launch, read_line, result,
-                       start_reader, stop, stop_all)
+from launching import (SHM_CLIENT, CpuMeter, Launch, begin_run, drain_loop, finish, first_sample, latency_figures,
+                       launch, ratio, result, start_component, start_reader, stop, stop_all, verdict)
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.ipc.records import raw_record_length
@@ -177,30 +176,14 @@ class LoopWindow:
     load: float
 
     def figures(self) -> tuple[float, float, float, float]:
-        p50, p99, p999 = np.percentile(self.latency_us, (50, 99, 99.9))
-        return p50, p99, p999, float(self.latency_us.max())
-
-
-def start_recorder(arguments: dict[str, str], env: dict[str, str], log: Path,
-                   children: list[subprocess.Popen]) -> subprocess.Popen:
-    """The recorder component as `plem launch` starts it (`python -m plem.launch.recorder '<arguments>'`, its
-    log appended to `log`), returned once it announced that it records."""
-    with log.open("a") as output:
-        process = subprocess.Popen([sys.executable, "-m", "plem.launch.recorder", json.dumps(arguments)],
-                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=output, text=True, env=env,
-                                   start_new_session=True)
-    children.append(process)
-    line = read_line(process, 60.0)
-    if not json.loads(line or "{}").get("ready"):
-        raise SystemExit(f"the recorder did not start: {line!r}")
-    return process
+        return latency_figures(self.latency_us)
 
 
 def loop_window(client: RobotClient, record: bool, seconds: float, settle: float, arguments: dict[str, str],
                 env: dict[str, str], log: Path, children: list[subprocess.Popen]) -> LoopWindow:
     """The loop latency of one window of the running launch, with a recorder of its own started for the window
     (and stopped after it: it records on until its drain time ends, `DRAIN_TIMEOUT_S`) or without one."""
-    recorder = start_recorder(arguments, env, log, children) if record else None
+    recorder = start_component("plem.launch.recorder", arguments, env, log, children) if record else None
     try:
         time.sleep(settle)
         meter = CpuMeter({"recorder": recorder.pid}) if recorder else None
@@ -211,17 +194,10 @@ def loop_window(client: RobotClient, record: bool, seconds: float, settle: float
         if recorder is not None:
             stop(recorder, signal.SIGINT, DRAIN_TIMEOUT_S + 10.0)
             children.remove(recorder)
+            os.sync()                      # what it wrote reaches the disk now, not during the next window
 
 
-# -- report --------------------------------------------------------------------------------------------
-def verdict(met: bool) -> str:
-    return "met" if met else "NOT met"
-
-
-def ratio(value: float, baseline: float) -> str:
-    return f"{value / baseline:.2f}x" if baseline else "-"
-
-
+# -- report ----------------------------------------------------------------------------------------------
 def megabytes(value: float) -> str:
     return f"{value / 1e6:.2f} MB"
 
@@ -238,15 +214,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     settle = 1.0
     if args.quick:
         args.seconds, args.segment, args.window, args.pairs, settle = 10.0, 4.0, 3.0, 1, 0.5
-    if os.geteuid() != 0:
-        raise SystemExit("needs root: the launched loop runs SCHED_FIFO 98 (run with sudo)")
-    # Stop cleanly (the finally below) on Ctrl-C, even when started with SIGINT ignored, and on SIGTERM.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
+    machine = begin_run()
     command = (f".venv/bin/python benchmarks/recorder.py --seconds {args.seconds:g} --window {args.window:g} "
                f"--pairs {args.pairs} --segment {args.segment:g} --storage {args.storage}")
-    machine = (f"{platform.node()} {platform.machine()}, {os.cpu_count()} CPUs, kernel {platform.release()}, "
-               f"Python {platform.python_version()}")
     print(f"machine: {machine}; load average {os.getloadavg()[0]:.2f}")
     work = Path(tempfile.mkdtemp(prefix="plem-bench-rec-"))
     bag_dir, logs = work / "bags", work / "logs"
@@ -360,8 +330,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             rows.append((pair, by_kind[True], by_kind[False]))
         median = statistics.median(p999_ratios)
         median_p50 = statistics.median(p50_ratios)
-        pooled = {record: np.percentile(np.concatenate([loop.latency_us for _, loop in windows if loop.record == record]),
-                                        99.9) for record in (True, False)}
+        pooled = {record: np.percentile(np.concatenate([loop.latency_us for _, loop in windows
+                                                        if loop.record == record]), 99.9) for record in (True, False)}
         print(f"  p99.9 on / off per pair: {', '.join(f'{r:.2f}' for r in p999_ratios)}; median {median:.2f}x "
               f"(target <= {LOOP_TARGET:g}x: {verdict(median <= LOOP_TARGET)})")
         print(f"  p50 on / off per pair: {', '.join(f'{r:.2f}' for r in p50_ratios)}; median {median_p50:.2f}x")
@@ -389,8 +359,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         print("| --- | --- | --- | --- | --- | --- |")
         for (pair, on, off), value in zip(rows, p999_ratios):
             print(f"| {pair} | {on[2]:.0f} | {off[2]:.0f} | {value:.2f} | {on[0]:.0f} | {off[0]:.0f} |")
-        print(f"\nLoop p99.9 recording / not recording (one launch), median over {args.pairs} pair(s) of {args.window:g} s: "
-              f"**{median:.2f}×** (target ≤ {LOOP_TARGET:g}×: {verdict(median <= LOOP_TARGET)}); p50 {median_p50:.2f}×; "
+        print(f"\nLoop p99.9 recording / not recording (one launch), median over {args.pairs} pair(s) of "
+              f"{args.window:g} s: **{median:.2f}×** "
+              f"(target ≤ {LOOP_TARGET:g}×: {verdict(median <= LOOP_TARGET)}); "
+              f"p50 {median_p50:.2f}×; "
               f"p99.9 of all windows pooled {pooled[True]:.0f} / {pooled[False]:.0f} µs = "
               f"{pooled[True] / pooled[False]:.2f}×.")
         succeeded = True
