@@ -4,18 +4,21 @@ from __future__ import annotations
 
 import contextlib
 import os
+import pwd
 import re
 import select
 import shutil
 import signal
 import subprocess
 import sys
+import sysconfig
 import textwrap
 import time
 import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
+import plem
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.recording.status import status_path
 from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID
@@ -178,6 +181,26 @@ def launched(arguments: Sequence[str], robot_ids: Sequence[str], directory: Path
         yield launch
     finally:
         launch.cleanup()
+
+
+def system_python() -> str | None:
+    """An interpreter of the tests' Python version outside root's home, which other users can run."""
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    return next((str(path) for path in (Path("/usr/bin") / version, Path("/usr/local/bin") / version)
+                 if path.exists()), None)
+
+
+def as_nobody(code: str, *args: str, groups: Sequence[int] = ()) -> subprocess.Popen:
+    """`code` (dedented) as user nobody under the system interpreter, with plem importable; stdout piped, text.
+
+    Needs root and `system_python()`; the caller skips without them.
+    """
+    nobody = pwd.getpwnam("nobody")
+    path = os.pathsep.join([str(Path(plem.__file__).parents[1]), sysconfig.get_paths()["purelib"]])
+    return subprocess.Popen([system_python() or "python3", "-c", textwrap.dedent(code), *args], user=nobody.pw_uid,
+                            group=nobody.pw_gid, extra_groups=list(groups), cwd="/", stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={"PATH": "/usr/bin:/bin", "PYTHONPATH": path, "HOME": "/tmp"})
 
 
 def python_client(code: str, *args: str, env: dict[str, str] | None = None) -> subprocess.Popen:

@@ -6,13 +6,10 @@ import grp
 import hashlib
 import json
 import os
-import pwd
 import re
 import signal
 import stat
 import subprocess
-import sys
-import sysconfig
 import time
 import uuid
 from collections.abc import Iterator
@@ -21,16 +18,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import plem
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.control.events import EventKind
 from plem.control.modes import Mode
-from plem.ipc.channels import channel_names
-from plem.ipc.ring import SlotRing
+from plem.ipc.channels import PRIVATE_RINGS, channel_names
+from plem.ipc.command_socket import socket_path
 from tests.e2e.cli import run_plem
+from tests.e2e.command_wire import RawConnection
 from tests.e2e.launched import (
     Launch,
+    as_nobody,
     clean_environment,
     launched,
     new_robot_id,
@@ -41,6 +39,7 @@ from tests.e2e.launched import (
     remove_generated,
     shm_files,
     start_launch,
+    system_python,
     wait_until,
 )
 
@@ -125,7 +124,8 @@ def group_robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Laun
 
 # -- shared checks -----------------------------------------------------------------------------------
 def expected_files(robot_id: str) -> list[str]:
-    return sorted(name[1:] for name in channel_names(robot_id).values())
+    """The shared memory of a robot and its command socket."""
+    return sorted([*(name[1:] for name in channel_names(robot_id).values()), socket_path(robot_id).name])
 
 
 def target_away(client: RobotClient, distance: float) -> list[float]:
@@ -363,25 +363,25 @@ def test_shm_group_makes_the_memory_group_readable(group_robot: tuple[Launch, gr
     launch, group = group_robot
     files = shm_files(launch.robot_id)
     assert [path.name for path in files] == expected_files(launch.robot_id)
+    private = {socket_path(launch.robot_id).name, *(name[1:] for ring, name in channel_names(launch.robot_id).items()
+                                                    if ring in (*PRIVATE_RINGS, "motions"))}
     for path in files:
         status = path.stat()
-        assert stat.S_IMODE(status.st_mode) == 0o640, path
-        assert (status.st_uid, status.st_gid) == (os.geteuid(), group.gr_gid), path
+        if path.name in private:   # the command socket and what only the driver and its command service map
+            assert stat.S_IMODE(status.st_mode) == 0o600, path
+            assert status.st_uid == os.geteuid(), path
+        else:
+            assert stat.S_IMODE(status.st_mode) == 0o640, path
+            assert (status.st_uid, status.st_gid) == (os.geteuid(), group.gr_gid), path
 
 
 def _run_as_group_member(group: grp.struct_group, code: str) -> subprocess.CompletedProcess[str]:
     """`code` under the system interpreter as user nobody, a member of `group` (needs root)."""
-    interpreter = next((str(path) for path in (Path("/usr/bin") / f"python{sys.version_info.major}."
-                                                f"{sys.version_info.minor}",
-                                                Path("/usr/local/bin") / f"python{sys.version_info.major}."
-                                                f"{sys.version_info.minor}") if path.exists()), None)
-    if os.geteuid() != 0 or interpreter is None:
+    if os.geteuid() != 0 or system_python() is None:
         pytest.skip("needs root and a system Python of the test's version")
-    nobody = pwd.getpwnam("nobody")
-    path = os.pathsep.join([str(Path(plem.__file__).parents[1]), sysconfig.get_paths()["purelib"]])
-    return subprocess.run([interpreter, "-c", code], user=nobody.pw_uid, group=nobody.pw_gid,
-                          extra_groups=[group.gr_gid], cwd="/", capture_output=True, text=True, timeout=60,
-                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": path, "HOME": "/tmp"})
+    process = as_nobody(code, groups=[group.gr_gid])
+    stdout, stderr = process.communicate(timeout=60)
+    return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
 
 
 def test_shm_group_member_can_read_the_state(group_robot: tuple[Launch, grp.struct_group]):
@@ -405,7 +405,6 @@ def test_malformed_commands_are_rejected_without_reaching_the_loop(robot: Launch
     assert wait_until(lambda: client.stats() is not None, 2)
     counted = client.stats()["commands"]
     before = client.state()
-    replies = client.channels.rings["replies"].reader()
     events = client.events(timeout=0)
     tag = uuid.uuid4().hex[:6]
     requests = {
@@ -414,31 +413,22 @@ def test_malformed_commands_are_rejected_without_reaching_the_loop(robot: Launch
                                 "speed_scale": 0.5},
         f"wrong-length-{tag}": {"op": "move_joints", "target": [0.1] * (client.dof - 1)},
     }
-    ring = SlotRing.attach(f"/{robot.robot_id}_commands", writable=True)
+    connection = RawConnection(robot.robot_id)
     try:
-        assert ring.write(b"\xff\x00{garbage")
+        connection.send(b"\xff\x00{garbage")
         for request_id, request in requests.items():
-            assert ring.write(json.dumps({"id": request_id, **request}).encode())
+            connection.send({"id": request_id, **request})
+        answers = connection.answers(4, timeout=5)
     finally:
-        ring.close()
-
-    answers: dict[str, list[dict]] = {}
-
-    def answered() -> bool:
-        for record in replies.read_all():
-            reply = json.loads(record)
-            answers.setdefault(reply["id"], []).append(reply)
-        return set(requests) <= set(answers)
-
-    assert wait_until(answered, 3), answers
+        connection.close()
+    assert [answer["stage"] for answer in answers] == ["rejected"] * 4, answers
+    assert "unreadable request" in answers[0]["error"]["summary"]
+    by_id = {answer["id"]: answer for answer in answers[1:]}
+    assert set(by_id) == set(requests)
+    assert "not a plem request" in by_id[f"unknown-op-{tag}"]["error"]["summary"]
+    assert "outside the position limits" in by_id[f"out-of-limit-{tag}"]["error"]["summary"]
+    assert "got 5 values" in by_id[f"wrong-length-{tag}"]["error"]["why"]
     assert wait_until(lambda: client.stats()["commands"]["received"] == counted["received"] + 4, 3)
-    time.sleep(0.2)  # anything a request started would show by now
-    answered()
-    assert {request_id: [r["stage"] for r in answers[request_id]] for request_id in requests} == \
-        dict.fromkeys(requests, ["rejected"])
-    assert "not a plem request" in answers[f"unknown-op-{tag}"][0]["error"]["summary"]
-    assert "outside the position limits" in answers[f"out-of-limit-{tag}"][0]["error"]["summary"]
-    assert f"{client.dof - 1} values for {client.dof} joints" in answers[f"wrong-length-{tag}"][0]["error"]["summary"]
     counts = client.stats()["commands"]
     assert counts == {**counted, "received": counted["received"] + 4, "rejected": counted["rejected"] + 4}
     seen = list(events)
@@ -455,16 +445,18 @@ def test_malformed_commands_are_rejected_without_reaching_the_loop(robot: Launch
 @pytest.mark.parametrize("record", [
     pytest.param(json.dumps({"id": "list-op", "op": ["stop"]}).encode(), id="list-op"),
     pytest.param(b'{"a":' * 5000 + b"1" + b"}" * 5000, id="deeply-nested"),
+    pytest.param(b'{"id": "inf", "op": "move_joints", "target": [Infinity, 0, 0, 0, 0, 0]}', id="infinity"),
 ])
 def test_a_record_that_breaks_validation_does_not_deafen_the_driver(tmp_path: Path, record: bytes):
     robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], tmp_path,
+    with launched(["bus:=mock", f"robot_id:={robot_id}", "bridge:=false", "record:=false"], [robot_id], tmp_path,
                   clean_environment(tmp_path / "plem_home")) as launch, connect(robot_id) as client:
-        ring = SlotRing.attach(f"/{robot_id}_commands", writable=True)
+        connection = RawConnection(robot_id)
         try:
-            assert ring.write(record)
+            connection.send(record)
+            assert [answer["stage"] for answer in connection.answers(1)] == ["rejected"]
         finally:
-            ring.close()
+            connection.close()
         assert client.set_mode("hold", timeout=3) is Mode.HOLD
         assert wait_until(lambda: client.stats()["commands"]["rejected"] == 1, 2)
         assert launch.process.poll() is None

@@ -14,8 +14,15 @@ from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
 from plem.errors import CommandRejected, PlemError, RobotFault
-from plem.ipc.requests import (check_request, decode, encode, error_from_json, reply, request_id_of,
-                               result_from_json)
+from plem.ipc.requests import (
+    check_request,
+    decode,
+    encode,
+    error_from_json,
+    reply,
+    request_id_of,
+    result_from_json,
+)
 
 JOINTS = ("a", "b", "c")
 LIMITS = ArmLimits(JOINTS, -np.ones(3), np.ones(3), np.full(3, 2.0), np.full(3, 4.0), np.full(3, 40.0),
@@ -40,14 +47,30 @@ def test_valid_requests_come_back_in_the_robot_api_types():
 
 @pytest.mark.parametrize("payload, words", [
     (request("fly"), "not a plem request"),
-    ({"op": "stop"}, "not a plem request"),
+    ({"op": "stop"}, "request id is malformed"),
+    ({"id": "x" * 5000, "op": "stop"}, "request id is malformed"),
+    ({"id": "1-1-abc\n", "op": "stop"}, "request id is malformed"),
+    (request("stop", goal="ü" * 3), "request id is malformed"),
     (request("stop", now=True), "unknown arguments"),
-    (request("move_joints", target=[0.1, 0.2]), "2 values for 3 joints"),
-    (request("move_joints", target=[0.1, float("nan"), 0.2]), "NaN"),
+    (request("move_joints", target=[0.1, 0.2]), "got 2 values"),
+    (request("move_joints", target=[0.1, float("nan"), 0.2]), "out of range"),
+    (request("move_joints", target=[0.1, 10**400, 0.2]), "out of range"),
+    (request("move_joints", target=[0.1, "0.2", 0.3]), "not a number"),
+    (request("move_joints", target=[0.1, False, 0.3]), "not a number"),
+    (request("move_joints", target=[0, 0, 0], tolerances={"goal_time": 1e306}), "goal_time is out of range"),
+    (request("move_joints", target=[0, 0, 0], tolerances={"goal_time": True}), "goal_time is not a number"),
+    (request("move_joints", target=[0, 0, 0], tolerances={"stopped_velocity_tolerance": 0}), "out of range"),
+    (request("stop", **{f"k{i}": 1 for i in range(2000)}), "more characters"),
+    (request("execute_trajectory", joint_names=["a", "b", "c"], points=[
+        {"positions": [0, 0, 0], "time_from_start": i + 1} for i in range(5001)]), "too many points"),
+    (request("execute_trajectory", joint_names=["a", "b", "c" * 5000], points=[
+        {"positions": [0, 0, 0], "time_from_start": 1}]), "not a valid name"),
+    (request("execute_trajectory", joint_names=["a", "b", "c"], points=[
+        {"positions": [0, 0, 0], "time_from_start": 1e306}]), "time_from_start is out of range"),
     (request("move_joints", target=[0.1, 1.5, 0.2]), "outside the position limits of b"),
     (request("move_joints", target=[0.1, 0.2, 0.3], speed_scale=0), "speed_scale"),
     (request("move_joints", target=[0.1, 0.2, 0.3], speed_scale=True), "speed_scale"),
-    (request("move_joints", target="0.1,0.2,0.3"), "3 numbers"),
+    (request("move_joints", target="0.1,0.2,0.3"), "a list of 3 numbers"),
     (request("move_joints", target=[0, 0, 0], tolerances={"gaol": [1, 1, 1]}), "tolerances are malformed"),
     (request("execute_trajectory", joint_names=["a", "b"], points=[{"positions": [0, 0], "time_from_start": 1}]),
      "joints do not match"),
@@ -109,3 +132,13 @@ def test_non_json_and_non_objects_are_unreadable():
             decode(record)
     with pytest.raises(CommandRejected, match="cannot be encoded"):
         encode({"target": [float("inf")]})
+    for constant in (b"Infinity", b"-Infinity", b"NaN"):
+        with pytest.raises(CommandRejected, match="not a JSON number"):
+            decode(b'{"id": "1", "op": "move_joints", "target": [' + constant + b', 0, 0]}')
+
+
+def test_a_reply_is_bounded_whatever_the_error_says():
+    error = CommandRejected("s" * 10_000, what="w" * 10_000, why="y" * 10_000, how="h")
+    payload = decode(reply("1-1-abc", "rejected", error=error))
+    assert all(len(payload["error"][key]) <= 2000 for key in ("summary", "what", "why"))
+    assert payload["error"]["why"].endswith("more characters]")

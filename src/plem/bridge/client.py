@@ -1,7 +1,8 @@
 """The Python bridge: watch and command a running robot from any process on the same host.
 
 `connect(robot_id)` maps the robot's shared memory. Reading state never talks to the driver; commands
-are validated here, written to the command ring, and answered by the driver in the replies ring.
+are validated here, then sent over the robot's command socket to its command service, which checks them
+again, plans them and answers on the same connection.
 The client API mirrors `plem.robot.Robot`, so a script moves between in-process and launched robots.
 """
 
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 import json
 import os
+import select
+import socket
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -23,15 +26,25 @@ from plem.control.modes import Mode
 from plem.control.state import JointState
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
+from plem.ipc import command_socket
 from plem.ipc.channels import RobotChannels
+from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
 from plem.ipc.records import RawSample, event_from_record
-from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json
+from plem.ipc.request_bounds import MAX_REQUEST_BYTES
+from plem.ipc.requests import (
+    check_request,
+    encode,
+    error_from_json,
+    new_request_id,
+    result_from_json,
+)
 from plem.ipc.ring import RingReader
 from plem.ipc.state_segment import STALE_AFTER_NS
 
 DEFAULT_ROBOT_ID = "indy"
 POLL_S = 0.0005
 ACCEPT_TIMEOUT_S = 5.0
+SEND_TIMEOUT_S = 5.0
 T = TypeVar("T")
 
 
@@ -97,6 +110,10 @@ class RemoteHandle:
         if self.reply is not None and self.reply["stage"] == "rejected":
             raise error_from_json(self.reply["error"])
 
+    def cancel(self) -> RemoteHandle:
+        """Stop this motion if it still runs; a motion that replaced it is left alone."""
+        return self._client._send("stop", {"goal": self.id})
+
     def wait(self, timeout: float | None = None) -> Any:
         """Block until the command finished; returns its result, raises on rejection, abort or fault."""
         self._client._wait(self, lambda: self.reply is not None, timeout, "finished")
@@ -116,11 +133,14 @@ class RobotClient:
         self.dof = header.dof
         self.cycle_time_s = header.cycle_time_ns * 1e-9
         self.limits: ArmLimits = channels.state.limits
-        self._replies = channels.rings["replies"].reader()
+        self._socket: socket.socket | None = None
+        self._frames = FrameReader()
         self._handles: dict[str, RemoteHandle] = {}
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
 
     def close(self) -> None:
+        with self._lock:
+            self._disconnect()
         self.channels.close()
 
     def __enter__(self) -> RobotClient:
@@ -210,41 +230,96 @@ class RobotClient:
 
     def _send(self, op: str, args: dict[str, Any], wait_accepted: bool = False) -> RemoteHandle:
         payload = {"id": new_request_id(), "op": op, **{k: v for k, v in args.items() if v is not None}}
-        check_request(payload, self.limits)  # the driver checks the same again
+        check_request(payload, self.limits)  # the command service checks the same again
         record = encode(payload)
-        commands = self.channels.rings["commands"]
-        if not commands.writable:
-            raise CommandRejected(f"no permission to command robot '{self.robot_id}'",
-                                  what="write access to the robot's command ring",
-                                  why=f"{commands.name} is readable but not writable for this user (shm_group)",
-                                  how="command the robot as the user that launched it")
-        handle = RemoteHandle(self, payload["id"], op)
-        with self._lock:
-            self._handles[handle.id] = handle
+        if len(record) > MAX_REQUEST_BYTES:
+            raise CommandRejected("the request is too large", what=f"at most {MAX_REQUEST_BYTES} bytes",
+                                  why=f"it takes {len(record)} bytes", how="send fewer trajectory points")
         self.live_state()
-        if not commands.write(record):
-            with self._lock:
-                del self._handles[handle.id]
-            raise CommandRejected("the robot's command queue is full", what="room in the command ring",
-                                  why=f"{commands.slots} requests are waiting for the driver",
-                                  how="wait for earlier commands to be taken, then retry")
+        handle = RemoteHandle(self, payload["id"], op)
+        with self._lock:  # answers are read under this lock too, so registering after sending loses none
+            try:
+                self._write(frame(record))
+            except CommandSocketError:  # the command service was restarted: one new connection, one retry
+                self._write(frame(record))
+            self._handles[handle.id] = handle
         if wait_accepted:
             handle.wait_accepted()
         return handle
 
+    def _connection(self) -> socket.socket:
+        if self._socket is None:
+            self._socket = command_socket.connect(self.robot_id)
+            self._frames = FrameReader()
+        return self._socket
+
+    def _write(self, data: bytes) -> None:
+        """Send all of `data`, waiting at most SEND_TIMEOUT_S for a command service that does not read."""
+        connection = self._connection()
+        view = memoryview(data)
+        deadline = time.monotonic() + SEND_TIMEOUT_S
+        while view:
+            try:
+                view = view[connection.send(view):]
+                continue
+            except BlockingIOError:
+                pass
+            except OSError as error:
+                self._lost(f"sending failed: {error.strerror}")
+                raise CommandSocketError("the command service closed the connection",
+                                         what="a running command service", why=str(error.strerror),
+                                         how="retry; check the robot with `plem state`") from None
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise CommandTimeout("the command service does not take the request",
+                                     what=f"the request sent within {SEND_TIMEOUT_S:g} s",
+                                     why="the command service is not reading", how="check the robot with `plem state`")
+            select.select([], [connection], [], remaining)
+
     def _collect(self) -> None:
-        """Route new replies to this client's handles (replies of other clients are skipped)."""
+        """Route the answers that arrived to this client's handles."""
         with self._lock:
-            for record in self._replies.read_all():
-                reply = json.loads(record)
-                handle = self._handles.get(reply.get("id"))
-                if handle is None:
-                    continue
-                if reply["stage"] == "accepted":
-                    handle.accepted = True
+            if self._socket is None:
+                return
+            while True:
+                try:
+                    data = self._socket.recv(1 << 16)
+                except BlockingIOError:
+                    return
+                except OSError as error:
+                    data, reason = b"", error.strerror
                 else:
-                    handle.reply = reply
-                    del self._handles[handle.id]
+                    reason = "the command service closed the connection"
+                if not data:
+                    self._lost(reason)
+                    return
+                for record in self._frames.feed(data):
+                    self._route(json.loads(record))
+
+    def _route(self, reply: dict[str, Any]) -> None:
+        handle = self._handles.get(reply.get("id"))
+        if handle is None:
+            return
+        if reply["stage"] == "accepted":
+            handle.accepted = True
+        else:
+            handle.reply = reply
+            del self._handles[handle.id]
+
+    def _lost(self, reason: str) -> None:
+        """The connection ended: every command still waiting fails with the reason (the arm is not affected)."""
+        error = DriverGone("the connection to the command service was lost",
+                           what="answers to the commands sent", why=reason,
+                           how="check the robot with `plem state` and send the command again")
+        for handle in self._handles.values():
+            handle.reply = {"id": handle.id, "stage": "failed", "result": None, "error": error.to_dict()}
+        self._handles.clear()
+        self._disconnect()
+
+    def _disconnect(self) -> None:
+        if self._socket is not None:
+            self._socket.close()
+            self._socket = None
 
     def _wait(self, handle: RemoteHandle, condition: Any, timeout: float | None, stage: str) -> None:
         deadline = None if timeout is None else time.monotonic() + timeout
@@ -257,7 +332,12 @@ class RobotClient:
                 raise CommandTimeout(f"{handle.description} was not {stage} in {timeout} s",
                                      what=f"the driver to answer within {timeout} s", why="no reply yet",
                                      how="wait longer, or check the robot with `plem state`")
-            time.sleep(POLL_S)
+            with self._lock:
+                connection = self._socket
+            if connection is not None:
+                select.select([connection], [], [], POLL_S)
+            else:
+                time.sleep(POLL_S)
 
     def live_state(self) -> JointState:
         """The current state, or DriverGone when the heartbeat is older than the stale limit."""

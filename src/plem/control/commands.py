@@ -128,7 +128,10 @@ class StartMotion:
 
 @dataclass
 class StopMotion:
+    """Cancel the running motion; with `goal`, only if that very command is the one running."""
+
     handle: CommandHandle
+    goal: CommandHandle | None = None
 
 
 @dataclass

@@ -14,6 +14,7 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
 
 from plem.control.limits import ArmLimits
+from plem.control.polynomial import PolynomialMotion, from_ruckig
 from plem.errors import CommandRejected
 
 
@@ -51,6 +52,10 @@ class RuckigMotion:
         velocity[:] = v
         acceleration[:] = a
         return done
+
+    def polynomial(self) -> PolynomialMotion:
+        """The same motion as a piecewise polynomial, the form in which motions travel to an RT driver."""
+        return from_ruckig(self._trajectory, len(self.final_positions))
 
     def position_range(self) -> tuple[np.ndarray, np.ndarray]:
         """Lowest and highest position each joint passes through."""

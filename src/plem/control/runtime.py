@@ -14,15 +14,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plem.control.commands import (ActiveMotion, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion,
-                                   StopMotion, motion_error)
+from plem.control.commands import (
+    ActiveMotion,
+    CommandHandle,
+    PlanBasis,
+    ResetFault,
+    SetMode,
+    StartMotion,
+    StopMotion,
+    motion_error,
+)
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode, check_transition
 from plem.control.motion import plan_stop
 from plem.control.state import StateBlock
-from plem.control.trajectory import ErrorCode, TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
+from plem.control.trajectory import (
+    ErrorCode,
+    TrajectoryOutcome,
+    TrajectoryResult,
+    TrajectoryTolerances,
+)
 from plem.errors import CommandRejected, RobotFault
 from plem.fieldbus.bus import BusIO, BusSetup, DriveState, IBus, OperationMode
 from plem.fieldbus.cia402 import describe_drive_fault
@@ -31,6 +44,8 @@ STATUS_FAULT_BIT = 0x0008
 ENABLED_MASK, ENABLED_VALUE = 0x006F, 0x0027
 CSP = int(OperationMode.CYCLIC_SYNC_POSITION)
 CST = int(OperationMode.CYCLIC_SYNC_TORQUE)
+#: A goal time tolerance beyond this many cycles (or infinite) waits this long: about 3 years at 1 kHz.
+MAX_SETTLE_CYCLES = 1 << 47
 
 
 def _center_and_half(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -49,6 +64,12 @@ class _Flags:
 
     def greater(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
         return np.count_nonzero(np.greater(values, bound, out=self.buffer)) != 0
+
+    def not_within(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
+        """True when some value is above its bound or NaN (`not value <= bound`), marking those in the buffer."""
+        np.less_equal(values, bound, out=self.buffer)
+        np.logical_not(self.buffer, out=self.buffer)
+        return np.count_nonzero(self.buffer) != 0
 
     def less(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
         return np.count_nonzero(np.less(values, bound, out=self.buffer)) != 0
@@ -232,8 +253,12 @@ class ArmRuntime:
         np.subtract(self.command_acceleration, self._previous_acceleration, out=check[3])
         np.abs(check, out=check)
         self._previous_acceleration[:] = self.command_acceleration
-        if self._command_flags.greater(check, self._command_bounds):
+        if self._command_flags.not_within(check, self._command_bounds):
             row, i = (int(x) for x in np.argwhere(self._command_flags.buffer)[0])
+            if not np.isfinite(self.command[:, i]).all():
+                self._follow_measurement()  # a stop is planned from where the arm really is, never from NaN
+                self._fault("invalid_command", f"command for {self.joint_names[i]} is not a finite number")
+                return
             kind = ("position", "velocity", "acceleration", "jerk")[row]
             value = check[row, i] / self.dt if row == 3 else self.command[row, i]
             limit = self.limits.maximum(kind)[i] if row else None
@@ -275,7 +300,9 @@ class ArmRuntime:
             return
         tolerances = active.tolerances
         if active.settle_deadline_cycle is None:
-            active.settle_deadline_cycle = self.cycle_count + max(1, math.ceil(tolerances.goal_time / self.dt))
+            cycles = tolerances.goal_time / self.dt
+            active.settle_deadline_cycle = (self.cycle_count + max(1, math.ceil(cycles)) if cycles < MAX_SETTLE_CYCLES
+                                            else self.cycle_count + MAX_SETTLE_CYCLES)
         np.subtract(active.motion.final_positions, self.position, out=self._scratch)
         np.abs(self._scratch, out=self._scratch)
         inside = tolerances.goal is None or not (self._scratch > tolerances.goal).any()
@@ -339,7 +366,8 @@ class ArmRuntime:
         elif isinstance(command, SetMode):
             self._request_mode(command.mode, command.handle)
         elif isinstance(command, StopMotion):
-            if self._active is not None and self._active.handle is not None:
+            active = self._active
+            if active is not None and active.handle is not None and command.goal in (None, active.handle):
                 self._end_motion(TrajectoryResult.canceled())
                 self._start_stop("stop requested")
             command.handle.finish()

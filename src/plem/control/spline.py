@@ -10,7 +10,6 @@ accelerations but no velocities is rejected: the controller would interpolate no
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -19,14 +18,13 @@ import numpy as np
 from numpy.polynomial import polynomial
 
 from plem.control.limits import KINDS, ArmLimits, limit_exceeded
+from plem.control.polynomial import ORDER, PolynomialMotion, hermite_coefficients
 from plem.description.limits import UNITS
 from plem.errors import CommandRejected
 
 if TYPE_CHECKING:
     from plem.control.trajectory import JointTrajectory, TrajectoryPoint
 
-#: Coefficients per segment and joint, lowest order first: enough for a quintic.
-ORDER = 6
 #: A first point at time 0 must sit this close to the start positions (rad).
 START_MATCH = 1e-9
 #: The last point's velocities and accelerations must be this close to zero.
@@ -108,24 +106,11 @@ def _time(point: TrajectoryPoint, index: int, previous: float) -> float:
 def _coefficients(times: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray,
                   has_v: np.ndarray, has_a: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
     """Per-segment coefficients (segments, ORDER, dof) in time since the segment's start, and each segment's kind."""
-    duration = np.diff(times)[:, None]
-    step, v0, v1, a0, a1 = p[1:] - p[:-1], v[:-1], v[1:], a[:-1], a[1:]
     cubic = has_v[:-1] & has_v[1:]
     quintic = cubic & has_a[:-1] & has_a[1:]
-    hermite = cubic & ~quintic
-    c = np.zeros((len(duration), ORDER, p.shape[1]))
-    c[:, 0] = p[:-1]
-    c[~cubic, 1] = (step / duration)[~cubic]
-    c[cubic, 1] = v0[cubic]
-    c[hermite, 2] = ((3 * step - (2 * v0 + v1) * duration) / duration**2)[hermite]
-    c[hermite, 3] = ((-2 * step + (v0 + v1) * duration) / duration**3)[hermite]
-    c[quintic, 2] = (a0 / 2)[quintic]
-    c[quintic, 3] = ((20 * step - (12 * v0 + 8 * v1) * duration - (3 * a0 - a1) * duration**2)
-                     / (2 * duration**3))[quintic]
-    c[quintic, 4] = ((-30 * step + (16 * v0 + 14 * v1) * duration + (3 * a0 - 2 * a1) * duration**2)
-                     / (2 * duration**4))[quintic]
-    c[quintic, 5] = ((12 * step - 6 * (v0 + v1) * duration - (a0 - a1) * duration**2) / (2 * duration**5))[quintic]
-    kinds = tuple("quintic" if q else "cubic" if h else "linear" for q, h in zip(quintic, hermite))
+    degree = np.where(quintic, 5, np.where(cubic, 3, 1))
+    c = hermite_coefficients(np.diff(times)[:, None], p[:-1], p[1:], v[:-1], v[1:], a[:-1], a[1:], degree)
+    kinds = tuple({5: "quintic", 3: "cubic", 1: "linear"}[int(d)] for d in degree)
     return c, kinds
 
 
@@ -177,26 +162,20 @@ def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_
                 how=f"end the trajectory at rest: set the last point's {field} to 0 (or leave them out)")
 
 
-class Spline:
+class Spline(PolynomialMotion):
     """Piecewise polynomial through a validated trajectory, in the arm's joint order, sampled every cycle."""
 
     def __init__(self, joint_names: tuple[str, ...], times: np.ndarray, coefficients: np.ndarray,
                  kinds: tuple[str, ...], start: np.ndarray, final: np.ndarray, first_point: int) -> None:
+        super().__init__(times, coefficients, final)
         self.joint_names = joint_names
-        self.coefficients = coefficients
         self.segment_kinds = kinds
         self.segment_starts = times[:-1]
-        self.duration = float(times[-1])
-        self.final_positions, self.final_velocities, self.final_accelerations = final
         self._start = start
         self._final = final
         self._first_point = first_point  # knot index of trajectory point 0: 1 when a start segment precedes it
         self._knots = [float(t) for t in times]
         self._derivatives = _derivatives(coefficients)
-        self._segments = [tuple(self._derivatives[k, s] for k in range(3)) for s in range(len(kinds))]
-        self._powers = np.zeros(ORDER)
-        self._powers[0] = 1.0
-        self._cursor = 0
 
     @classmethod
     def build(cls, trajectory: JointTrajectory, limits: ArmLimits, start_positions: Sequence[float],
@@ -235,46 +214,6 @@ class Spline:
         final.flags.writeable = False
         return cls(limits.joint_names, np.array(times), coefficients, kinds, start, final,
                    first_point=len(times) - len(trajectory.points))
-
-    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Position, velocity and acceleration at `t` as new arrays, without touching the sampling cursor.
-
-        Safe from another thread while the loop samples (used to plan a preemption from this motion).
-        """
-        if t >= self.duration or not self._segments:
-            return self.final_positions.copy(), self.final_velocities.copy(), self.final_accelerations.copy()
-        t = max(t, 0.0)
-        s = min(max(bisect.bisect_right(self._knots, t) - 1, 0), len(self._segments) - 1)
-        powers = (t - self._knots[s]) ** np.arange(ORDER)
-        position, velocity, acceleration = self._segments[s]
-        return powers @ position, powers @ velocity, powers @ acceleration
-
-    def sample(self, t: float, position_out: np.ndarray, velocity_out: np.ndarray,
-               acceleration_out: np.ndarray) -> bool:
-        """Write the state `t` s after activation into the (dof,) float64 arrays; True once the motion is over."""
-        if t >= self.duration or not self._segments:
-            np.copyto(position_out, self.final_positions)
-            np.copyto(velocity_out, self.final_velocities)
-            np.copyto(acceleration_out, self.final_accelerations)
-            return True
-        knots = self._knots
-        s = self._cursor
-        if t < knots[s]:
-            s = max(bisect.bisect_right(knots, t) - 1, 0)
-        while t >= knots[s + 1]:
-            s += 1
-        self._cursor = s
-        tau = t - knots[s] if t > knots[s] else 0.0
-        powers = self._powers
-        x = 1.0
-        for k in range(1, ORDER):
-            x *= tau
-            powers[k] = x
-        position, velocity, acceleration = self._segments[s]
-        np.dot(powers, position, out=position_out)
-        np.dot(powers, velocity, out=velocity_out)
-        np.dot(powers, acceleration, out=acceleration_out)
-        return False
 
     def check_limits(self, limits: ArmLimits, cycle_time_s: float) -> None:
         """Reject the spline if a joint leaves its range or exceeds a derivative limit anywhere along it."""

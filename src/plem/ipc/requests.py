@@ -1,8 +1,9 @@
-"""Requests clients put in a robot's command ring, and the replies the RT driver posts back, as JSON.
+"""Requests clients send to a robot's command service, and the replies they get back, as JSON.
 
-`check_request` is the one validation both sides run: the client before a request enters the ring
-(shape, finite numbers, joint names, position limits), the driver again when it takes it out, so a
-malformed record written by anything else is refused without reaching the loop.
+`check_request` is the one validation both sides run: the client before a request leaves it (sizes,
+finite numbers in range, joint names, position limits), the command service again when it arrives, so a
+malformed request from anything else is refused before any work is done on it and never reaches the
+RT driver.
 """
 
 from __future__ import annotations
@@ -15,11 +16,20 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
-from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
+from plem.control.trajectory import (
+    JointTrajectory,
+    TrajectoryOutcome,
+    TrajectoryResult,
+    TrajectoryTolerances,
+)
 from plem.errors import CommandRejected, PlemError, RobotFault
+from plem.ipc import request_bounds as bounds
+from plem.ipc.request_bounds import shown
 
 #: Operations and the keys each accepts (all optional keys have defaults).
 OPERATIONS: dict[str, tuple[str, ...]] = {
@@ -27,8 +37,9 @@ OPERATIONS: dict[str, tuple[str, ...]] = {
     "execute_trajectory": ("joint_names", "points", "tolerances"),
     "set_mode": ("mode",),
     "reset_fault": (),
-    "stop": (),
+    "stop": ("goal",),
 }
+MOTIONS = ("move_joints", "execute_trajectory")
 TOLERANCE_KEYS = ("path", "goal", "goal_time", "stopped_velocity_tolerance")
 REPLY_STAGES = ("accepted", "rejected", "finished", "failed")
 _counter = itertools.count(1)
@@ -57,90 +68,88 @@ def _tolerances(value: Any, limits: ArmLimits) -> TrajectoryTolerances | None:
         return None
     if not isinstance(value, Mapping) or set(value) - set(TOLERANCE_KEYS):
         raise _rejected("tolerances are malformed", what=f"a mapping with keys from {', '.join(TOLERANCE_KEYS)}",
-                        why=f"got {value!r}"[:300], how="send path/goal as one number per joint (rad)")
-    arguments = dict(value)
+                        why=f"got {shown(value)}", how="send path/goal as one number per joint (rad)")
+    arguments: dict[str, Any] = {}
     for key in ("path", "goal"):
-        if arguments.get(key) is not None:
-            arguments[key] = limits.check_vector(_numbers(arguments[key], f"the {key} tolerance"),
-                                                 f"the {key} tolerance")
-    for key in ("goal_time", "stopped_velocity_tolerance"):
-        if key in arguments and (isinstance(arguments[key], bool) or not isinstance(arguments[key], (int, float))):
-            raise _rejected(f"{key} is not a number", what="seconds or rad/s as a number",
-                            why=f"got {arguments[key]!r}", how=f"send {key} as a number")
+        if value.get(key) is not None:
+            arguments[key] = np.array(bounds.numbers(value[key], f"the {key} tolerance", limits.dof))
+    if value.get("goal_time") is not None:
+        arguments["goal_time"] = bounds.number(value["goal_time"], "goal_time", 0.0, bounds.MAX_SECONDS)
+    if value.get("stopped_velocity_tolerance") is not None:
+        arguments["stopped_velocity_tolerance"] = bounds.number(
+            value["stopped_velocity_tolerance"], "stopped_velocity_tolerance", 0.0, bounds.MAX_MAGNITUDE,
+            low_open=True)
     return TrajectoryTolerances(**arguments)
 
 
-def _numbers(value: Any, what: str) -> Any:
-    """`value` unchanged unless it is a list holding something other than numbers (JSON true is not 1.0)."""
-    if isinstance(value, list) and any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
-        raise _rejected(f"{what} holds something other than numbers", what="a list of numbers",
-                        why=f"got {value!r}"[:300], how="send plain numbers")
-    return value
-
-
-def _speed_scale(value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value <= 1.0:
-        raise _rejected("speed_scale out of range", what="a number in (0, 1]", why=f"speed_scale = {value!r}",
-                        how="use 1.0 for full speed, 0.5 for half")
-    return float(value)
-
-
 def _trajectory(args: Mapping[str, Any], limits: ArmLimits) -> JointTrajectory:
+    """The trajectory of a request, its sizes and every number checked before anything is fitted."""
     names, points = args.get("joint_names"), args.get("points")
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+    if not isinstance(names, list) or not 0 < len(names) <= bounds.MAX_JOINTS:
         raise _rejected("joint_names is not a list of names", what="the joint names, one per column",
-                        why=f"got {names!r}"[:300], how=f"send {list(limits.joint_names)}")
+                        why=f"got {shown(names)}", how=f"send {list(limits.joint_names)}")
+    names = [bounds.text(name, "joint name", bounds.MAX_NAME_CHARS) for name in names]
     if not isinstance(points, list) or not points or not all(isinstance(p, Mapping) for p in points):
         raise _rejected("the trajectory has no points", what="a non-empty list of points",
                         why=f"got {type(points).__name__}", how="send at least one point")
-    trajectory = JointTrajectory.from_lists(names, points)
+    bounds.point_count(len(points))
     unknown = sorted(set(names) - set(limits.joint_names))
     if unknown or len(set(names)) != len(names) or len(names) != limits.dof:
         raise JointNamesRejected("the trajectory's joints do not match the robot",
                                  what=f"each of {', '.join(limits.joint_names)} exactly once",
                                  why=f"got {', '.join(names)}", how="name every joint of the robot once")
     order = [names.index(name) for name in limits.joint_names]
+    checked: list[dict[str, Any]] = []
     previous = -math.inf
-    for index, point in enumerate(trajectory.points):
-        if not math.isfinite(point.time_from_start) or point.time_from_start <= previous:
-            raise _rejected(f"point {index} is out of time order", what="strictly increasing finite time_from_start",
-                            why=f"time_from_start {point.time_from_start} after {previous}",
-                            how="sort the points by time")
-        previous = point.time_from_start
+    for index, point in enumerate(points):
+        time_from_start = bounds.number(point.get("time_from_start"), f"point {index} time_from_start", 0.0,
+                                        bounds.MAX_SECONDS)
+        if time_from_start <= previous:
+            raise _rejected(f"point {index} is out of time order", what="strictly increasing time_from_start",
+                            why=f"time_from_start {time_from_start} after {previous}", how="sort the points by time")
+        previous = time_from_start
+        row: dict[str, Any] = {**point, "time_from_start": time_from_start}
         for key in ("positions", "velocities", "accelerations"):
-            row = getattr(point, key)
-            if row is not None:
-                checked = limits.check_vector(row, f"point {index} {key}")
-                if key == "positions":
-                    limits.check_positions(checked[order], f"point {index}")
-    return trajectory
+            if point.get(key) is not None:
+                row[key] = bounds.numbers(point[key], f"point {index} {key}", limits.dof)
+        if row.get("positions") is None:
+            raise _rejected(f"point {index} has no positions", what="positions for every point",
+                            why=f"point {index} carries {', '.join(sorted(point)) or 'nothing'}",
+                            how="send one position per joint in every point")
+        limits.check_positions(np.array(row["positions"])[order], f"point {index}")
+        checked.append(row)
+    return JointTrajectory.from_lists(names, checked)
 
 
 def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedRequest:
     """Validate a decoded request against the robot's joints and limits; CommandRejected names the problem."""
-    request_id, op = payload.get("id"), payload.get("op")
-    if not isinstance(request_id, str) or not isinstance(op, str) or op not in OPERATIONS:
-        raise _rejected("not a plem request", what=f"an id and an op from {', '.join(OPERATIONS)}",
-                        why=f"id {request_id!r}, op {op!r}"[:300], how="send requests with plem.bridge.connect()")
+    op = payload.get("op")
+    request_id = bounds.request_id(payload.get("id"))
+    if not isinstance(op, str) or op not in OPERATIONS:
+        raise _rejected("not a plem request", what=f"an op from {', '.join(OPERATIONS)}",
+                        why=f"op {shown(op, 80)}", how="send requests with plem.bridge.connect()")
     args = {k: v for k, v in payload.items() if k not in ("id", "op")}
     unknown = sorted(set(args) - set(OPERATIONS[op]))
     if unknown:
         raise _rejected(f"{op} got unknown arguments", what=f"arguments from: {', '.join(OPERATIONS[op]) or 'none'}",
-                        why=f"unknown: {', '.join(unknown)}", how="check the spelling")
+                        why=f"unknown: {shown(', '.join(unknown))}", how="check the spelling")
     checked: dict[str, Any] = {}
     if op == "move_joints":
-        target = limits.check_vector(_numbers(args.get("target"), "the target"), "the target")
+        target = np.array(bounds.numbers(args.get("target"), "the target", limits.dof))
         limits.check_positions(target, "the target")
-        checked = {"target": target, "speed_scale": _speed_scale(args.get("speed_scale", 1.0)),
+        checked = {"target": target,
+                   "speed_scale": bounds.number(args.get("speed_scale", 1.0), "speed_scale", 0.0, 1.0, low_open=True),
                    "tolerances": _tolerances(args.get("tolerances"), limits)}
     elif op == "execute_trajectory":
         checked = {"trajectory": _trajectory(args, limits), "tolerances": _tolerances(args.get("tolerances"), limits)}
     elif op == "set_mode":
-        mode = Mode.parse(args.get("mode", ""))
+        mode = Mode.parse(bounds.text(args.get("mode", ""), "mode", 32))
         if mode not in (Mode.IDLE, Mode.HOLD, Mode.FREE_DRIVE):
             raise _rejected(f"mode {mode.name} cannot be requested", what="idle, hold or free_drive",
                             why=f"got {mode.name}", how="start a motion to enter TRAJECTORY; reset_fault leaves FAULT")
         checked = {"mode": mode}
+    elif op == "stop" and args.get("goal") is not None:
+        checked = {"goal": bounds.request_id(args["goal"])}
     return CheckedRequest(request_id, op, checked)
 
 
@@ -150,15 +159,22 @@ def encode(payload: Mapping[str, Any]) -> bytes:
         return json.dumps(payload, allow_nan=False, separators=(",", ":")).encode()
     except (TypeError, ValueError) as error:
         raise _rejected("the request cannot be encoded", what="plain numbers, strings and lists",
-                        why=str(error), how="send finite floats and lists") from None
+                        why=shown(str(error)), how="send finite floats and lists") from None
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
 
 
 def decode(record: bytes) -> dict[str, Any]:
-    """A JSON object from a ring record; anything else is CommandRejected."""
+    """A JSON object from a record (NaN and Infinity are not numbers); anything else is CommandRejected."""
+    if len(record) > bounds.MAX_REQUEST_BYTES:
+        raise _rejected("the request is too large", what=f"at most {bounds.MAX_REQUEST_BYTES} bytes",
+                        why=f"got {len(record)} bytes", how="send fewer trajectory points")
     try:
-        payload = json.loads(record)
+        payload = json.loads(record, parse_constant=_no_constant)
     except (UnicodeDecodeError, ValueError, RecursionError) as error:
-        raise _rejected("unreadable request", what="a JSON object", why=str(error)[:200],
+        raise _rejected("unreadable request", what="a JSON object", why=shown(str(error)),
                         how="send requests with plem.bridge.connect()") from None
     if not isinstance(payload, dict):
         raise _rejected("unreadable request", what="a JSON object", why=f"got {type(payload).__name__}",
@@ -167,20 +183,35 @@ def decode(record: bytes) -> dict[str, Any]:
 
 
 def request_id_of(payload: Any) -> str | None:
-    """The id of a possibly malformed request, so its rejection can still be addressed."""
-    return payload.get("id") if isinstance(payload, dict) and isinstance(payload.get("id"), str) else None
+    """The id of a possibly malformed request, so its rejection can still be addressed (None if unusable)."""
+    try:
+        return bounds.request_id(payload.get("id")) if isinstance(payload, dict) else None
+    except CommandRejected:
+        return None
 
 
 # -- replies -------------------------------------------------------------------------------------
 def reply(request_id: str, stage: str, result: Any = None, error: PlemError | None = None) -> bytes:
-    """The driver's answer: accepted, rejected (never started), finished (with a result) or failed."""
-    return encode({"id": request_id, "stage": stage, "result": _result_json(result),
-                   "error": None if error is None else error.to_dict()})
+    """The answer to a request: accepted, rejected (never started), finished (with a result) or failed.
+
+    Every text in it is cut to MAX_TEXT_CHARS with a marker, so an answer's size is bounded whatever
+    the request held.
+    """
+    return encode({"id": request_id, "stage": stage, "result": result_json(result),
+                   "error": None if error is None else error_json(error)})
 
 
-def _result_json(result: Any) -> Any:
+def error_json(error: PlemError, limit: int = bounds.MAX_TEXT_CHARS) -> dict[str, Any]:
+    """An error as JSON with each text field cut to `limit` characters."""
+    return {key: bounds.truncated(value, limit) if isinstance(value, str) else value
+            for key, value in error.to_dict().items()}
+
+
+def result_json(result: Any, limit: int = bounds.MAX_TEXT_CHARS) -> Any:
+    """A command's result as JSON: a trajectory outcome (its message cut to `limit`), a mode, or as it is."""
     if isinstance(result, TrajectoryResult):
-        return {"outcome": result.outcome.value, "message": result.message, "error_code": int(result.error_code)}
+        return {"outcome": result.outcome.value, "message": bounds.truncated(result.message, limit),
+                "error_code": int(result.error_code)}
     if isinstance(result, Mode):
         return result.name.lower()
     return result

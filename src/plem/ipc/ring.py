@@ -3,19 +3,19 @@
 For record n the writer marks slot n % slots with sequence 2n+1, copies, marks it 2n+2 and then advances
 `head` (x86 keeps stores in order, as in the seqlock of `plem.control.state`); a reader keeps a copy only
 if the slot read 2n+2 before and after it, so it never sees a torn record and counts those it lost.
-A drop-oldest ring has one writer and overwrites what slow readers missed; a bounded ring refuses writes
-until its single consumer frees a slot, and its producers in several processes take turns on a file lock.
+Every ring has one writer. A drop-oldest ring overwrites what slow readers missed; a bounded ring refuses
+writes until its single consumer frees a slot. Neither takes a lock, so no other process can hold up the
+writer or the reader.
 """
 
 from __future__ import annotations
 
-import fcntl
 import os
 import struct
 
 import numpy as np
 
-from plem.ipc.segment import SegmentError, SharedSegment, segment_path
+from plem.ipc.segment import SegmentError, SharedSegment
 
 MAGIC = b"PLEMRING"
 LAYOUT_VERSION = 1
@@ -48,7 +48,6 @@ class SlotRing:
         self._data = np.ndarray((slots, slot_bytes), np.uint8, buffer, payload, (stride, 1))
         self._f64 = np.ndarray((slots, slot_bytes // 8), np.float64, buffer, payload, (stride, 8))
         self._rows = list(self._f64)
-        self._lock_fd = os.open(segment_path(self.name), os.O_RDONLY) if bounded and segment.writable else None
 
     @staticmethod
     def size(slot_bytes: int, slots: int) -> int:
@@ -112,17 +111,10 @@ class SlotRing:
             raise RingError(f"record too large for ring {self.name}", what=f"at most {self.slot_bytes} bytes",
                             why=f"got {data.size} bytes", how="send smaller records or create a ring "
                                                               "with larger slots")
-        if not self.bounded:
-            self._put(data)
-            return True
-        fcntl.flock(self._lock_fd, fcntl.LOCK_EX)
-        try:
-            if self.head - int(self._hot[CONSUMER]) >= self.slots:
-                return False
-            self._put(data)
-            return True
-        finally:
-            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+        if self.bounded and self.head - int(self._hot[CONSUMER]) >= self.slots:
+            return False
+        self._put(data)
+        return True
 
     def write_values(self, values: np.ndarray) -> None:
         """Append one record of slot_bytes/8 float64 values without allocating (the RT loop's write)."""
@@ -179,10 +171,8 @@ class SlotRing:
         return RingConsumer(self)
 
     def close(self) -> None:
-        """Drop the views and the lock file, then unmap."""
+        """Drop the views, then unmap."""
         del self._hot, self._seq, self._len, self._data, self._f64, self._rows
-        if self._lock_fd is not None:
-            os.close(self._lock_fd)
         self._segment.close()
 
     def remove(self) -> None:
@@ -239,8 +229,13 @@ class RingConsumer:
     def __init__(self, ring: SlotRing) -> None:
         self._ring = ring
 
+    @property
+    def pending(self) -> int:
+        """Records written and not yet taken."""
+        return self._ring.head - int(self._ring._hot[CONSUMER])
+
     def read(self) -> bytes | None:
-        """The next record, freeing its slot for producers after the copy; None when the ring is empty."""
+        """The next record, freeing its slot for the producer after the copy; None when the ring is empty."""
         ring = self._ring
         n = int(ring._hot[CONSUMER])
         if n >= ring.head:

@@ -1,51 +1,67 @@
-"""The RT driver's service thread: takes client requests from the command ring and publishes loop statistics.
+"""The RT driver's service thread: takes the command service's records and publishes loop statistics.
 
 It runs beside the loop thread, at SCHED_FIFO priority 1 when permitted (below the loop; see
-`keep_threads_scheduled`). Each request is validated again (`check_request`), handed to the robot
-without waiting for the motion, and answered in the replies ring when the loop accepts, rejects or
-finishes it. Ten times a second it writes a statistics record for monitors.
+`keep_threads_scheduled`), and does only small, bounded work: the records on the intake ring are a few
+hundred bytes, motions arrive as tables in the motion slab that the loop samples in place, and every
+answer on the outcomes ring fits its slot. Validation and planning happen in the command service
+process (`plem.launch.command_service`). Ten times a second it writes a statistics record for monitors.
 """
 
 from __future__ import annotations
 
 import json
+import logging
+import math
 import threading
 import time
+from collections import OrderedDict
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
-from plem.control.commands import CommandHandle
+from plem.control.commands import CommandHandle, PlanBasis, StartMotion
+from plem.control.modes import Mode
 from plem.control.timing import histogram_summary
+from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
-from plem.ipc.requests import CheckedRequest, check_request, decode, reply, request_id_of
+from plem.ipc.request_bounds import truncated
+from plem.ipc.requests import error_json, result_json
 from plem.robot.robot import Robot
 
 POLL_S = 0.001
 STATS_PERIOD_S = 0.1
+#: Prepared start states kept for start records still to come.
+PREPARED_KEPT = 16
+#: Characters of each text of an error on the outcomes ring (its 4096-byte slot holds four of them).
+OUTCOME_TEXT_CHARS = 600
+#: A motion's first sample may differ this much (rad, rad/s, rad/s²) from the state it was planned from.
+START_MATCH = 1e-6
+_log = logging.getLogger("plem.rt_driver")
 
 
 @dataclass
 class _Pending:
-    request_id: str
+    token: int
     handle: CommandHandle
+    slot: int | None = None
     accepted_sent: bool = False
 
 
 @dataclass
 class CommandCounters:
-    received: int = 0
-    rejected: int = 0
+    """What the driver did with the commands the command service handed it."""
+
     accepted: int = 0
+    rejected: int = 0
     finished: int = 0
     failed: int = 0
 
 
 @dataclass
 class DriverService:
-    """Serves one robot's command ring and statistics ring until `stop` is set."""
+    """Serves one robot's intake ring and statistics ring until `stop` is set."""
 
     robot: Robot
     channels: RobotChannels
@@ -53,10 +69,12 @@ class DriverService:
     counters: CommandCounters = field(default_factory=CommandCounters)
 
     def __post_init__(self) -> None:
-        self._consumer = self.channels.rings["commands"].consumer()
-        self._replies = self.channels.rings["replies"]
-        self._limits = self.channels.state.limits
-        self._pending: list[_Pending] = []
+        self._intake = self.channels.rings["intake"].consumer()
+        self._outcomes = self.channels.rings["outcomes"]
+        self._slab = self.channels.motions
+        self._pending: dict[int, _Pending] = {}
+        self._prepared: OrderedDict[int, tuple[PlanBasis, int | None, np.ndarray]] = OrderedDict()
+        self._client_counters: dict[str, int] = {"received": 0, "rejected": 0}
         stats = self.robot.loop.stats
         self._previous = (stats.latency.histogram.copy(), stats.compute.histogram.copy())
         self.thread = threading.Thread(target=self._run, name=f"plem-service-{self.robot.robot_id}", daemon=True)
@@ -67,7 +85,7 @@ class DriverService:
     def _run(self) -> None:
         next_stats = time.monotonic()
         while not self.stop.is_set():
-            while (record := self._consumer.read()) is not None:
+            while (record := self._intake.read()) is not None:
                 self._serve(record)
             if self._pending:
                 self._answer_pending()
@@ -78,53 +96,108 @@ class DriverService:
             self.stop.wait(POLL_S)
 
     def _serve(self, record: bytes) -> None:
-        self.counters.received += 1
-        payload: Any = None
+        """One intake record; whatever goes wrong with it is answered as its rejection and serving goes on."""
+        token = 0
         try:
-            payload = decode(record)
-            handle = self._dispatch(check_request(payload, self._limits))
-        except Exception as error:  # anything a record provokes is its rejection; the service goes on
-            self.counters.rejected += 1
-            request_id = request_id_of(payload)
-            if request_id is not None:
-                self._replies.write(reply(request_id, "rejected", error=_as_plem_error(error)))
-            return
-        self._pending.append(_Pending(payload["id"], handle))
+            command = json.loads(record)
+            token = int(command.get("token", 0))
+            self._dispatch(command, token)
+        except Exception as error:  # noqa: BLE001 - the service thread must outlive any record
+            self._write(token, "rejected", error=_as_plem_error(error), slot=_slot_of(record))
+
+    def _dispatch(self, command: dict[str, Any], token: int) -> None:
+        robot, op = self.robot, command["op"]
+        if op == "counters":
+            self._client_counters = {key: int(command[key]) for key in ("received", "rejected")}
+        elif op == "prepare":
+            self._prepare(token, float(command["lead_s"]))
+        elif op == "start":
+            self._start(token, command)
+        elif op == "set_mode":
+            self._pending[token] = _Pending(token, robot.request_mode(Mode.parse(command["mode"])))
+        elif op == "reset_fault":
+            self._pending[token] = _Pending(token, robot.request_reset())
+        elif op == "stop":
+            goal = command.get("goal")
+            target = None if goal is None else self._pending.get(int(goal))
+            if goal is not None and target is None:
+                self._write(token, "finished")  # the goal to cancel has ended already: nothing to stop
+                return
+            self._pending[token] = _Pending(token, robot.stop(target.handle if target else None))
+        else:
+            raise ValueError(f"unknown intake operation {op!r}")
         self._answer_pending()
 
-    def _dispatch(self, request: CheckedRequest) -> CommandHandle:
-        robot, args = self.robot, request.args
-        if request.op == "move_joints":
-            return robot.move_joints(args["target"], args["speed_scale"], args["tolerances"])
-        if request.op == "execute_trajectory":
-            return robot.execute_trajectory(args["trajectory"], args["tolerances"])
-        if request.op == "set_mode":
-            return robot.request_mode(args["mode"])
-        if request.op == "reset_fault":
-            return robot.request_reset()
-        return robot.stop()
+    def _prepare(self, token: int, lead_s: float) -> None:
+        """Tell the command service where a new motion starts: the held position, or the running motion ahead."""
+        runtime = self.robot.runtime
+        basis = runtime.basis
+        dof = self.robot.limits.dof
+        if basis.motion is None:
+            activation, start = None, np.stack([basis.hold_position, np.zeros(dof), np.zeros(dof)])
+        else:
+            activation = runtime.cycle_count + max(2, math.ceil(lead_s / runtime.dt))
+            start = np.stack(basis.motion.state_at((activation - basis.motion_start_cycle) * runtime.dt))
+        self._prepared[token] = (basis, activation, start)
+        while len(self._prepared) > PREPARED_KEPT:
+            self._prepared.popitem(last=False)
+        self._write(token, "prepared", start=start.tolist())
+
+    def _start(self, token: int, command: dict[str, Any]) -> None:
+        """Hand a planned motion from the slab to the loop, after checking it starts where it was planned from."""
+        slot = int(command["slot"])
+        prepared = self._prepared.pop(int(command["prepared"]), None)
+        if prepared is None:
+            self._write(token, "rejected", stale=True, slot=slot, error=_STALE)
+            return
+        basis, activation, start = prepared
+        motion = self._slab.view(slot, int(command["segments"]))
+        first = np.stack(motion.state_at(0.0))
+        if not np.all(np.abs(first - start) <= START_MATCH):
+            raise CommandRejected("a planned motion does not start where it was planned from",
+                                  what=f"its first sample within {START_MATCH:g} of the prepared start",
+                                  why=f"largest difference {np.nanmax(np.abs(first - start)):.3g}",
+                                  how="retry; restart the robot if it happens again")
+        tolerances = command.get("tolerances")
+        label = str(command.get("label", "motion"))[:32]
+        handle = CommandHandle(label)
+        self._pending[token] = _Pending(token, handle, slot)
+        self.robot.runtime.inbox.append(StartMotion(motion, basis, activation,
+                                                    TrajectoryTolerances(**tolerances) if tolerances
+                                                    else TrajectoryTolerances(), handle, label))
 
     def _answer_pending(self) -> None:
-        still: list[_Pending] = []
-        for pending in self._pending:
+        for token, pending in list(self._pending.items()):
             handle = pending.handle
             if handle.rejection is not None:
-                self.counters.rejected += 1
-                self._replies.write(reply(pending.request_id, "rejected", error=handle.rejection))
+                self.counters.rejected += not handle.stale
+                self._write(token, "rejected", error=handle.rejection, stale=handle.stale or None, slot=pending.slot)
+                del self._pending[token]
                 continue
             if not pending.accepted_sent and handle.is_accepted:
                 self.counters.accepted += 1
-                self._replies.write(reply(pending.request_id, "accepted"))
+                self._write(token, "accepted")
                 pending.accepted_sent = True
             if handle.done:
                 failed = handle.error is not None
                 self.counters.failed += failed
                 self.counters.finished += not failed
-                self._replies.write(reply(pending.request_id, "failed" if failed else "finished", handle.result,
-                                          handle.error))
-            else:
-                still.append(pending)
-        self._pending = still
+                self._write(token, "failed" if failed else "finished", result=handle.result, error=handle.error,
+                            slot=pending.slot)
+                del self._pending[token]
+
+    def _write(self, token: int, stage: str, *, result: Any = None, error: PlemError | None = None,
+               **extra: Any) -> None:
+        """One outcome record, its texts cut so that it always fits its slot."""
+        record = {"token": token, "stage": stage, "result": result_json(result, OUTCOME_TEXT_CHARS),
+                  "error": None if error is None else error_json(error, OUTCOME_TEXT_CHARS),
+                  **{key: value for key, value in extra.items() if value is not None}}
+        data = json.dumps(record, separators=(",", ":"), allow_nan=False, default=_plain).encode()
+        if len(data) > self._outcomes.slot_bytes:  # only a start state of very many joints could get here
+            record.update(result=None, error=None if error is None else {"error": "PlemError",
+                                                                        "summary": truncated(error.summary, 200)})
+            data = json.dumps(record, separators=(",", ":"), default=_plain).encode()
+        self._outcomes.write(data)
 
     def _publish_stats(self) -> None:
         """Loop timing (whole run and the last interval), command counters and ring positions as JSON.
@@ -144,12 +217,29 @@ class DriverService:
             "fault_reason": robot.fault_reason,
             "latency": asdict(stats.latency.whole_run()), "compute": asdict(stats.compute.whole_run()),
             "latency_interval": asdict(interval[0]), "compute_interval": asdict(interval[1]),
-            "commands": asdict(self.counters),
+            "commands": {**self._client_counters, **asdict(self.counters),
+                         "rejected": self._client_counters["rejected"] + self.counters.rejected},
             "rings": {name: ring.head for name, ring in self.channels.rings.items()},
+            "command_queue": {"capacity": self.channels.rings["intake"].slots, "fill": self._intake.pending,
+                              "written": self.channels.rings["intake"].head},
             "realtime": {"policy": report.policy, "priority": report.priority,
                          "memory_locked": report.memory_locked, "dma_latency_held": report.dma_latency_held},
         }
         self.channels.rings["stats"].write(json.dumps(record, default=_plain).encode())
+
+
+_STALE = CommandRejected("the motion was planned from an outdated state",
+                         what="a plan starting from the arm's current command",
+                         why="the command changed while the motion was being planned", how="plan again")
+
+
+def _slot_of(record: bytes) -> int | None:
+    """The motion slot a failed start record named, so the command service gets it back."""
+    try:
+        slot = json.loads(record).get("slot")
+    except (ValueError, AttributeError):
+        return None
+    return slot if isinstance(slot, int) else None
 
 
 def _as_plem_error(error: Exception) -> PlemError:

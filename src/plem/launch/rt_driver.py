@@ -15,8 +15,11 @@ import threading
 from typing import Any
 
 from plem.control.realtime import keep_threads_scheduled
+from plem.errors import PlemError
 from plem.ipc.channels import RobotChannels
+from plem.ipc.command_socket import socket_path
 from plem.ipc.records import RawRecorder, event_record
+from plem.launch.command_process import CommandServiceProcess
 from plem.launch.component import announce, run_component
 from plem.launch.driver_service import DriverService
 from plem.launch.plan import RobotPlan, plan_robot
@@ -59,22 +62,35 @@ def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChanne
 
 
 def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
-    """Build, start the loop and the service, announce readiness, run until `stop`, then shut down cleanly."""
+    """Build, start the loop, the service thread and the command service, announce readiness, run until `stop`.
+
+    The loop runs on when the command service dies (it is restarted); when the service thread dies, the
+    arm is stopped smoothly and the driver ends with an error, which `plem launch` reports.
+    """
     robot, channels = build(plan)
     service = DriverService(robot, channels)
+    commands = CommandServiceProcess(plan.robot_id)
     try:
         robot.start()
         service.start()
+        commands.start()
         report = robot.loop.report
         announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
                   "joint_names": list(robot.joint_names), "cycle_time_us": plan.config.cycle_time,
                   "policy": report.policy, "priority": report.priority, "memory_locked": report.memory_locked,
-                  "warnings": report.warnings, "shared_memory": channels.names})
+                  "warnings": report.warnings, "shared_memory": channels.names,
+                  "command_socket": str(socket_path(plan.robot_id)), "command_service_pid": commands.pid})
         while not stop.wait(0.2):
             if not robot.running:
                 _log.error("the control loop stopped: %r", robot.loop.error)
                 break
+            if not service.thread.is_alive():
+                raise PlemError("the RT driver's service thread stopped", what="the service thread to run",
+                                why="it ended unexpectedly; the arm was stopped smoothly",
+                                how="restart the robot with `plem launch`, and report this with its output")
+            commands.keep_running()
     finally:
+        commands.stop()
         robot.shutdown()
         service.stop.set()
         service.thread.join(2.0)

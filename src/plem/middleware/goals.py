@@ -119,7 +119,7 @@ class TrajectoryGoal:
                                 "error_string": error.render() if error else "the motion ended without a result"})
 
     def cancel(self) -> bool:
-        self._client.stop()
+        self._handle.cancel()  # names this goal: a goal that replaced it keeps running
         return True
 
     def _feedback(self) -> Any | None:

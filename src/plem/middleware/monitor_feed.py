@@ -143,8 +143,6 @@ class MonitorFeed:
                 for name, reader in self.readers.items()]
 
     def _ring_queues(self, driver: dict[str, Any]) -> list[QueueCount]:
-        """The rings as this feed reads them, and the command ring as the driver takes it."""
-        commands = self.client.channels.rings["commands"]
-        taken = QueueCount("commands", commands.slots, max(0, commands.head - driver["commands"]["received"]),
-                           commands.head, 0)
-        return [*self.reader_queues(), taken]
+        """The rings as this feed reads them, and the driver's command intake as the driver takes it."""
+        intake = driver["command_queue"]
+        return [*self.reader_queues(), QueueCount("commands", intake["capacity"], intake["fill"], intake["written"], 0)]

@@ -30,6 +30,7 @@ from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, Spline, TrajectoryTolerances
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus.bus import BusSetup, IBus
+from plem.ipc.request_bounds import point_count
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 
@@ -221,9 +222,12 @@ class Robot:
         """Ask for a fault reset without waiting; the handle finishes once the arm holds again."""
         return self._send(ResetFault(CommandHandle("reset_fault()", self._pump)))
 
-    def stop(self) -> CommandHandle:
-        """Cancel the running motion with a jerk-limited stop; the arm then holds."""
-        return self._send(StopMotion(CommandHandle("stop()", self._pump)))
+    def stop(self, goal: CommandHandle | None = None) -> CommandHandle:
+        """Cancel the running motion with a jerk-limited stop; the arm then holds.
+
+        With `goal`, only that motion is canceled: if another has replaced it meanwhile, nothing stops.
+        """
+        return self._send(StopMotion(CommandHandle("stop()", self._pump), goal))
 
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
                     tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
@@ -238,6 +242,7 @@ class Robot:
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
         """Follow a JointTrajectory with ros2_control's spline semantics; rejected up front if it breaks a limit."""
+        point_count(len(trajectory.points))
         def plan(start: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Spline:
             spline = Spline.build(trajectory, self.limits, *start)
             spline.check_limits(self.limits, self.runtime.dt)

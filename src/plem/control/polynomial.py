@@ -1,0 +1,148 @@
+"""Piecewise-polynomial motions: the one form in which every planned motion reaches the loop.
+
+A motion is a table of knot times and, per segment and joint, the coefficients of a polynomial of
+degree ORDER-1 in the time since the segment's start. The loop samples it in place (the table may live
+in shared memory written by another process), so building a `PolynomialMotion` copies nothing and
+costs the same for two points or five thousand. Splines of JointTrajectories are fitted into this form
+directly; ruckig's jerk-limited motions are converted exactly (they are cubic between their phase
+boundaries).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Coefficients per segment and joint, lowest order first: enough for a quintic.
+ORDER = 6
+#: Knots closer than this (s) are one knot.
+KNOT_RESOLUTION = 1e-9
+_POWERS = np.arange(ORDER, dtype=float)
+_VELOCITY_WEIGHTS = _POWERS[1:]                       # d/dt τ^k = k τ^(k-1)
+_ACCELERATION_WEIGHTS = _POWERS[2:] * _POWERS[1:-1]   # d²/dt² τ^k = k (k-1) τ^(k-2)
+
+
+def hermite_coefficients(duration: np.ndarray, p0: np.ndarray, p1: np.ndarray, v0: np.ndarray, v1: np.ndarray,
+                         a0: np.ndarray, a1: np.ndarray, degree: np.ndarray) -> np.ndarray:
+    """Per-segment coefficients (segments, ORDER, dof) joining the end states: linear, cubic or quintic.
+
+    `duration` is (segments, 1); `degree` (segments,) holds 1, 3 or 5 per segment: positions only, positions
+    and velocities, or positions, velocities and accelerations are matched at both ends.
+    """
+    step = p1 - p0
+    linear, cubic, quintic = degree == 1, degree == 3, degree == 5
+    c = np.zeros((len(duration), ORDER, p0.shape[1]))
+    c[:, 0] = p0
+    c[linear, 1] = (step / duration)[linear]
+    c[~linear, 1] = v0[~linear]
+    c[cubic, 2] = ((3 * step - (2 * v0 + v1) * duration) / duration**2)[cubic]
+    c[cubic, 3] = ((-2 * step + (v0 + v1) * duration) / duration**3)[cubic]
+    c[quintic, 2] = (a0 / 2)[quintic]
+    c[quintic, 3] = ((20 * step - (12 * v0 + 8 * v1) * duration - (3 * a0 - a1) * duration**2)
+                     / (2 * duration**3))[quintic]
+    c[quintic, 4] = ((-30 * step + (16 * v0 + 14 * v1) * duration + (3 * a0 - 2 * a1) * duration**2)
+                     / (2 * duration**4))[quintic]
+    c[quintic, 5] = ((12 * step - 6 * (v0 + v1) * duration - (a0 - a1) * duration**2) / (2 * duration**5))[quintic]
+    return c
+
+
+class PolynomialMotion:
+    """A motion sampled from knot times and coefficient arrays, which it views without copying.
+
+    `knots` is (n+1,), `coefficients` (n, ORDER, dof) and `final` (3, dof): position, velocity and
+    acceleration after the last knot. With n = 0 the motion is already at `final`.
+    """
+
+    def __init__(self, knots: np.ndarray, coefficients: np.ndarray, final: np.ndarray) -> None:
+        self.knots = knots
+        self.coefficients = coefficients
+        self.segments = len(coefficients)
+        self.duration = float(knots[-1]) if self.segments else 0.0
+        final = np.array(final, dtype=float)  # a private copy: the settle check reads it after the table is reused
+        final.flags.writeable = False
+        self.final_positions, self.final_velocities, self.final_accelerations = final
+        self._powers = np.zeros(ORDER)
+        self._powers[0] = 1.0
+        self._velocity = np.zeros(ORDER - 1)
+        self._acceleration = np.zeros(ORDER - 2)
+        self._cursor = 0
+
+    def _segment(self, t: float) -> int:
+        """The segment holding `t` (advancing from the previous sample, so a cycle's search is one step)."""
+        knots, s = self.knots, self._cursor
+        if t < knots[s] or (s + 2 < len(knots) and t >= knots[s + 2]):
+            s = min(max(int(np.searchsorted(knots, t, side="right")) - 1, 0), self.segments - 1)
+        elif t >= knots[s + 1] and s + 1 < self.segments:
+            s += 1
+        self._cursor = s
+        return s
+
+    def sample(self, t: float, position_out: np.ndarray, velocity_out: np.ndarray,
+               acceleration_out: np.ndarray) -> bool:
+        """Write the state `t` s after activation into the (dof,) float64 arrays; True once the motion is over."""
+        if t >= self.duration or not self.segments:
+            np.copyto(position_out, self.final_positions)
+            np.copyto(velocity_out, self.final_velocities)
+            np.copyto(acceleration_out, self.final_accelerations)
+            return True
+        s = self._segment(t)
+        start = float(self.knots[s])
+        tau = t - start if t > start else 0.0
+        powers = self._powers
+        x = 1.0
+        for k in range(1, ORDER):
+            x *= tau
+            powers[k] = x
+        np.multiply(_VELOCITY_WEIGHTS, powers[:-1], out=self._velocity)
+        np.multiply(_ACCELERATION_WEIGHTS, powers[:-2], out=self._acceleration)
+        c = self.coefficients[s]
+        np.dot(powers, c, out=position_out)
+        np.dot(self._velocity, c[1:], out=velocity_out)
+        np.dot(self._acceleration, c[2:], out=acceleration_out)
+        return False
+
+    def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at `t` as new arrays, without touching the sampling cursor."""
+        if t >= self.duration or not self.segments:
+            return self.final_positions.copy(), self.final_velocities.copy(), self.final_accelerations.copy()
+        t = max(t, 0.0)
+        s = min(max(int(np.searchsorted(self.knots, t, side="right")) - 1, 0), self.segments - 1)
+        powers = (t - float(self.knots[s])) ** _POWERS
+        c = self.coefficients[s]
+        return powers @ c, (_VELOCITY_WEIGHTS * powers[:-1]) @ c[1:], (_ACCELERATION_WEIGHTS * powers[:-2]) @ c[2:]
+
+
+def _ruckig_knots(trajectory: object) -> list[float]:
+    """Every phase boundary of every joint of a ruckig trajectory, merged: between two, each joint is a cubic."""
+    duration = float(trajectory.duration)  # type: ignore[attr-defined]
+    times = [0.0, duration]
+    offset = 0.0
+    for section, profiles in enumerate(trajectory.profiles):  # type: ignore[attr-defined]
+        for profile in profiles:
+            t = offset
+            for phase in (*profile.brake.t, *profile.t, *profile.accel.t):
+                t += phase
+                times.append(t)
+        offset = float(trajectory.intermediate_durations[section])  # type: ignore[attr-defined]
+    knots: list[float] = []
+    for t in sorted(min(max(t, 0.0), duration) for t in times):
+        if not knots or t - knots[-1] > KNOT_RESOLUTION:
+            knots.append(t)
+    if duration - knots[-1] > 0.0:
+        knots[-1] = duration
+    return knots
+
+
+def from_ruckig(trajectory: object, dof: int) -> PolynomialMotion:
+    """The ruckig trajectory as a piecewise polynomial, exact: quintic Hermite pieces between phase boundaries."""
+    knots = _ruckig_knots(trajectory)
+    states = np.array([[np.asarray(v, dtype=float) for v in trajectory.at_time(t)]  # type: ignore[attr-defined]
+                       for t in knots]).reshape(len(knots), 3, dof)
+    final = states[-1]
+    if len(knots) < 2:
+        return PolynomialMotion(np.array([0.0]), np.zeros((0, ORDER, dof)), final)
+    times = np.array(knots)
+    coefficients = hermite_coefficients(np.diff(times)[:, None], states[:-1, 0], states[1:, 0], states[:-1, 1],
+                                        states[1:, 1], states[:-1, 2], states[1:, 2],
+                                        np.full(len(knots) - 1, 5))
+    return PolynomialMotion(times, coefficients, final)
+

@@ -1,0 +1,387 @@
+"""A robot's command service: the process between its clients and its RT driver.
+
+The RT driver starts it as `python -m plem.launch.command_service <robot_id>` and restarts it if it dies.
+It listens on the robot's command socket, and everything that costs time happens here, outside the RT
+process: reading and bounding requests, validating them, fitting trajectories and planning motions. The
+driver receives only small records on its intake ring and motions as tables in the motion slab, which
+its loop samples in place; it answers on the outcomes ring. A client that floods, stalls or sends
+garbage costs this process time, never the loop.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import math
+import selectors
+import socket
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from plem.control.motion import plan_point_to_point
+from plem.control.polynomial import PolynomialMotion
+from plem.control.spline import Spline
+from plem.control.trajectory import TrajectoryTolerances
+from plem.errors import CommandRejected, PlemError
+from plem.ipc.channels import RobotChannels
+from plem.ipc.command_socket import (
+    CommandSocketError,
+    FrameReader,
+    frame,
+    listen,
+    peer_credentials,
+    remove_own_socket,
+    trusted,
+)
+from plem.ipc.requests import (
+    MOTIONS,
+    CheckedRequest,
+    check_request,
+    decode,
+    reply,
+    request_id_of,
+)
+from plem.launch.component import announce, begin
+
+#: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.
+PREEMPTION_LEAD_S = 0.02
+PLAN_ATTEMPTS = 5
+DRIVER_TIMEOUT_S = 2.0
+#: Clients served at once; more are turned away.
+MAX_CLIENTS = 64
+#: Bytes of answers waiting for a client that does not read; beyond this it is disconnected.
+MAX_PENDING_OUTPUT = 1 << 20
+POLL_S = 0.0005
+COUNTERS_PERIOD_S = 0.1
+_log = logging.getLogger("plem.command_service")
+
+
+class DriverSilent(PlemError):
+    """The RT driver did not answer its command service in time."""
+
+
+@dataclass
+class _Client:
+    """One connection: its frames in, its answers out, and who it is."""
+
+    sock: socket.socket
+    uid: int
+    reader: FrameReader = field(default_factory=FrameReader)
+    output: bytearray = field(default_factory=bytearray)
+    goals: dict[str, int] = field(default_factory=dict)   # request id → token of its motions still running
+
+
+@dataclass
+class _Command:
+    """A request handed to the driver, by the token the driver answers with."""
+
+    client: _Client | None
+    request_id: str
+    slot: int | None = None
+
+
+@dataclass
+class Counters:
+    """Requests received from clients and refused here (before reaching the driver)."""
+
+    received: int = 0
+    rejected: int = 0
+
+
+class CommandService:
+    """Serves one robot's command socket until `stop` is set."""
+
+    def __init__(self, channels: RobotChannels, server: socket.socket, cycle_time_s: float) -> None:
+        self.channels = channels
+        self.limits = channels.state.limits
+        self.cycle_time_s = cycle_time_s
+        self.server = server
+        self.intake = channels.rings["intake"]
+        self.outcomes = channels.rings["outcomes"].reader(from_oldest=False)
+        self.slab = channels.motions
+        self.free_slots = list(range(self.slab.slots))
+        self.counters = Counters()
+        self._tokens = itertools.count(1)
+        self._commands: dict[int, _Command] = {}
+        self._answers: dict[int, dict[str, Any]] = {}  # outcomes awaited by the request being planned
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(server, selectors.EVENT_READ)
+        self._clients: dict[int, _Client] = {}
+        self._sent_counters: dict[str, int] = {}
+        self._next_counters = 0.0
+
+    # -- the socket --------------------------------------------------------------------------------
+    def run(self, stop: threading.Event) -> None:
+        while not stop.is_set():
+            for key, events in self._selector.select(POLL_S):
+                if key.fileobj is self.server:
+                    self._accept()
+                elif events & selectors.EVENT_READ and key.data in self._clients:
+                    self._receive(self._clients[key.data])
+                if events & selectors.EVENT_WRITE and key.data in self._clients:
+                    self._flush(self._clients[key.data])
+            self._pump()
+            self._send_counters()
+
+    def _accept(self) -> None:
+        try:
+            sock, _ = self.server.accept()
+        except BlockingIOError:
+            return
+        _, uid, _ = peer_credentials(sock)
+        if not trusted(uid) or len(self._clients) >= MAX_CLIENTS:
+            sock.close()  # the socket's mode keeps other users out already; this holds for root's sockets too
+            return
+        sock.setblocking(False)
+        client = _Client(sock, uid)
+        self._clients[sock.fileno()] = client
+        self._selector.register(sock, selectors.EVENT_READ, sock.fileno())
+
+    def _receive(self, client: _Client) -> None:
+        try:
+            data = client.sock.recv(1 << 16)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(client)
+            return
+        try:
+            frames = client.reader.feed(data)
+        except CommandSocketError as error:
+            self.counters.rejected += 1
+            self._answer(client, reply("-", "rejected", error=error))
+            self._flush(client)
+            self._drop(client)
+            return
+        for record in frames:
+            self._serve(client, record)
+
+    def _answer(self, client: _Client | None, record: bytes) -> None:
+        if client is None or client.sock.fileno() not in self._clients:
+            return
+        if len(client.output) > MAX_PENDING_OUTPUT:
+            _log.warning("a client (uid %d) stopped reading its answers; disconnected", client.uid)
+            self._drop(client)
+            return
+        client.output += frame(record)
+        self._flush(client)
+
+    def _flush(self, client: _Client) -> None:
+        fd = client.sock.fileno()
+        if client.output:
+            try:
+                sent = client.sock.send(client.output)
+                del client.output[:sent]
+            except BlockingIOError:
+                pass
+            except OSError:
+                self._drop(client)
+                return
+        if fd in self._clients:
+            self._selector.modify(client.sock, selectors.EVENT_READ | (selectors.EVENT_WRITE if client.output else 0),
+                                  fd)
+
+    def _drop(self, client: _Client) -> None:
+        fd = client.sock.fileno()
+        if self._clients.pop(fd, None) is not None:
+            self._selector.unregister(client.sock)
+        client.sock.close()
+        for command in self._commands.values():
+            if command.client is client:
+                command.client = None  # the motion runs on; nobody is told when it ends
+
+    # -- requests ----------------------------------------------------------------------------------
+    def _serve(self, client: _Client, record: bytes) -> None:
+        self.counters.received += 1
+        payload: Any = None
+        try:
+            payload = decode(record)
+            request = check_request(payload, self.limits)
+            if request.op in MOTIONS:
+                self._start_motion(client, request)
+            else:
+                self._send(client, request)
+        except PlemError as error:
+            self.counters.rejected += 1
+            self._answer(client, reply(request_id_of(payload) or "-", "rejected", error=error))
+
+    def _send(self, client: _Client, request: CheckedRequest) -> int:
+        """Hand a mode change, fault reset or stop to the driver; its answers reach the client later."""
+        token = next(self._tokens)
+        record: dict[str, Any] = {"op": request.op, "token": token}
+        if request.op == "set_mode":
+            record["mode"] = request.args["mode"].name.lower()
+        elif request.op == "stop" and "goal" in request.args:
+            record["goal"] = client.goals.get(request.args["goal"], 0)  # 0: that goal no longer runs
+        self._commands[token] = _Command(client, request.id)
+        self._write_intake(record)
+        return token
+
+    def _start_motion(self, client: _Client, request: CheckedRequest) -> None:
+        """Plan from the driver's current state and hand the motion over; re-plan when the state moved on."""
+        plan = self._planner(request)
+        label = "move_joints" if request.op == "move_joints" else "trajectory"
+        for attempt in range(PLAN_ATTEMPTS):
+            prepared = next(self._tokens)
+            self._write_intake({"op": "prepare", "token": prepared, "lead_s": PREEMPTION_LEAD_S * 2 ** attempt})
+            start = np.array(self._await(prepared)["start"], dtype=float)
+            motion = plan((start[0], start[1], start[2]))
+            slot = self._take_slot()
+            segments = self.slab.write(slot, motion)
+            token = next(self._tokens)
+            self._commands[token] = _Command(client, request.id, slot)
+            self._write_intake({"op": "start", "token": token, "prepared": prepared, "slot": slot,
+                                "segments": segments, "label": label,
+                                "tolerances": _tolerances_json(request.args["tolerances"])})
+            answer = self._await(token)
+            if answer.get("stale"):
+                self._release(answer)
+                del self._commands[token]
+                continue
+            if answer["stage"] == "accepted":
+                client.goals[request.id] = token
+            self._deliver(token, answer)
+            return
+        raise CommandRejected(f"{label} could not be started", what="the arm's state to settle long enough to plan",
+                              why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
+                              how="retry, or stop the robot first")
+
+    def _planner(self, request: CheckedRequest) -> Callable[[tuple[np.ndarray, ...]], PolynomialMotion]:
+        limits, args = self.limits, request.args
+        if request.op == "move_joints":
+            return lambda start: plan_point_to_point(limits, start, args["target"], args["speed_scale"]).polynomial()
+
+        def fit(start: tuple[np.ndarray, ...]) -> PolynomialMotion:
+            spline = Spline.build(args["trajectory"], limits, *start)
+            spline.check_limits(limits, self.cycle_time_s)
+            return spline
+
+        return fit
+
+    # -- the driver --------------------------------------------------------------------------------
+    def _write_intake(self, record: dict[str, Any]) -> None:
+        data = json.dumps(record, allow_nan=False, separators=(",", ":")).encode()
+        deadline = time.monotonic() + DRIVER_TIMEOUT_S
+        while not self.intake.write(data):
+            if time.monotonic() > deadline:
+                raise DriverSilent("the RT driver takes no commands", what="room in its intake ring",
+                                   why=f"it stayed full for {DRIVER_TIMEOUT_S:g} s",
+                                   how="check the robot with `plem state`; restart it if its loop stopped")
+            self._pump()
+            time.sleep(POLL_S)
+
+    def _await(self, token: int) -> dict[str, Any]:
+        """The driver's next answer for `token` (passing on everything else meanwhile)."""
+        deadline = time.monotonic() + DRIVER_TIMEOUT_S
+        self._answers[token] = {}
+        try:
+            while not self._answers[token]:
+                if time.monotonic() > deadline:
+                    raise DriverSilent("the RT driver did not answer", what=f"an answer within {DRIVER_TIMEOUT_S:g} s",
+                                       why="its loop or its service thread is stalled",
+                                       how="check the robot with `plem state`; restart it if its loop stopped")
+                self._pump()
+                time.sleep(POLL_S)
+            return self._answers[token]
+        finally:
+            del self._answers[token]
+
+    def _take_slot(self) -> int:
+        deadline = time.monotonic() + DRIVER_TIMEOUT_S
+        while not self.free_slots:
+            if time.monotonic() > deadline:
+                raise DriverSilent("no motion slot was released", what="the driver to release a finished motion",
+                                   why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s",
+                                   how="stop the robot and retry")
+            self._pump()
+            time.sleep(POLL_S)
+        return self.free_slots.pop(0)
+
+    def _pump(self) -> None:
+        """Pass the driver's answers on to the clients they belong to."""
+        while (record := self.outcomes.read()) is not None:
+            outcome = json.loads(record)
+            token = outcome["token"]
+            if token in self._answers and not self._answers[token]:
+                self._answers[token] = outcome  # the request being planned takes it from here
+            else:
+                self._deliver(token, outcome)
+        if self.outcomes.dropped:
+            _log.error("%d driver answers were lost", self.outcomes.dropped)
+            self.outcomes.dropped = 0
+
+    def _deliver(self, token: int, outcome: dict[str, Any]) -> None:
+        command = self._commands.get(token)
+        if command is None:
+            return
+        stage = outcome["stage"]
+        if stage in ("rejected", "finished", "failed"):
+            self._release(outcome)
+            del self._commands[token]
+            if command.client is not None:
+                command.client.goals.pop(command.request_id, None)
+        if command.client is not None:
+            self._answer(command.client, json.dumps(
+                {"id": command.request_id, "stage": stage, "result": outcome.get("result"),
+                 "error": outcome.get("error")}, separators=(",", ":")).encode())
+
+    def _release(self, outcome: dict[str, Any]) -> None:
+        slot = outcome.get("slot")
+        if slot is not None and slot not in self.free_slots:
+            self.free_slots.append(slot)
+
+    def _send_counters(self) -> None:
+        now = time.monotonic()
+        counters = asdict(self.counters)
+        if now < self._next_counters or counters == self._sent_counters:
+            return
+        self._next_counters = now + COUNTERS_PERIOD_S
+        if self.intake.write(json.dumps({"op": "counters", "token": 0, **counters}).encode()):
+            self._sent_counters = counters
+
+
+def _tolerances_json(tolerances: TrajectoryTolerances | None) -> dict[str, Any] | None:
+    """Tolerances as the driver's start record carries them (unchecked joints as 0, as ROS sends them)."""
+    if tolerances is None:
+        return None
+
+    def plain(values: np.ndarray | None) -> list[float] | None:
+        return None if values is None else [float(v) if math.isfinite(v) else 0.0 for v in values]
+
+    return {"path": plain(tolerances.path), "goal": plain(tolerances.goal), "goal_time": tolerances.goal_time,
+            "stopped_velocity_tolerance": tolerances.stopped_velocity_tolerance}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Serve the robot named on the command line; one JSON line on stdout says it is ready or why not."""
+    argv = sys.argv[1:] if argv is None else argv
+    stop = begin("command_service")
+    robot_id = argv[0]
+    try:
+        channels = RobotChannels.attach_service(robot_id)
+        server = listen(robot_id)
+    except PlemError as error:
+        announce({"ready": False, "error": error.to_dict()})
+        return 1
+    try:
+        service = CommandService(channels, server, channels.state.header.cycle_time_ns * 1e-9)
+        announce({"ready": True})
+        service.run(stop)
+    finally:
+        server.close()
+        remove_own_socket(robot_id)
+        channels.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
