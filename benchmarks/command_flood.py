@@ -8,7 +8,7 @@ What runs:
   robot      one `plem launch bus:=mock robot_id:=bench_flood_<hex> bridge:=false record:=false` (Indy7 v2,
              MockBus with dynamics, 1 kHz, SCHED_FIFO 98) in a subprocess, holding. One launch for every window.
   floods     a flooder process (ordinary priority, like any client) sending for one window:
-               valid    the largest valid trajectory (5000 quintic points, 5.5 s, joint 0 moving by 0.02 rad)
+               valid    the largest valid trajectory (5000 quintic points, 5.5 s, joint 0 moving 0.02 rad on a cycloid)
                         through plem.bridge's execute_trajectory, again and again: each one is validated,
                         fitted and handed to the loop by the command service and preempts the one before.
                invalid  requests refused by the command service, alternating: a 600 KB trajectory whose last
@@ -61,16 +61,16 @@ FLOODER = textwrap.dedent("""
             t = duration * (i + 1) / points
             phase = 2 * math.pi * t / duration
             p, v, a = base.copy(), [0.0] * client.dof, [0.0] * client.dof
-            p[0] += amplitude * (1 - math.cos(phase)) / 2
-            v[0] = 0.0 if i == points - 1 else amplitude * math.sin(phase) * math.pi / duration
-            a[0] = 0.0 if i == points - 1 else amplitude * math.cos(phase) * 2 * (math.pi / duration) ** 2
+            p[0] += amplitude * (t / duration - math.sin(phase) / (2 * math.pi))     # a cycloid: at rest at both ends
+            v[0] = amplitude / duration * (1 - math.cos(phase))
+            a[0] = amplitude / duration * 2 * math.pi / duration * math.sin(phase)
             rows.append({"positions": p.tolist(), "time_from_start": lead + t, "velocities": v,
                          "accelerations": a})
         return rows
 
     valid = JointTrajectory.from_lists(client.joint_names, wave(5000, 0.5, 5.0, 0.02))
     invalid = wave(2400, 0.5, 5.0, 0.02)
-    invalid[-1]["positions"] = [10.0] * client.dof
+    invalid[-1]["positions"] = [10.0] * client.dof   # outside every joint's range
     invalid_frame = frame(json.dumps({"id": "flood", "op": "execute_trajectory",
                                       "joint_names": list(client.joint_names), "points": invalid}).encode())
     oversized = struct.pack("<I", 5 << 20) + b"x" * 4096

@@ -6,19 +6,34 @@ never timing.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
+from plem.control.commands import CommandHandle, StartMotion
 from plem.control.events import EventKind
 from plem.control.modes import Mode
-from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryPoint
+from plem.control.polynomial import ORDER, PolynomialMotion
+from plem.control.trajectory import (
+    JointTrajectory,
+    TrajectoryOutcome,
+    TrajectoryPoint,
+    TrajectoryTolerances,
+)
 from plem.errors import CommandRejected, ConfigError, RobotFault
 from plem.fieldbus.mock import MockBus
+from plem.ipc.request_bounds import MAX_POINTS
 from plem.robot import Indy7V2, IndyRP2V2, Robot, RobotFactory
 from plem.robot.profile import RobotProfile
 from plem.robot.robot import EtherCATUnavailable
 
-from .robot_fixtures import RAW_ZERO, assert_within_limits, simulated_robot, step_recording
+from .robot_fixtures import (
+    RAW_ZERO,
+    assert_within_limits,
+    simulated_robot,
+    step_recording,
+)
 
 POSE = np.array([0.3, -0.5, 0.8, 0.2, 0.6, -0.4])
 
@@ -361,3 +376,43 @@ def test_steady_state_cycles_keep_their_buffers_and_do_not_grow_memory(holding):
         tracemalloc.stop()
     assert [id(a) for a in (runtime._work, runtime._scratch, holding.bus.io.target_position)] == buffers
     assert after - before < 2048, after - before
+
+
+def test_a_stop_that_names_a_replaced_goal_leaves_the_new_one_running(holding):
+    first = holding.move_joints(POSE)
+    step_recording(holding, 200)
+    second = holding.move_joints(-POSE / 2)
+    holding.stop(goal=first).wait(1)                  # a cancel that arrives after the preemption
+    step_recording(holding, 20_000, until=lambda: second.done)
+    assert first.wait(0).outcome is TrajectoryOutcome.PREEMPTED
+    assert second.wait(0).outcome is TrajectoryOutcome.SUCCEEDED
+
+
+def test_an_unbounded_goal_time_waits_without_breaking_the_cycle(holding):
+    handle = holding.move_joints(POSE / 4, tolerances=TrajectoryTolerances(goal=np.full(6, 1e-3),
+                                                                            goal_time=math.inf))
+    step_recording(holding, 20_000, until=lambda: handle.done)
+    assert handle.wait(0).outcome is TrajectoryOutcome.SUCCEEDED
+    assert not faults(holding)
+
+
+def test_a_motion_that_commands_nan_faults_and_stops_from_the_measured_state(holding):
+    dof = holding.limits.dof
+    coefficients = np.zeros((1, ORDER, dof))
+    coefficients[0, 0] = holding.state().command_position
+    coefficients[0, 1, 2] = np.nan
+    motion = PolynomialMotion(np.array([0.0, 1.0]), coefficients, np.zeros((3, dof)))
+    handle = CommandHandle("nan")
+    holding.runtime.inbox.append(StartMotion(motion, holding.runtime.basis, None, TrajectoryTolerances(), handle))
+    trace = step_recording(holding, 2_000)
+    assert [event.cause for event in faults(holding)] == ["invalid_command"]
+    assert np.isfinite(np.array(trace.command)).all()
+    assert_within_limits(holding, trace.commands())
+    with pytest.raises(RobotFault, match="aborted"):
+        handle.wait(0)
+
+
+def test_a_trajectory_of_too_many_points_is_refused_before_any_work(holding):
+    points = tuple(TrajectoryPoint(tuple(POSE), 1.0 + i) for i in range(MAX_POINTS + 1))
+    with pytest.raises(CommandRejected, match="too many points"):
+        holding.execute_trajectory(JointTrajectory(holding.joint_names, points))
