@@ -287,7 +287,7 @@ def test_a_command_socket_taken_by_another_user_stops_the_launch(tmp_path: Path)
         env = clean_environment(tmp_path / "home")
         result = run_plem("launch", "bus:=mock", f"robot_id:={robot_id}", "bridge:=false", "record:=false", env=env)
         assert result.returncode == 1, result.stdout + result.stderr
-        assert "is taken" in result.stderr and f"owned by uid {NOBODY}" in result.stderr, result.stderr
+        assert "is taken" in result.stderr and f"owned by nobody (uid {NOBODY})" in result.stderr, result.stderr
     finally:
         squatter.kill()
         squatter.wait(10)

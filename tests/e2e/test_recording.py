@@ -20,10 +20,9 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from plem.bridge import connect
-from plem.launch.driver_service import DriverService
 from plem.launch.plan import plan_robot
 from plem.launch.recorder import record
-from plem.launch.rt_driver import build
+from plem.launch.rt_driver import driving
 from plem.recording.archive import read_event_log
 from plem.recording.status import read_status
 from tests.e2e.cli import run_plem
@@ -110,17 +109,8 @@ def served_driver(tmp_path: Path) -> Iterator[tuple[str, object]]:
     """A simulated arm's RT driver in this process (so the test can inject a drive fault into its bus)."""
     robot_id = new_robot_id()
     plan = plan_robot({"bus": "mock", "robot_id": robot_id}, generate=False)
-    robot, channels = build(plan)
-    service = DriverService(robot, channels)
-    robot.start()
-    service.start()
-    try:
-        yield robot_id, robot
-    finally:
-        robot.shutdown()
-        service.stop.set()
-        service.thread.join(2.0)
-        channels.remove()
+    with driving(plan) as driver:
+        yield robot_id, driver.robot
 
 
 def test_a_fault_keeps_its_pre_fault_window_and_logs_its_bag_position(tmp_path: Path, served_driver):

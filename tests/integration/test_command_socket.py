@@ -78,7 +78,7 @@ def test_a_service_run_by_another_user_is_never_commanded(robot_id):
         assert read_line(squatter, 30) == "listening\n", squatter.stderr.read() if squatter.poll() else ""
         with pytest.raises(CommandSocketError, match="served by another user's process") as caught:
             connect(robot_id)
-        assert "uid 65534" in caught.value.why
+        assert "nobody (uid 65534)" in caught.value.why
         with pytest.raises(CommandSocketError, match="is taken"):
             listen(robot_id)
         remove_own_socket(robot_id)

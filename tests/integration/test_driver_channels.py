@@ -16,6 +16,7 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.ipc.channels import channel_names
 from plem.ipc.segment import segment_path
+from plem.launch.driver_service import DriverService
 from plem.launch.plan import plan_robot
 from plem.launch.rt_driver import serve
 
@@ -79,3 +80,47 @@ def test_a_second_driver_process_for_the_same_robot_is_refused(served):
     assert "already has a running RT driver" in announcement["error"]["summary"]
     with connect(robot_id) as client:  # the first one is untouched
         assert client.wait_for_state(1.0, after_cycle=client.state().cycle + 10) is not None
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")
+def test_a_dead_service_thread_stops_the_arm_smoothly_and_ends_the_driver(monkeypatch):
+    """The driver must not run on deaf: if its service thread dies, it stops the arm and says why."""
+    robot_id = f"drv_{uuid.uuid4().hex[:8]}"
+    plan = plan_robot({"bus": "mock", "robot_id": robot_id}, generate=False)
+    stop, ready = threading.Event(), threading.Event()
+    outcome: list[BaseException] = []
+
+    def serving() -> None:
+        try:
+            serve(plan, stop, lambda _: ready.set())
+        except BaseException as error:  # noqa: BLE001 - the test inspects what serve() ended with
+            outcome.append(error)
+
+    def dying(self, command, token):
+        if command["op"] == "stop":
+            raise SystemExit("service thread ends")   # not an Exception: it escapes the per-record guard
+        return original(self, command, token)
+
+    original = DriverService._dispatch
+    monkeypatch.setattr(DriverService, "_dispatch", dying)
+    thread = threading.Thread(target=serving)
+    thread.start()
+    try:
+        assert ready.wait(30)
+        with connect(robot_id) as client:
+            events = client.events(timeout=0)
+            client.set_mode("hold")
+            target = client.state().position + 0.3
+            client.move_joints(target, speed_scale=0.1)
+            client.stop()
+            thread.join(30)
+            seen = list(events)
+    finally:
+        stop.set()
+        thread.join(30)
+    assert outcome and "service thread stopped" in str(outcome[0].summary)
+    modes = [(event.previous_mode, event.mode) for event in seen if event.kind is EventKind.MODE_CHANGED]
+    assert modes[-1] == (Mode.HOLD, Mode.IDLE), modes
+    assert not [event for event in seen if event.kind is EventKind.FAULT]
+    for name in channel_names(robot_id).values():
+        assert not segment_path(name).exists(), f"{name} left behind"

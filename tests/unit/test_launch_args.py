@@ -2,7 +2,9 @@ import pytest
 
 from plem.core.config.launch_args import parse_launch_arguments
 from plem.core.config.settings import parse_int, parse_int_list
-from plem.errors import UsageError
+from plem.errors import MultipleErrors, UsageError
+from plem.launch.arguments import DEFAULTS, help_text, parse
+from plem.launch.plan import plan_robot
 
 KNOWN = ("rt_priority", "robot_id", "eth_interface")
 
@@ -46,3 +48,23 @@ def test_text_parsers():
     for parser, bad in ((parse_int, "8.5"), (parse_int, "abc"), (parse_int_list, "1,x")):
         with pytest.raises(ValueError):
             parser(bad)
+
+
+def test_bridge_commands_argument_is_known_and_defaults_to_true():
+    assert parse(["bridge_commands:=false"]) == {"bridge_commands": "false"}
+    assert DEFAULTS["bridge_commands"] == "true" and "bridge_commands:=" in help_text()
+
+
+@pytest.mark.parametrize("value, expected", [("", True), ("true", True), ("false", False), ("0", False),
+                                             ("no", False)])
+def test_plan_carries_bridge_commands(value, expected):
+    plan = plan_robot({"bus": "mock", "bridge_commands": value, "record": "false"}, generate=False)
+    assert plan.bridge_commands is expected and plan.bridge
+
+
+def test_invalid_bridge_commands_is_reported_with_the_other_problems():
+    with pytest.raises(MultipleErrors) as caught:
+        plan_robot({"bus": "mock", "bridge_commands": "readonly", "record": "maybe"}, generate=False)
+    rendered = caught.value.render()
+    assert "invalid launch argument bridge_commands:=readonly" in rendered
+    assert "true or false" in rendered and "bridge_commands:=false" in rendered

@@ -1,24 +1,43 @@
-"""Atomic file writes: a reader or a crash sees the old file or the new one, never a torn one."""
+"""Files written atomically, and files opened only when they are what and whose they should be.
+
+A reader or a crash sees the old file or the new one, never a torn one. A file in a directory every
+user may write into (/dev/shm) is opened without following a symbolic link or waiting on a FIFO, and
+only when it is a regular file of a user the reader trusts.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import pwd
+import stat
 import tempfile
+from collections.abc import Collection
 from pathlib import Path
 
+_KINDS = {stat.S_IFREG: "regular file", stat.S_IFDIR: "directory", stat.S_IFLNK: "symbolic link",
+          stat.S_IFIFO: "FIFO", stat.S_IFSOCK: "socket", stat.S_IFCHR: "character device",
+          stat.S_IFBLK: "block device"}
 
-def write_atomic(path: Path, data: str | bytes, mode: int = 0o644) -> None:
-    """Write `data` to a temporary file beside `path`, fsync it, rename it over `path`, fsync the folder."""
+
+def write_atomic(path: Path, data: str | bytes, mode: int = 0o644, group: int | None = None) -> None:
+    """Write `data` to a temporary file beside `path`, fsync it, rename it over `path`, fsync the folder.
+
+    The file gets exactly `mode` (and `group`, when given) before it appears under its name, whatever
+    the process's umask.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = data.encode("utf-8") if isinstance(data, str) else data
     fd, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as handle:
+            os.fchmod(handle.fileno(), mode)
+            if group is not None:
+                os.fchown(handle.fileno(), -1, group)
             handle.write(payload)
             handle.flush()
             os.fsync(handle.fileno())
-        os.chmod(temp_name, mode)
         os.replace(temp_name, path)
     except BaseException:
         Path(temp_name).unlink(missing_ok=True)
@@ -28,3 +47,52 @@ def write_atomic(path: Path, data: str | bytes, mode: int = 0o644) -> None:
         os.fsync(directory)
     finally:
         os.close(directory)
+
+
+def user_name(uid: int) -> str:
+    """A user as messages name it: 'nobody (uid 65534)', or 'uid 1234' for a user without a passwd entry."""
+    try:
+        return f"{pwd.getpwuid(uid).pw_name} (uid {uid})"
+    except KeyError:
+        return f"uid {uid}"
+
+
+def file_kind(mode: int) -> str:
+    """'regular file', 'FIFO', 'symbolic link', ... for an `st_mode`."""
+    return _KINDS.get(stat.S_IFMT(mode), "special file")
+
+
+def trusted_owners() -> frozenset[int]:
+    """The users whose files this process trusts in a shared directory: itself and root."""
+    return frozenset({os.geteuid(), 0})
+
+
+class UntrustedFile(Exception):
+    """A file refused by `open_trusted`: not a regular file, or owned by a user the reader does not trust."""
+
+    def __init__(self, path: Path, status: os.stat_result) -> None:
+        self.path = path
+        self.kind = file_kind(status.st_mode)
+        self.owner_uid = status.st_uid
+        self.owner = user_name(status.st_uid)
+        super().__init__(f"{path} is a {self.kind} owned by {self.owner}")
+
+
+def open_trusted(path: Path, flags: int, owners: Collection[int]) -> tuple[int, os.stat_result]:
+    """Open `path` only if it is a regular file owned by one of `owners`; the descriptor and its status.
+
+    Never follows a symbolic link and never waits (a FIFO would block `open` until someone writes), so
+    a file planted by another user cannot redirect, hang or feed the caller. Raises UntrustedFile for
+    such a file, OSError (FileNotFoundError, PermissionError) as `os.open` does otherwise.
+    """
+    try:
+        fd = os.open(path, flags | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as error:
+        if error.errno not in (errno.ELOOP, errno.ENXIO, errno.EISDIR):   # a link, a socket, a directory
+            raise
+        raise UntrustedFile(path, os.lstat(path)) from None
+    status = os.fstat(fd)
+    if not stat.S_ISREG(status.st_mode) or status.st_uid not in owners:
+        os.close(fd)
+        raise UntrustedFile(path, status)
+    return fd, status

@@ -16,6 +16,7 @@ import stat
 import struct
 from pathlib import Path
 
+from plem.core.files import trusted_owners, user_name
 from plem.errors import PlemError
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
 from plem.ipc.segment import SHM_DIRECTORY
@@ -42,7 +43,7 @@ def peer_credentials(connection: socket.socket) -> tuple[int, int, int]:
 
 def trusted(uid: int) -> bool:
     """Whether a process of user `uid` may command, or be commanded by, this process: same user or root."""
-    return uid in (os.geteuid(), 0)
+    return uid in trusted_owners()
 
 
 def frame(payload: bytes) -> bytes:
@@ -105,7 +106,7 @@ def _clear_stale(path: Path, robot_id: str) -> None:
         kind = "socket" if stat.S_ISSOCK(info.st_mode) else "file that is not a socket"
         raise CommandSocketError(f"the command socket name of robot '{robot_id}' is taken",
                                  what=f"{path} free, or a socket of this user",
-                                 why=f"it is a {kind} owned by uid {info.st_uid}",
+                                 why=f"it is a {kind} owned by {user_name(info.st_uid)}",
                                  how=f"remove it as its owner or root (rm {path}), or use another robot_id:=")
     probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
@@ -153,7 +154,7 @@ def connect(robot_id: str) -> socket.socket:
         connection.close()
         raise CommandSocketError(f"robot '{robot_id}' is served by another user's process",
                                  what="a command service run by you or by root",
-                                 why=f"process {pid} of uid {uid} answers on {path}",
+                                 why=f"process {pid} of {user_name(uid)} answers on {path}",
                                  how=f"stop that process (or remove {path} as root) and launch the robot again, "
                                      "or use another robot_id:=")
     connection.setblocking(False)

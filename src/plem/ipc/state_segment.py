@@ -4,7 +4,8 @@ The header says what the block holds (magic, layout version, DOF, a hash of the 
 who writes it (owner pid), the joint limits and the named poses (SRDF group states), so a client can
 validate commands and name targets without the description package. The state block behind it is the
 seqlock of `plem.control.state`; its per-cycle time stamp is the driver's heartbeat. A segment whose
-owner is gone, or whose heartbeat stopped, is stale and may be replaced; a live one is never taken over.
+owner is gone, or whose heartbeat stopped, is stale and may be replaced by a driver of the same user; a
+live one is never taken over, another user's never touched.
 """
 
 from __future__ import annotations
@@ -112,7 +113,11 @@ class StateSegment:
     def create(cls, robot_id: str, limits: ArmLimits, cycle_time_ns: int, *,
                poses: Mapping[str, Sequence[float]] | None = None, mode: int = 0o600, group: int | None = None,
                warn: Callable[[str], None] = _log.warning) -> StateSegment:
-        """Create the segment for the RT driver; replaces a stale one (with a warning), refuses a live one."""
+        """Create the segment for the RT driver; replaces a stale one (with a warning), refuses a live one.
+
+        Only a leftover of the creating user is ever replaced: a name held by another user, or by a FIFO,
+        link or directory, is a SegmentError that names its owner and is left alone.
+        """
         name = state_segment_name(robot_id)
         joint_names = limits.joint_names
         names = "\n".join(joint_names).encode()
@@ -121,7 +126,7 @@ class StateSegment:
             raise ConfigError("joint names or named poses too long for the state segment",
                               what=f"at most {NAMES_BYTES} bytes of names and {POSES_BYTES} of poses",
                               why=f"{len(names)} and {len(poses_json)} bytes", how="use shorter names or fewer poses")
-        if SharedSegment.exists(name):
+        if SharedSegment.own_leftover(name):
             cls._replace_stale(robot_id, name, warn)
         segment = SharedSegment.create(name, cls.size(len(joint_names)), mode, group)
         buffer = segment.buffer
@@ -135,6 +140,7 @@ class StateSegment:
 
     @classmethod
     def _replace_stale(cls, robot_id: str, name: str, warn: Callable[[str], None]) -> None:
+        """Remove this user's segment left by a driver that is gone; a live driver's is refused."""
         try:
             existing = cls.attach(robot_id)
         except SegmentError as error:

@@ -29,6 +29,8 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("robot_name", "", "robot name for topics and the planning group; default: from the package"),
     LaunchArgument("eth_interface", "", "EtherCAT network interface, e.g. enp3s0 (bus:=ethercat)"),
     LaunchArgument("bridge", "true", "publish the robot on ROS 2 over DDS (topics and actions under /{robot_id}/)"),
+    LaunchArgument("bridge_commands", "true", "let ROS 2 command the robot through the bridge (joint_trajectory "
+                   "topic, follow_joint_trajectory and set_mode actions); false: topics only, read-only"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
     LaunchArgument("record", "true", "record the monitoring topics into rosbag2 bags"),

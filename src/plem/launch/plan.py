@@ -50,6 +50,7 @@ class RobotPlan:
     shm_group: int | None
     report: ValidationReport
     description: ResolvedDescription | None = None
+    bridge_commands: bool = True
 
     @property
     def config(self) -> SerialArmConfig:
@@ -154,7 +155,8 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
     bus = arguments.get("bus", DEFAULTS["bus"])
     if bus not in BUSES:
         errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}", "use bus:=mock for the simulated arm"))
-    record, bridge = (_boolean(arguments, name, errors) for name in ("record", "bridge"))
+    record, bridge, bridge_commands = (_boolean(arguments, name, errors)
+                                       for name in ("record", "bridge", "bridge_commands"))
     rate_text = arguments.get("joint_states_rate", "")
     if rate_text and not _positive(rate_text, MAX_JOINT_STATES_RATE):
         errors.append(_problem("joint_states_rate", rate_text, f"a rate in Hz above 0 and at most "
@@ -192,7 +194,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
                                   dof=None if builtin else report.dof)
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
     return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, record, bridge,
-                     group, report, description)
+                     group, report, description, bridge_commands)
 
 
 def _builtin_model(package: Path) -> str | None:

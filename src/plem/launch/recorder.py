@@ -4,24 +4,29 @@
 `python -m plem.launch.recorder '<launch arguments as JSON>'`. It runs at normal priority and only reads
 shared memory, so a slow or full disk never reaches the loop: the rings hold about four seconds, and
 what the recorder could not keep is counted. On a stop signal it records on until the driver has
-stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too.
+stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too. Everything it writes is
+owner-only, or readable by the group of `shm_group:=` as the robot's shared memory is.
 """
 
 from __future__ import annotations
 
+import logging
 import sys
 import threading
 import time
+from dataclasses import replace
 
 from plem.bridge.client import DriverGone, RobotClient, connect
 from plem.ipc.state_segment import process_alive
 from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
-from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed
+from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.types import library
+from plem.recording.access import restrict_umask
 from plem.recording.recorder import Recorder
 from plem.recording.status import remove_status, write_status
 
+_log = logging.getLogger("plem.recorder")
 #: How often the recorder reads the rings (they hold about 4 s at 1 kHz).
 PUMP_PERIOD_S = 0.02
 LIVENESS_PERIOD_S = 0.5
@@ -33,14 +38,14 @@ def record(arguments: dict[str, str], stop: threading.Event) -> None:
     """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`."""
     plan = plan_robot(arguments, generate=False)
     client = connect(plan.robot_id, plan.config.dof)
-    settings = plan.recording()
+    settings = replace(plan.recording(), group=plan.shm_group)
     interfaces = library()
     recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store)
     feed = MonitorFeed(client, interfaces, plan.joint_state_rate(), history=True)
     try:
         recorder.start()
         announce({"ready": True, "directory": str(settings.directory), "settings": settings.describe()})
-        run(client, feed, recorder, stop)
+        run(client, feed, recorder, stop, plan.shm_group)
     finally:
         try:
             feed.pump(recorder)
@@ -50,16 +55,19 @@ def record(arguments: dict[str, str], stop: threading.Event) -> None:
             client.close()
 
 
-def run(client: RobotClient, feed: MonitorFeed, recorder: Recorder, stop: threading.Event) -> None:
+def run(client: RobotClient, feed: MonitorFeed, recorder: Recorder, stop: threading.Event,
+        group: int | None = None) -> None:
     """Pump the feed into the recorder, keep the disk in check, publish the recorder's counters."""
     next_check = time.monotonic()
     drain_deadline: float | None = None
+    published = True
     while True:
         feed.pump(recorder)
         recorder.maintain()
         now = time.monotonic()
         if now >= next_check:
-            write_status(client.robot_id, [*recorder.queues(), *feed.reader_queues()])
+            published = publish_status(client.robot_id, [*recorder.queues(), *feed.reader_queues()], group,
+                                       published)
             if not driver_running(client):
                 return
             next_check = now + LIVENESS_PERIOD_S
@@ -68,6 +76,17 @@ def run(client: RobotClient, feed: MonitorFeed, recorder: Recorder, stop: thread
             if now >= drain_deadline:
                 return
         time.sleep(PUMP_PERIOD_S)
+
+
+def publish_status(robot_id: str, queues: list[QueueCount], group: int | None, published: bool) -> bool:
+    """Write the counters for the bridge; False when refused (logged when it starts failing), recording goes on."""
+    try:
+        write_status(robot_id, queues, group)
+    except OSError as error:
+        if published:
+            _log.warning("recorder counters not published (%s); the bridge will not report them", error)
+        return False
+    return True
 
 
 def driver_running(client: RobotClient) -> bool:
@@ -82,6 +101,8 @@ def driver_running(client: RobotClient) -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The recorder process; its umask is owner-only because rosbags creates the bag files itself."""
+    restrict_umask()
     return run_component("recorder", record, argv)
 
 

@@ -2,8 +2,9 @@
 
 `plem launch` starts it after the robot's RT driver announced itself, as
 `python -m plem.launch.ros_bridge '<launch arguments as JSON>'`. It runs at normal priority: it only
-reads shared memory and writes the bounded command ring, so its death or slowness never moves or
-stalls the arm. It exits when the driver's heartbeat stops.
+reads shared memory and sends commands to the robot's command service, so its death or slowness never
+moves or stalls the arm. With `bridge_commands:=false` it only publishes: it creates no command
+endpoints and sends no command. It exits when the driver's heartbeat stops.
 """
 
 from __future__ import annotations
@@ -29,12 +30,10 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     node = Node()
     client = connect(plan.robot_id, plan.config.dof)
     rate = plan.joint_state_rate()
-    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate)
-    commands = threading.Thread(target=bridge.serve_commands, args=(stop,), name="plem-bridge-commands",
-                                daemon=True)
-    commands.start()
+    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, commands=plan.bridge_commands)
+    commands = _command_thread(bridge, stop) if bridge.commands else None
     announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),
-              "joint_state_rate": rate})
+              "joint_state_rate": rate, "commands": bridge.commands})
     next_check = time.monotonic()
     try:
         while not stop.is_set():
@@ -45,9 +44,17 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
             time.sleep(PUMP_PERIOD_S)
     finally:
         stop.set()
-        commands.join(1.0)
+        if commands is not None:
+            commands.join(1.0)
         client.close()
         node.close()
+
+
+def _command_thread(bridge: RobotBridge, stop: threading.Event) -> threading.Thread:
+    """The started thread that serves the bridge's ROS 2 commands until `stop`."""
+    thread = threading.Thread(target=bridge.serve_commands, args=(stop,), name="plem-bridge-commands", daemon=True)
+    thread.start()
+    return thread
 
 
 def main(argv: list[str] | None = None) -> int:

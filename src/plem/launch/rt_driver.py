@@ -8,10 +8,13 @@ when the launching process dies the kernel sends SIGTERM, so the arm never runs 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
 import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 from plem.control.realtime import keep_threads_scheduled
@@ -61,40 +64,57 @@ def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChanne
     return robot, channels[0]
 
 
+@dataclass
+class Driver:
+    """A running driver: the robot and its loop, its shared memory, its service thread and command service."""
+
+    robot: Robot
+    channels: RobotChannels
+    service: DriverService
+    commands: CommandServiceProcess
+
+
+@contextlib.contextmanager
+def driving(plan: RobotPlan) -> Iterator[Driver]:
+    """Build the robot, start its loop, service thread and command service; stop them all smoothly at the end."""
+    robot, channels = build(plan)
+    driver = Driver(robot, channels, DriverService(robot, channels), CommandServiceProcess(plan.robot_id))
+    try:
+        robot.start()
+        driver.service.start()
+        driver.commands.start()
+        yield driver
+    finally:
+        driver.commands.stop()
+        robot.shutdown()
+        driver.service.stop.set()
+        driver.service.thread.join(2.0)
+        channels.remove()
+
+
 def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
-    """Build, start the loop, the service thread and the command service, announce readiness, run until `stop`.
+    """Run the robot of `plan` until `stop`, after announcing readiness.
 
     The loop runs on when the command service dies (it is restarted); when the service thread dies, the
     arm is stopped smoothly and the driver ends with an error, which `plem launch` reports.
     """
-    robot, channels = build(plan)
-    service = DriverService(robot, channels)
-    commands = CommandServiceProcess(plan.robot_id)
-    try:
-        robot.start()
-        service.start()
-        commands.start()
+    with driving(plan) as driver:
+        robot = driver.robot
         report = robot.loop.report
         announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
                   "joint_names": list(robot.joint_names), "cycle_time_us": plan.config.cycle_time,
                   "policy": report.policy, "priority": report.priority, "memory_locked": report.memory_locked,
-                  "warnings": report.warnings, "shared_memory": channels.names,
-                  "command_socket": str(socket_path(plan.robot_id)), "command_service_pid": commands.pid})
+                  "warnings": report.warnings, "shared_memory": driver.channels.names,
+                  "command_socket": str(socket_path(plan.robot_id)), "command_service_pid": driver.commands.pid})
         while not stop.wait(0.2):
             if not robot.running:
                 _log.error("the control loop stopped: %r", robot.loop.error)
                 break
-            if not service.thread.is_alive():
+            if not driver.service.thread.is_alive():
                 raise PlemError("the RT driver's service thread stopped", what="the service thread to run",
                                 why="it ended unexpectedly; the arm was stopped smoothly",
                                 how="restart the robot with `plem launch`, and report this with its output")
-            commands.keep_running()
-    finally:
-        commands.stop()
-        robot.shutdown()
-        service.stop.set()
-        service.thread.join(2.0)
-        channels.remove()
+            driver.commands.keep_running()
 
 
 def _serve_launched(arguments: dict[str, str], stop: threading.Event) -> None:

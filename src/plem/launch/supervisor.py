@@ -181,7 +181,9 @@ class Supervisor:
         if child is None:
             return self._off("bridge", "bridge")
         ready = child.ready
-        return (f"running, pid {child.process.pid}, topics and actions under {ready['namespace']}/ "
+        served = ("topics and actions under" if ready["commands"]
+                  else "read-only (bridge_commands:=false), topics only under")
+        return (f"running, pid {child.process.pid}, {served} {ready['namespace']}/ "
                 f"({ready['domain']}, joint_states {ready['joint_state_rate']:g} Hz)")
 
     def _recorder_status(self, child: Child | None) -> str:

@@ -190,7 +190,15 @@ def _domain(settings: DiscoverySettings) -> Domain:
     allows one configuration per domain id and process."""
     config = settings.cyclone_config()
     if settings.domain_id not in _DOMAINS:
-        _DOMAINS[settings.domain_id] = (config, Domain(settings.domain_id, config))
+        try:
+            _DOMAINS[settings.domain_id] = (config, Domain(settings.domain_id, config))
+        except DDSException as error:
+            given = f"CYCLONEDDS_URI={settings.user_config!r}" if settings.user_config else "no CYCLONEDDS_URI"
+            raise ConfigError(f"Cyclone DDS refused the configuration of domain {settings.domain_id}",
+                              what="plem's discovery settings, then CYCLONEDDS_URI, as a configuration Cyclone DDS "
+                                   "accepts",
+                              why=f"{error}, with {given}; Cyclone DDS names what it refused on stderr",
+                              how="fix or unset CYCLONEDDS_URI") from error
     existing, domain = _DOMAINS[settings.domain_id]
     if existing != config:
         raise ConfigError(f"domain {settings.domain_id} is already joined with other discovery settings",

@@ -2,9 +2,10 @@
 
 Under `/{robot_id}/` it publishes joint_states, robot_description (latched), rt_raw (every cycle),
 rt_events and rt_monitor_stats (10 Hz), and serves joint_trajectory_controller's topic and action and
-the wim_rt_driver/set_mode action. It only reads shared memory and writes the command ring through
-`RobotClient`, so nothing it does (or a slow subscriber does to it) can delay the loop; what it could
-not keep up with is counted in rt_monitor_stats.
+the wim_rt_driver/set_mode action. A read-only bridge (`commands=False`) creates none of these command
+endpoints, so nothing on the network can command the arm through it. It only reads shared memory and
+sends commands to the robot's command service through `RobotClient`, so nothing it does (or a slow
+subscriber does to it) can delay the loop; what it could not keep up with is counted in rt_monitor_stats.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from plem.errors import PlemError
 from plem.middleware.action import ActionServer
 from plem.middleware.goals import FJT, start_mode_change, start_trajectory, trajectory_from_message
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
-from plem.middleware.node import Node
+from plem.middleware.node import Node, Subscription
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW
 from plem.recording.status import read_status
 
@@ -29,27 +30,39 @@ _log = logging.getLogger("plem.bridge")
 
 
 class RobotBridge:
-    """Publishes one robot's shared memory on ROS 2 and serves its ROS 2 commands."""
+    """Publishes one robot's shared memory on ROS 2 and, unless read-only, serves its ROS 2 commands."""
 
-    def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float) -> None:
+    trajectories: Subscription[Any]
+    follow: ActionServer
+    set_mode: ActionServer
+
+    def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float,
+                 commands: bool = True) -> None:
         self.client = client
         self.node = node
         self.library = node.library
         self.namespace = f"/{client.robot_id}"
+        self.commands = commands
         ns = self.namespace
         profiles = {"rt_raw": RT_RAW, "rt_events": EVENTS, "rt_monitor_stats": DEFAULT, "joint_states": DEFAULT}
         self.publishers = {name: node.publisher(f"{ns}/{name}", ros_type, profiles[name])
                            for name, ros_type in MONITOR_TOPICS.items()}
         self.description = node.publisher(f"{ns}/robot_description", "std_msgs/msg/String", LATCHED)
+        if commands:
+            self._command_endpoints()
+        self.description.publish(self.description.message(data=description))
+        self.feed = MonitorFeed(client, self.library, joint_state_rate)
+        self._profiles = profiles
+
+    def _command_endpoints(self) -> None:
+        """joint_trajectory_controller's topic and action and the set_mode action, as ROS 2 names them."""
+        client, node, ns = self.client, self.node, self.namespace
         self.trajectories = node.subscription(f"{ns}/joint_trajectory_controller/joint_trajectory",
                                               "trajectory_msgs/msg/JointTrajectory", DEFAULT)
         self.follow = ActionServer(node, f"{ns}/joint_trajectory_controller/follow_joint_trajectory", FJT,
                                    lambda goal: start_trajectory(client, self.library, goal))
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
-        self.description.publish(self.description.message(data=description))
-        self.feed = MonitorFeed(client, self.library, joint_state_rate)
-        self._profiles = profiles
 
     # -- shared memory → topics -----------------------------------------------------------------------
     def pump(self) -> int:
@@ -74,9 +87,9 @@ class RobotBridge:
                                  self.publishers[name].dropped) for name in ("rt_raw", "joint_states", "rt_events")]
         return [*publishers, *read_status(self.client.robot_id)]
 
-    # -- ROS commands → command ring ------------------------------------------------------------------
+    # -- ROS commands → command service ---------------------------------------------------------------
     def serve_commands(self, stop: threading.Event, period: float = 0.01) -> None:
-        """Take trajectories and action requests until `stop`; runs in its own thread."""
+        """Take trajectories and action requests until `stop`; runs in its own thread (not when read-only)."""
         waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services])
         timeout = duration(seconds=period)
         while not stop.is_set():

@@ -5,12 +5,14 @@ Layout under `bag_dir/{robot_id}/`:
 - `{segment}.keep`: the segment holds seconds before a fault and is never deleted automatically;
 - `event_log.jsonl`: one JSON object per line for every segment opened or closed, deletion (with its
   reason), fault (with its bag position), repair, stop and resume of recording.
+The robot's directory, the keep marks and the event log get the archive's `FileAccess`.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 import time
 from collections.abc import Iterator
@@ -20,6 +22,7 @@ from typing import Any
 import yaml
 
 from plem.core.files import write_atomic
+from plem.recording.access import FileAccess
 from plem.recording.retention import Deletion, Segment
 
 _log = logging.getLogger("plem.recorder")
@@ -60,10 +63,11 @@ def bag_extent(path: Path) -> tuple[int, int] | None:
 class Archive:
     """The bag directory of one robot."""
 
-    def __init__(self, directory: Path, robot_id: str) -> None:
+    def __init__(self, directory: Path, robot_id: str, access: FileAccess = FileAccess()) -> None:
         self.directory = directory
         self.robot_id = robot_id
-        directory.mkdir(parents=True, exist_ok=True)
+        self.access = access
+        access.make_directory(directory)
 
     def segment_paths(self) -> list[Path]:
         """Every segment directory, oldest first."""
@@ -89,7 +93,8 @@ class Archive:
 
     def keep(self, path: Path, reason: str) -> None:
         """Mark a segment as one the guard must never delete."""
-        write_atomic(path.with_name(path.name + KEEP_SUFFIX), json.dumps({"reason": reason}) + "\n")
+        write_atomic(path.with_name(path.name + KEEP_SUFFIX), json.dumps({"reason": reason}) + "\n",
+                     mode=self.access.file_mode, group=self.access.group)
 
     def is_kept(self, path: Path) -> bool:
         return path.with_name(path.name + KEEP_SUFFIX).exists()
@@ -106,8 +111,11 @@ class Archive:
         _log.log(level, "%s", message)
         now = time.time_ns()
         entry = {"time": iso_time(now), "time_ns": now, "kind": kind, "message": message, **fields}
+        flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
         try:
-            with open(self.directory / EVENT_LOG, "a", encoding="utf-8") as handle:
+            with open(os.open(self.directory / EVENT_LOG, flags, self.access.file_mode), "a",
+                      encoding="utf-8") as handle:
+                self.access.apply_fd(handle.fileno())
                 handle.write(json.dumps(entry) + "\n")
         except OSError as error:
             _log.error("event log %s not written: %s", self.directory / EVENT_LOG, error)

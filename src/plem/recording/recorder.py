@@ -24,6 +24,7 @@ from rosbags.typesys.store import Typestore
 from plem.control.events import Event, EventKind
 from plem.errors import PlemError
 from plem.middleware.monitor_feed import QueueCount
+from plem.recording.access import FileAccess
 from plem.recording.archive import Archive, directory_size, iso_time
 from plem.recording.repair import repair
 from plem.recording.retention import Segment, choose_deletions
@@ -45,7 +46,8 @@ class Recorder:
         self.store = store
         self.clock = clock
         self.disk_usage = disk_usage
-        self.archive = Archive(settings.directory, robot_id)
+        self.access = FileAccess(settings.group)
+        self.archive = Archive(settings.directory, robot_id, self.access)
         self.written = 0
         self.unrecorded = 0
         self.closed: list[Segment] = []
@@ -84,7 +86,8 @@ class Recorder:
     def _open(self, wall_ns: int) -> None:
         path = self.archive.new_segment_path(wall_ns)
         topics = [(f"{self.namespace}/{name}", ros_type) for name, ros_type in self.topics.items()]
-        self.segment = SegmentWriter(path, topics, self.store, self.settings.storage, self.settings.flush_period_s)
+        self.segment = SegmentWriter(path, topics, self.store, self.settings.storage, self.settings.flush_period_s,
+                                     self.access)
         self._segment_start = wall_ns
         self.archive.log("segment_opened", f"recording into {path}", segment=path.name,
                          storage=self.settings.storage)
@@ -94,7 +97,11 @@ class Recorder:
         segment, self.segment = self.segment, None
         if segment is None:
             return
-        segment.close()
+        try:
+            segment.close()
+        except (OSError, ValueError):
+            self._give_up(segment)
+            raise
         closed = self.archive.closed_segment(segment.directory)
         if closed is not None:
             self.closed.append(closed)
@@ -132,13 +139,22 @@ class Recorder:
             try:
                 segment.close()
             except (OSError, ValueError):
-                pass                                # left as a killed segment: `plem bag repair` rebuilds it
-            now = self.clock()
-            self.closed.append(Segment(str(segment.directory), self._segment_start, now,
-                                       directory_size(segment.directory), self.archive.is_kept(segment.directory)))
+                self._give_up(segment)
+            else:
+                self._track(segment)
         self.archive.log("recording_stopped", f"recording stopped: {self.stopped_because}; the robot goes on, "
                          "recording resumes once the disk is below disk_threshold", logging.ERROR,
                          reason=self.stopped_because)
+
+    def _give_up(self, segment: SegmentWriter) -> None:
+        """A segment the disk would not let finish: its file closed as a killed segment, still under the guard."""
+        segment.abandon()                           # `plem bag repair` (or the next recorder) rebuilds it
+        self._track(segment)
+
+    def _track(self, segment: SegmentWriter) -> None:
+        """Hand a segment that ended without `_close` to the guard, from its start until now."""
+        self.closed.append(Segment(str(segment.directory), self._segment_start, self.clock(),
+                                   directory_size(segment.directory), self.archive.is_kept(segment.directory)))
 
     def maintain(self) -> None:
         """Apply retention and the disk guard (at most once per guard period); resume a stopped recording."""

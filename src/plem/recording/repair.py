@@ -4,7 +4,7 @@ A killed MCAP segment has its chunks but no summary, footer or metadata.yaml, an
 Every complete chunk is read (schemas and channels travel in the first one); the first incomplete record
 ends the scan. A killed sqlite3 segment has its committed transactions and no metadata.yaml. The rebuilt
 bag replaces the directory only after it reads back with every recovered message; the original file is
-then removed.
+then removed. The rebuilt bag is built in an owner-only workspace and given the original's access.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from rosbags.rosbag2 import Reader, Writer
 
 from plem.errors import PlemError
 from plem.middleware.types import library
+from plem.recording.access import FileAccess
 from plem.recording.mcap_records import CHANNEL, CHUNK, MAGIC, MESSAGE, SCHEMA, chunk_records, records, string
 from plem.recording.segment import BAG_VERSION, STORAGES, bag_file
 
@@ -96,6 +97,7 @@ def repair(directory: Path) -> RepairReport:
                           why=f"unknown: {', '.join(unknown)}", how="repair it with the tool that wrote it")
     workspace = directory.with_name(f".{directory.name}.repairing")
     shutil.rmtree(workspace, ignore_errors=True)
+    workspace.mkdir(mode=0o700)                          # nobody else sees the bag while it is built
     rebuilt = workspace / directory.name                 # same name: the files inside are named after it
     writer = Writer(rebuilt, version=BAG_VERSION, storage_plugin=STORAGES[storage])
     writer.open()
@@ -108,6 +110,7 @@ def repair(directory: Path) -> RepairReport:
         if reader.message_count != len(messages):
             raise RepairError(f"the rebuilt {directory.name} lost messages", what="every recovered message",
                               why=f"{reader.message_count} of {len(messages)} read back", how="keep the original")
+    FileAccess.like(directory).apply_tree(rebuilt)
     killed = workspace / f"{directory.name}.killed"
     directory.rename(killed)                             # the original stays whole until the new one is in place
     rebuilt.rename(directory)

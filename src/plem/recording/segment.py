@@ -4,7 +4,8 @@ rosbags' MCAP writer keeps messages in a pending chunk of up to 1 MiB (about 2.5
 sqlite3 writer in one transaction, and both write the bag's metadata.yaml only when closed. The segment
 closes the chunk (or commits) and flushes the file every `flush_period_s`, and once right after the
 connections are added (the first chunk then carries every schema and channel), so a killed recorder
-loses at most the last period; `repair` rebuilds what a killed segment lacks.
+loses at most the last period; `repair` rebuilds what a killed segment lacks. The bag directory and its
+files get the recorder's `FileAccess` once created and again once metadata.yaml is written.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from pathlib import Path
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys.store import Typestore
+
+from plem.recording.access import FileAccess
 
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (ROS 2 Jazzy writes 9).
@@ -30,17 +33,23 @@ class SegmentWriter:
     """Writes serialized messages of fixed topics into one bag directory."""
 
     def __init__(self, directory: Path, topics: Sequence[tuple[str, str]], store: Typestore,
-                 storage: str = "mcap", flush_period_s: float = 1.0) -> None:
+                 storage: str = "mcap", flush_period_s: float = 1.0, access: FileAccess = FileAccess()) -> None:
         self.directory = directory
+        self.access = access
         self.messages = 0
         self.start_ns: int | None = None                     # the earliest stamp written: a reader's start time
         self._writer = Writer(directory, version=BAG_VERSION, storage_plugin=STORAGES[storage])
-        self._writer.open()
-        self._connections = {topic: self._writer.add_connection(topic, msgtype, typestore=store)
-                             for topic, msgtype in topics}
         self._flush_period_ns = round(flush_period_s * 1e9)
         self._next_flush = 0
-        self.flush()
+        self._writer.open()
+        try:
+            access.apply_tree(directory)
+            self._connections = {topic: self._writer.add_connection(topic, msgtype, typestore=store)
+                                 for topic, msgtype in topics}
+            self.flush()
+        except BaseException:
+            self.abandon()                                   # a full disk: no file left open behind the caller
+            raise
 
     @property
     def name(self) -> str:
@@ -69,6 +78,14 @@ class SegmentWriter:
             connection.commit()
         self._next_flush = time.monotonic_ns() + self._flush_period_ns
 
+    def abandon(self) -> None:
+        """Close the file unfinished after a failed write or close; it stays a killed segment for `repair`."""
+        try:
+            self._writer.abort()
+        except OSError:
+            pass                                             # the descriptor is closed even when the flush fails
+
     def close(self) -> None:
         """Finish the file (summary, footer) and write metadata.yaml."""
         self._writer.close()
+        self.access.apply_tree(self.directory)

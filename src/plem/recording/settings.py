@@ -8,7 +8,10 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class RecordingSettings:
-    """Where and how one robot's monitoring topics are recorded (durations in seconds)."""
+    """Where and how one robot's monitoring topics are recorded (durations in seconds).
+
+    `group` (a gid, from `shm_group:=`) may read the recordings too; without it they are owner-only.
+    """
 
     directory: Path
     storage: str = "mcap"
@@ -18,6 +21,7 @@ class RecordingSettings:
     flight_window_s: float = 10.0
     flush_period_s: float = 1.0
     guard_period_s: float = 1.0
+    group: int | None = None
 
     def describe(self) -> str:
         return (f"{self.storage}, segments of {self.segment_s:g} s, retention {self.retention_s / 60:g} min, "
