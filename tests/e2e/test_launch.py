@@ -123,9 +123,14 @@ def group_robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Laun
 
 
 # -- shared checks -----------------------------------------------------------------------------------
+def shared_memory_files(robot_id: str) -> list[str]:
+    """The shared memory of a robot, as /dev/shm lists it."""
+    return sorted(name[1:] for name in channel_names(robot_id).values())
+
+
 def expected_files(robot_id: str) -> list[str]:
     """The shared memory of a robot and its command socket."""
-    return sorted([*(name[1:] for name in channel_names(robot_id).values()), socket_path(robot_id).name])
+    return sorted([*shared_memory_files(robot_id), socket_path(robot_id).name])
 
 
 def target_away(client: RobotClient, distance: float) -> list[float]:
@@ -257,7 +262,9 @@ def test_sigkill_of_launch_and_driver_leaves_stale_memory_that_a_new_launch_repl
         first.process.kill()
         first.process.wait(10)
         assert wait_until(lambda: process_reaped(driver), 10)
-        assert [path.name for path in shm_files(robot_id)] == expected_files(robot_id)
+        # the shared memory stays behind; the command service dies with its driver and removes its socket
+        assert wait_until(lambda: [path.name for path in shm_files(robot_id)] == shared_memory_files(robot_id), 10), \
+            shm_files(robot_id)
 
         second = start_launch(arguments, [robot_id], tmp_path, env)
         try:

@@ -213,6 +213,12 @@ class CommandService:
         except PlemError as error:
             self.counters.rejected += 1
             self._answer(client, reply(request_id_of(payload) or "-", "rejected", error=error))
+        except Exception as error:  # noqa: BLE001 - a request that trips a bug is refused; serving goes on
+            _log.exception("a request could not be handled")
+            self.counters.rejected += 1
+            self._answer(client, reply(request_id_of(payload) or "-", "rejected", error=PlemError(
+                "the request could not be handled", what="a request the command service can execute",
+                why=f"{type(error).__name__}: {error}", how="check the request; report this with the robot's output")))
 
     def _send(self, client: _Client, request: CheckedRequest) -> int:
         """Hand a mode change, fault reset or stop to the driver; its answers reach the client later."""

@@ -19,6 +19,7 @@ from plem.bridge.client import RemoteHandle, RobotClient
 from plem.control.trajectory import (ErrorCode, JointTrajectory, TrajectoryOutcome, TrajectoryResult,
                                      TrajectoryTolerances)
 from plem.errors import CommandRejected, PlemError
+from plem.ipc.request_bounds import point_count
 from plem.ipc.requests import error_from_json, result_from_json
 from plem.middleware.action import ABORTED, CANCELED, SUCCEEDED
 from plem.middleware.types import InterfaceLibrary
@@ -37,7 +38,11 @@ def seconds(duration: Any) -> float:
 
 
 def trajectory_from_message(message: Any, now_ns: int | None = None) -> JointTrajectory:
-    """A plem JointTrajectory from trajectory_msgs/JointTrajectory; CommandRejected for what plem cannot run."""
+    """A plem JointTrajectory from trajectory_msgs/JointTrajectory; CommandRejected for what plem cannot run.
+
+    The point count is checked before anything is converted, so an oversized message costs no work.
+    """
+    point_count(len(message.points))
     stamp_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
     if stamp_ns:
         now_ns = time.time_ns() if now_ns is None else now_ns
