@@ -140,6 +140,50 @@ def _extrema(coefficients: np.ndarray, duration: float) -> tuple[float, float, f
     return float(values[low]), float(s[low] * duration), float(values[high]), float(s[high] * duration)
 
 
+def _near_beyond(value: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """`_beyond` with a little less slack, so that the exact check sees every case that might fail it."""
+    return value > limit - SLACK * np.maximum(1.0, np.abs(limit))
+
+
+def _suspect_jumps(limits: ArmLimits, jumps: np.ndarray, cycle_time_s: float) -> np.ndarray:
+    """Per knot, whether a velocity or acceleration step there may exceed the next derivative's limit."""
+    suspect = np.zeros(jumps.shape[1], dtype=bool)
+    for k in (1, 2):
+        suspect |= _near_beyond(np.abs(jumps[k]) / cycle_time_s, limits.maximum(KINDS[k + 1])).any(axis=1)
+    return suspect
+
+
+def _extrema_of_many(coefficients: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest value of each polynomial row (lowest order first) on [0, its duration].
+
+    The candidates are both ends and the real stationary points inside, found for all rows at once as
+    eigenvalues of companion matrices, grouped by the derivative's degree.
+    """
+    count, size = coefficients.shape
+    scaled = coefficients * durations[:, None] ** np.arange(size)  # in s = t / duration, s in [0, 1]
+    slope = scaled[:, 1:] * np.arange(1, size)
+    magnitude = np.abs(slope)
+    significant = magnitude > 1e-12 * magnitude.max(axis=1, keepdims=True)
+    degree = np.where(significant.any(axis=1), size - 2 - np.argmax(significant[:, ::-1], axis=1), 0)
+    points = np.full((count, size), np.nan)
+    points[:, 0], points[:, 1] = 0.0, 1.0
+    for d in range(1, size - 1):
+        rows = np.flatnonzero(degree == d)
+        if not rows.size:
+            continue
+        monic = slope[rows, :d] / slope[rows, d:d + 1]
+        companion = np.zeros((rows.size, d, d))
+        companion[:, np.arange(1, d), np.arange(d - 1)] = 1.0
+        companion[:, :, -1] = -monic
+        roots = np.linalg.eigvals(companion)
+        inside = (np.abs(roots.imag) < 1e-6) & (roots.real > 0.0) & (roots.real < 1.0)
+        points[rows, 2:2 + d] = np.where(inside, roots.real, np.nan)
+    powers = points[:, :, None] ** np.arange(size)
+    values = np.einsum("rcp,rp->rc", np.nan_to_num(powers), scaled)
+    values[np.isnan(points)] = np.nan
+    return np.nanmin(values, axis=1), np.nanmax(values, axis=1)
+
+
 def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_names: tuple[str, ...]) -> None:
     """A first point at time 0 must be where the arm is; the last point must be at rest."""
     if first_time == 0.0:
@@ -223,12 +267,32 @@ class Spline(PolynomialMotion):
         ends = np.einsum("sp,kspj->ksj", durations[:, None] ** np.arange(ORDER), self._derivatives[:3])
         before = np.concatenate([self._start[:, None], ends], axis=1)  # (3, knots, dof): value just before knot
         after = np.concatenate([self._derivatives[:3, :, 0], self._final[:, None]], axis=1)
-        for q in range(len(self._knots)):
-            self._check_jumps(limits, after[:, q] - before[:, q], q, cycle_time_s)
-            if q < len(durations):
+        jumps = after - before
+        # Find the knots and segments that may break a limit all at once, then let the exact per-knot and
+        # per-segment checks judge those in order (the first one they reject is the one reported).
+        suspects = sorted([(int(q), 0) for q in np.flatnonzero(_suspect_jumps(limits, jumps, cycle_time_s))]
+                          + [(int(s), 1) for s in np.flatnonzero(self._suspect_segments(limits, durations))])
+        for q, kind in suspects:
+            if kind == 0:
+                self._check_jumps(limits, jumps[:, q], q, cycle_time_s)
+            else:
                 self._check_segment(limits, q, float(durations[q]))
         for j, position in enumerate(self.final_positions):
             self._check_position(limits, j, float(position), self.duration, self._knot_name(len(durations)))
+
+    def _suspect_segments(self, limits: ArmLimits, durations: np.ndarray) -> np.ndarray:
+        """Per segment, whether some joint may leave its range or exceed a derivative limit inside it."""
+        segments, dof = len(durations), limits.dof
+        suspect = np.zeros(segments, dtype=bool)
+        repeat = np.repeat(durations, dof)
+        for k in range(4):
+            rows = self._derivatives[k].transpose(0, 2, 1).reshape(segments * dof, ORDER)
+            low, high = (values.reshape(segments, dof) for values in _extrema_of_many(rows, repeat))
+            if k == 0:
+                suspect |= (_near_beyond(-low, -limits.min_position) | _near_beyond(high, limits.max_position)).any(1)
+            else:
+                suspect |= _near_beyond(np.maximum(-low, high), limits.maximum(KINDS[k])).any(1)
+        return suspect
 
     def _knot_name(self, q: int) -> str:
         """The knot as the user knows it: a point index, or the start state."""

@@ -8,12 +8,16 @@ the directory name. A `PLEM_PACKAGE_PATH` entry may be a package itself or a fol
 from __future__ import annotations
 
 import contextlib
+import io
 import os
-from collections.abc import Iterator, Mapping
+import stat
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any, Self
 
-from plem.errors import ConfigError, PackageNotFoundError
+from plem.errors import ConfigError, PackageNotFoundError, PlemError
 
 BUILTIN_PACKAGES_DIR = Path(__file__).resolve().parent.parent / "description" / "builtin"
 PACKAGE_MARKER = "package.xml"
@@ -76,14 +80,17 @@ def _search_path_description(environ: Mapping[str, str] | None) -> str:
     )
 
 
-def find_package(name: str, environ: Mapping[str, str] | None = None) -> Path:
-    """The directory of package `name`, or a PackageNotFoundError that says where plem looked."""
+def find_package(name: str, environ: Mapping[str, str] | None = None,
+                 exists: Callable[[Path], bool] = is_file) -> Path:
+    """The directory of package `name`, or a PackageNotFoundError that says where plem looked.
+
+    `exists` answers whether a package.xml is there (a PackageReader's, when reading through one)."""
     pinned = _pinned.get().get(name)
     if pinned is not None:
         return pinned
     for root in search_roots(environ):
         candidate = root if root.name == name else root / name
-        if name and is_file(candidate / PACKAGE_MARKER):
+        if _plain_name(name) and exists(candidate / PACKAGE_MARKER):
             return candidate
     raise PackageNotFoundError(
         f"Package '{name}' not found",
@@ -91,6 +98,118 @@ def find_package(name: str, environ: Mapping[str, str] | None = None) -> Path:
         why=f"no such package in: {_search_path_description(environ)}",
         how=f"export PLEM_PACKAGE_PATH=/path/to/folder/containing/{name} (or give the package by path)",
     )
+
+
+def _plain_name(name: str) -> bool:
+    """A name that stays inside the folder it is looked up in (no separator, not . or ..)."""
+    return bool(name) and "/" not in name and name not in (".", "..")
+
+
+class PackageAccessError(PlemError):
+    """A description tried to read a file outside the packages it may read."""
+
+
+@dataclass(frozen=True)
+class _Root:
+    folder: Path  # as the search path names it
+    real: Path  # with symbolic links resolved
+    handle: int
+    is_package: bool  # a package itself, rather than a folder of packages
+
+
+class PackageReader:
+    """Reads files only from inside packages: the pinned ones, the ones given and those on the search path.
+
+    Each folder is opened once, up front, and files are opened beneath those handles, so a process that later
+    loses the right to walk to the folders (a render running as another user) can still read the packages and
+    nothing else. Symbolic links are followed only to files that are themselves inside a package.
+    """
+
+    def __init__(self, packages: Iterable[Path], environ: Mapping[str, str] | None = None) -> None:
+        given = [Path(os.path.abspath(folder)) for folder in [*_pinned.get().values(), *packages]]
+        self._roots: list[_Root] = []
+        for folder in [*given, *(Path(os.path.abspath(root)) for root in search_roots(environ))]:
+            try:
+                handle = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+            except (OSError, ValueError):
+                continue
+            self._roots.append(_Root(folder, Path(os.path.realpath(folder)), handle,
+                                     folder in given or _exists_at(handle, PACKAGE_MARKER)))
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        for root in self._roots:
+            os.close(root.handle)
+        self._roots.clear()
+
+    @property
+    def handles(self) -> list[int]:
+        """The open folder handles (a child process must keep them to read through this reader)."""
+        return [root.handle for root in self._roots]
+
+    def is_file(self, path: str | os.PathLike[str]) -> bool:
+        """Whether `path` is a regular file inside a readable package."""
+        located = self._locate(Path(os.path.abspath(path)), real=False)
+        if located is None:
+            return False
+        try:
+            return stat.S_ISREG(os.stat(located[1], dir_fd=located[0]).st_mode)
+        except OSError:
+            return False
+
+    def open(self, path: str | os.PathLike[str], mode: str = "r") -> IO[Any]:
+        """`open(path, mode)` for reading a file inside a package; anything else is a PackageAccessError."""
+        located = self._locate(Path(os.path.abspath(path)), real=False)
+        if located is None or not set(mode) <= set("rbt"):
+            raise _refused(path, "it is not inside the package being read or a package on the search path")
+        try:
+            descriptor = os.open(located[1], os.O_RDONLY | os.O_CLOEXEC, dir_fd=located[0])
+        except PermissionError:
+            raise PackageAccessError(
+                f"Cannot read {path}", what="package files readable by the user that renders them",
+                why=f"{path} is not readable by user id {os.geteuid()} (a render started as root runs as the "
+                    "package folder's owner, or as nobody when root owns it)",
+                how="make the package readable (chmod -R a+rX PACKAGE_DIR), or chown it to the user it belongs to",
+            ) from None
+        real = Path(os.readlink(f"/proc/self/fd/{descriptor}"))
+        if self._locate(real, real=True) is None and not any(is_file(up / PACKAGE_MARKER) for up in real.parents):
+            os.close(descriptor)
+            raise _refused(path, f"it is a link to {real}, which is not inside a package")
+        raw = io.FileIO(descriptor, "r")
+        return raw if "b" in mode else io.TextIOWrapper(io.BufferedReader(raw))
+
+    def _locate(self, target: Path, real: bool) -> tuple[int, str] | None:
+        """(folder handle, path beneath it) when `target` lies inside a package this reader may read."""
+        for root in self._roots:
+            try:
+                parts = target.relative_to(root.real if real else root.folder).parts
+            except ValueError:
+                continue
+            inside = bool(parts) if root.is_package else (
+                len(parts) > 1 and _exists_at(root.handle, os.path.join(parts[0], PACKAGE_MARKER)))
+            if inside:
+                return root.handle, os.path.join(*parts)
+        return None
+
+
+def _refused(path: str | os.PathLike[str], reason: str) -> PackageAccessError:
+    return PackageAccessError(
+        f"Reading {path} is not allowed",
+        what="xacro:include, xacro.load_yaml and $(find) reading files of the package being rendered or of packages "
+             "on the package search path",
+        why=f"the description asks for {path}, and {reason}",
+        how="copy the file into the package, or add the folder of the package holding it to PLEM_PACKAGE_PATH",
+    )
+
+
+def _exists_at(handle: int, relative: str) -> bool:
+    try:
+        os.stat(relative, dir_fd=handle)
+        return True
+    except OSError:
+        return False
 
 
 def resolve_resource(spec: str | os.PathLike[str], environ: Mapping[str, str] | None = None) -> Path:

@@ -39,19 +39,46 @@ class DescriptionFiles:
     findings: Findings = field(default_factory=Findings)
 
 
+PATH_PREFIXES = ("./", "../", "/", "~")
+
+
+def _is_path(package: str | os.PathLike[str]) -> bool:
+    """Whether the user wrote a path (a Path object, or text starting with ./ ../ / or ~) rather than a name."""
+    text = os.fspath(package)
+    return not isinstance(package, str) or text in (".", "..") or text.startswith(PATH_PREFIXES)
+
+
 def locate_package(package: str | os.PathLike[str]) -> Path:
-    """A package given by path (a directory) or by name through the package search path."""
-    path = Path(package).expanduser()
-    if str(package) and is_dir(path):
-        return path.resolve()
-    if not str(package) or os.sep in str(package) or str(package).startswith("."):
+    """A package given by path (./, ../, / or ~) or by name through the package search path only.
+
+    A name is never looked up in the working directory: a folder planted there must not replace a package."""
+    if _is_path(package):
+        path = Path(package).expanduser()
+        if is_dir(path):
+            return path.resolve()
         raise PackageNotFoundError(
             f"Package directory not found: {package}",
             what="a description package directory, or a package name on the package search path",
-            why=f"{path.resolve()} does not exist or is not a directory",
+            why=f"{path.absolute()} does not exist or is not a directory",
             how="check the path, or give the package name and add its folder to PLEM_PACKAGE_PATH",
         )
-    return find_package(str(package))
+    name = str(package)
+    if not name or "/" in name:
+        raise PackageNotFoundError(
+            f"Not a package name: '{name}'",
+            what="a package name (a folder name on the package search path) or a path starting with ./, ../, / or ~",
+            why=f"'{name}' is neither" if name else "the name is empty",
+            how=f"write the path as ./{name}" if name else "give the package name or its directory",
+        )
+    try:
+        return find_package(name)
+    except PackageNotFoundError as error:
+        if is_dir(Path(name)):
+            raise PackageNotFoundError(
+                error.summary, what=error.what,
+                why=f"{error.why}; ./{name} exists, but a bare name is only looked up on the package search path",
+                how=f"did you mean ./{name}? Give the folder as a path to use it") from None
+        raise
 
 
 def package_for_launch(description_package: str | None, robot_type: str | None) -> str:

@@ -1,21 +1,41 @@
-"""Rendering xacro files with no ROS installed: `$(find pkg)` goes through plem's package search path."""
+"""Rendering xacro files of description packages, which are untrusted input, without ROS installed.
+
+`render_xacro` is the one entry point: xacro runs in a limited child process without root
+(plem.description.sandbox) and reads files only through a PackageReader. xacro's hooks are replaced so that
+`$(find pkg)` uses plem's package search path, `${...}` and `$(eval ...)` cannot reach Python internals,
+`$(eval ...)` has a handful of builtins, `$(env VAR)` is refused and `$(optenv VAR DEFAULT)` gives DEFAULT.
+"""
 
 from __future__ import annotations
 
+import ast
+import builtins
 import contextlib
 import io
 import os
-from collections.abc import Callable
+from contextvars import ContextVar
+from functools import lru_cache, partial
 from pathlib import Path
-from xml.dom.minidom import Document
+from types import CodeType
+from typing import IO, Any
+from xml.dom import expatbuilder  # noqa: F401 - imported here: the sandboxed child may not read Python's library
 from xml.parsers.expat import ExpatError
 
 import xacro
 from xacro import substitution_args
 
-from plem.core.paths import PACKAGE_MARKER, find_package, pinned_packages
+from plem.core.paths import (
+    PACKAGE_MARKER,
+    PackageAccessError,
+    PackageReader,
+    find_package,
+    is_file,
+    pinned_packages,
+)
 from plem.description.problems import DescriptionError
+from plem.description.sandbox import run_sandboxed
 from plem.errors import PlemError
+
 
 class XacroArgumentsError(DescriptionError):
     """The xacro file only renders when given arguments, which the protocol does not allow."""
@@ -26,29 +46,47 @@ WRAPPER_EXAMPLE = (
     '<xacro:include filename="base_robot.urdf.xacro"/>\n'
     '<xacro:base_robot name="my_robot" prefix="" eye="false"/>'
 )
+# Attribute names that lead from a value to Python internals: dunders and private names, the frames and code of
+# generators and coroutines, a class's bases, and str.format (its format string reads attributes by itself).
+UNSAFE_ATTRIBUTE_PREFIXES = ("_", "gi_", "cr_", "ag_", "f_", "tb_", "co_")
+UNSAFE_ATTRIBUTES = frozenset({"mro", "format", "format_map"})
+# xacro offers these as python.type and python.vars; both hand out any object's internals by name.
+REMOVED_SYMBOLS = ("type", "vars")
+EVAL_BUILTINS = {name: getattr(builtins, name) for name in
+                 ("list", "dict", "map", "str", "float", "int", "bool", "len", "min", "max", "abs", "round")}
 
-
-def _find_share(package: str) -> str:
-    return str(find_package(package))
-
-
-# xacro resolves $(find pkg) through ament_index, which needs a ROS install; plem answers it instead.
-substitution_args._eval_find = _find_share
+_reader: ContextVar[PackageReader | None] = ContextVar("package_reader", default=None)
 
 
 def render_xacro(path: Path, mappings: dict[str, str] | None = None) -> str:
-    """The XML that `xacro PATH [name:=value ...]` prints; failures are DescriptionErrors with the fix."""
-    return _render(path, lambda: xacro.process_file(os.fspath(path), mappings=dict(mappings or {})))
+    """The XML that `xacro PATH [name:=value ...]` prints; failures are DescriptionErrors with the fix.
+
+    Run as root, rendering happens in the sandbox: a child process without root, within limits. Run as
+    any other user it happens in this process, which has no privilege to give away, under the same rules
+    for expressions and files.
+    """
+    path = Path(path)
+    owner = _owning_package(path)
+    package = next(iter(owner.values()), path.resolve().parent)
+    with pinned_packages(owner), PackageReader([package]) as reader:
+        work = partial(_render, path, dict(mappings or {}), reader)
+        if os.geteuid() != 0:
+            return work()
+        return run_sandboxed(work, task=f"rendering {path.name}", owner=package, keep_fds=reader.handles,
+                             error_types=(DescriptionError, XacroArgumentsError, PackageAccessError))
 
 
-def _render(path: Path, process: Callable[[], Document]) -> str:
-    stack_before = list(xacro.filestack or [])
+def _render(path: Path, mappings: dict[str, str], reader: PackageReader) -> str:
+    """xacro's output for `path`, reading through `reader`."""
+    token = _reader.set(reader)
     try:
-        with contextlib.redirect_stderr(io.StringIO()), pinned_packages(_owning_package(path)):
-            return process().toxml()
+        with contextlib.redirect_stderr(io.StringIO()):
+            return xacro.process_file(os.fspath(path), mappings=mappings).toxml()
     except PlemError as error:
         raise error from None
     except xacro.XacroException as error:
+        if isinstance(error.exc, MemoryError):
+            raise error.exc from None  # the sandbox reports the memory limit
         raise _xacro_error(path, error) from None
     except substitution_args.SubstitutionException as error:
         raise _xacro_error(path, error) from None
@@ -66,7 +104,7 @@ def _render(path: Path, process: Callable[[], Document]) -> str:
     except (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError) as error:
         raise _xacro_error(path, error) from None
     finally:
-        xacro.filestack = stack_before
+        _reader.reset(token)
 
 
 def _owning_package(path: Path) -> dict[str, Path]:
@@ -105,3 +143,93 @@ def _xacro_error(path: Path, error: BaseException) -> DescriptionError:
         why=f"{_current_file(path)}: {message}",
         how="fix the xacro expression or include named there (render it alone with `xacro FILE` to see the context)",
     )
+
+
+# xacro's hooks. They are module globals of xacro, replaced once when plem renders anything.
+
+def _find_share(package: str) -> str:
+    """`$(find package)`: plem's package search path (xacro would ask ament_index, which needs ROS)."""
+    reader = _reader.get()
+    return str(find_package(package, exists=reader.is_file if reader is not None else is_file))
+
+
+def _open(file: str | os.PathLike[str], mode: str = "r") -> IO[Any]:
+    """The `open` xacro uses for includes and xacro.load_yaml: through the package reader while rendering."""
+    reader = _reader.get()
+    return reader.open(file, mode) if reader is not None else builtins.open(file, mode)
+
+
+@lru_cache(maxsize=4096)
+def _compiled(expression: str) -> CodeType:
+    """The compiled expression, or a DescriptionError when it names a way into Python internals (macros repeat
+    the same expressions, hence the cache)."""
+    tree = ast.parse(expression.strip(), "<expression>", "eval")
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and (node.attr.startswith(UNSAFE_ATTRIBUTE_PREFIXES)
+                                                or node.attr in UNSAFE_ATTRIBUTES):
+            raise _refused_expression(expression, f".{node.attr}")
+        if isinstance(node, ast.Name) and node.id.startswith("__"):
+            raise _refused_expression(expression, node.id)
+    return compile(tree, "<expression>", "eval")
+
+
+def _refused_expression(expression: str, name: str) -> DescriptionError:
+    return DescriptionError(
+        f"xacro expression refused: {name}",
+        what="${...} and $(eval ...) expressions that compute values: arithmetic, math functions, properties, "
+             "xacro.load_yaml and indexing",
+        why=f"'{expression.strip()}' uses {name}, which reaches Python internals",
+        how="compute the value without it (for text, '%' formatting instead of str.format)",
+    )
+
+
+def _safe_eval(expression: str, symbols: dict[str, Any], local_symbols: dict[str, Any] | None = None) -> Any:
+    """`${...}`: xacro's evaluation (no builtins, only its symbols) after the internals check."""
+    code = _compiled(expression)
+    symbols.update(__builtins__={})
+    return eval(code, symbols, local_symbols)  # checked expression, no builtins
+
+
+def _eval_substitution(expression: str, context: dict[str, Any]) -> str:
+    """`$(eval ...)`: xacro's names (arg, dirname, math, find, optenv) and EVAL_BUILTINS, after the internals check."""
+    arguments = context.setdefault("arg", {})
+    functions = {
+        **substitution_args._eval_dict,
+        "arg": lambda name: substitution_args.convert_value(substitution_args._eval_arg(name, arguments), "auto"),
+        "dirname": lambda: substitution_args._eval_dirname(context.get("filename")),
+    }
+    return str(eval(_compiled(expression), {"__builtins__": EVAL_BUILTINS},
+                    substitution_args._DictWrapper(arguments, functions)))
+
+
+def _refuse_env(name: str) -> str:
+    """`$(env VAR)`: refused, so no environment value ends up in robot_description."""
+    raise DescriptionError(
+        f"$(env {name}) is not allowed in a description",
+        what="a description that renders the same wherever it runs, without reading the environment",
+        why=f"$(env {name}) would copy the variable {name} into robot_description, which every reader on the "
+            "network sees",
+        how=f"put the value in the package (a xacro:property), or use $(optenv {name} DEFAULT), which plem renders "
+            "as DEFAULT",
+    )
+
+
+def _optenv_default(name: str, default: str = "") -> str:
+    """`$(optenv VAR DEFAULT)`: always DEFAULT, so no environment value ends up in robot_description."""
+    return default
+
+
+def _install_hooks() -> None:
+    """Replace xacro's lookups with the ones above, once, when this module is first imported."""
+    substitution_args._eval_find = _find_share
+    substitution_args._eval_env = _refuse_env
+    substitution_args._eval_optenv = _optenv_default
+    substitution_args._eval = _eval_substitution
+    substitution_args._eval_dict.update(find=_find_share, env=_refuse_env, optenv=_optenv_default)
+    xacro.safe_eval = _safe_eval
+    xacro.open = _open
+    for name in REMOVED_SYMBOLS:
+        xacro._global_symbols["python"].pop(name, None)
+
+
+_install_hooks()
