@@ -22,14 +22,7 @@ from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
 from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
 from plem.description.limits import JointLimit, read_joint_limits
-from plem.description.model import (
-    LESS_TESTED_TYPES,
-    SrdfModel,
-    UrdfModel,
-    parse_srdf,
-    parse_urdf,
-    parse_xml,
-)
+from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings
 from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
