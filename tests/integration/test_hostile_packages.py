@@ -307,7 +307,8 @@ def test_cli_reports_a_limit_without_traceback(tmp_path: Path):
                     reason="acting as another user needs root and a system Python of the tests' version")
 def test_a_user_other_than_root_renders_in_process_under_the_same_rules(shared_dir: Path):
     marker = shared_dir / "pwned"
-    escape = xacro_file(shared_dir, ESCAPE + f"""<link name="${{os['system']('touch {marker}')}}"/>""", "escape_description")
+    escape = xacro_file(shared_dir, ESCAPE + f"""<link name="${{os['system']('touch {marker}')}}"/>""",
+                        "escape_description")
     leak = xacro_file(shared_dir, """<link name="${xacro.load_yaml('/etc/passwd')}"/>""", "leak_description")
     for path in (escape, leak):
         for folder in (path.parents[1], path.parent):

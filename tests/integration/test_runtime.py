@@ -15,12 +15,7 @@ from plem.control.commands import CommandHandle, StartMotion
 from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
-from plem.control.trajectory import (
-    JointTrajectory,
-    TrajectoryOutcome,
-    TrajectoryPoint,
-    TrajectoryTolerances,
-)
+from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryPoint, TrajectoryTolerances
 from plem.errors import CommandRejected, ConfigError, RobotFault
 from plem.fieldbus.mock import MockBus
 from plem.ipc.request_bounds import MAX_POINTS
@@ -28,12 +23,7 @@ from plem.robot import Indy7V2, IndyRP2V2, Robot, RobotFactory
 from plem.robot.profile import RobotProfile
 from plem.robot.robot import EtherCATUnavailable
 
-from .robot_fixtures import (
-    RAW_ZERO,
-    assert_within_limits,
-    simulated_robot,
-    step_recording,
-)
+from .robot_fixtures import RAW_ZERO, assert_within_limits, simulated_robot, step_recording
 
 POSE = np.array([0.3, -0.5, 0.8, 0.2, 0.6, -0.4])
 

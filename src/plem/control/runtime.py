@@ -14,28 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plem.control.commands import (
-    ActiveMotion,
-    CommandHandle,
-    PlanBasis,
-    ResetFault,
-    SetMode,
-    StartMotion,
-    StopMotion,
-    motion_error,
-)
+from plem.control.commands import (ActiveMotion, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion,
+                                   motion_error)
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode, check_transition
 from plem.control.motion import plan_stop
 from plem.control.state import StateBlock
-from plem.control.trajectory import (
-    ErrorCode,
-    TrajectoryOutcome,
-    TrajectoryResult,
-    TrajectoryTolerances,
-)
+from plem.control.trajectory import ErrorCode, TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, RobotFault
 from plem.fieldbus.bus import BusIO, BusSetup, DriveState, IBus, OperationMode
 from plem.fieldbus.cia402 import describe_drive_fault

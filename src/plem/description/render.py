@@ -24,14 +24,7 @@ from xml.parsers.expat import ExpatError
 import xacro
 from xacro import substitution_args
 
-from plem.core.paths import (
-    PACKAGE_MARKER,
-    PackageAccessError,
-    PackageReader,
-    find_package,
-    is_file,
-    pinned_packages,
-)
+from plem.core.paths import PACKAGE_MARKER, PackageAccessError, PackageReader, find_package, is_file, pinned_packages
 from plem.description.problems import DescriptionError
 from plem.description.sandbox import run_sandboxed
 from plem.errors import PlemError

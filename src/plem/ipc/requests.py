@@ -21,12 +21,7 @@ import numpy as np
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
-from plem.control.trajectory import (
-    JointTrajectory,
-    TrajectoryOutcome,
-    TrajectoryResult,
-    TrajectoryTolerances,
-)
+from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
 from plem.ipc import request_bounds as bounds
 from plem.ipc.request_bounds import shown

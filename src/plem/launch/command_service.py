@@ -31,23 +31,9 @@ from plem.control.spline import Spline
 from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
-from plem.ipc.command_socket import (
-    CommandSocketError,
-    FrameReader,
-    frame,
-    listen,
-    peer_credentials,
-    remove_own_socket,
-    trusted,
-)
-from plem.ipc.requests import (
-    MOTIONS,
-    CheckedRequest,
-    check_request,
-    decode,
-    reply,
-    request_id_of,
-)
+from plem.ipc.command_socket import (CommandSocketError, FrameReader, frame, listen, peer_credentials,
+                                     remove_own_socket, trusted)
+from plem.ipc.requests import MOTIONS, CheckedRequest, check_request, decode, reply, request_id_of
 from plem.launch.component import announce, begin
 
 #: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.

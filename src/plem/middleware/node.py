@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from typing import Any, Generic, TypeVar
 
 from cyclonedds._clayer import ddspy_write
-from cyclonedds.core import DDSException, ReadCondition, SampleState, ViewState, InstanceState, WaitSet
+from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy, Qos
