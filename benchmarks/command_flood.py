@@ -20,7 +20,8 @@ What runs:
              The loop's wake-up latency of every cycle of the window is read from the rt_raw ring (drained
              every 0.5 s). Per pair: p99.9 flood / idle; reported: the median ratio over the pairs with its
              spread (min-max), p50 ratio likewise, and p99.9 of all windows of each kind pooled.
-             Faults: FAULT events over the whole run (target 0); overruns from the driver's statistics.
+             Faults: FAULT events over the whole run (target 0); overruns per kind of window from the driver's
+             statistics (its record after the window minus the one before).
              Target: median p99.9 ratio <= 1.1x and 0 faults.
 """
 
@@ -34,6 +35,7 @@ import subprocess
 import sys
 import tempfile
 import textwrap
+import time
 from pathlib import Path
 
 import launching
@@ -162,14 +164,15 @@ def main(argv: list[str] | None = None) -> int:
             launching.stop_all(children)
     print()
     print("| flood | requests sent (accepted/refused) | p99.9 flood/idle, median (min-max) | p50 median | "
-          "pooled p99.9 flood / idle |")
-    print("|---|---|---|---|---|")
+          "pooled p99.9 flood / idle | overruns flood / idle |")
+    print("|---|---|---|---|---|---|")
     met = not faults
     for kind, figures in report.items():
         met &= figures["median"] <= 1.1
         print(f"| {kind} | {figures['sent']} ({figures['accepted']}/{figures['refused']}) | "
               f"**{figures['median']:.2f}x** ({figures['low']:.2f}-{figures['high']:.2f}) | {figures['p50']:.2f}x | "
-              f"{figures['pooled'][0]:.0f} µs / {figures['pooled'][1]:.0f} µs |")
+              f"{figures['pooled'][0]:.0f} µs / {figures['pooled'][1]:.0f} µs | "
+              f"{figures['overruns']['flood']} / {figures['overruns']['idle']} |")
     print(f"\nfaults: {len(faults)} {[event.reason for event in faults]}; overruns over the run: {overruns}")
     print(f"target (median p99.9 <= 1.1x for both floods, 0 faults): {launching.verdict(met)}")
     return 0
@@ -180,9 +183,11 @@ def measure(kind: str, options: argparse.Namespace, robot_id: str, client, env: 
     """Alternating flood and idle windows; the per-pair ratios and totals of one flood kind."""
     ratios, p50_ratios, pooled = [], [], {"flood": [], "idle": []}
     totals = {"sent": 0, "accepted": 0, "refused": 0}
+    overruns = {"flood": 0, "idle": 0}
     for pair in range(options.pairs):
         figures = {}
         for window in (("flood", "idle") if pair % 2 == 0 else ("idle", "flood")):
+            before = latest_stats(client)["overruns"]
             if window == "flood":
                 latencies, counts = flood_window(robot_id, kind, options.window, client, env, children)
                 totals = {key: totals[key] + counts[key] for key in totals}
@@ -190,6 +195,7 @@ def measure(kind: str, options: argparse.Namespace, robot_id: str, client, env: 
                 latencies, _ = launching.drain_loop(client, options.window)
             figures[window] = launching.latency_figures(latencies)
             pooled[window].append(latencies)
+            overruns[window] += latest_stats(client)["overruns"] - before
         ratios.append(figures["flood"][2] / figures["idle"][2])
         p50_ratios.append(figures["flood"][0] / figures["idle"][0])
         print(f"{kind} pair {pair + 1}: p99.9 flood {figures['flood'][2]:.0f} µs, idle {figures['idle'][2]:.0f} µs "
@@ -197,7 +203,16 @@ def measure(kind: str, options: argparse.Namespace, robot_id: str, client, env: 
               f"load {os.getloadavg()[0]:.2f}", flush=True)
     pooled_p999 = tuple(float(np.percentile(np.concatenate(pooled[w]), 99.9)) for w in ("flood", "idle"))
     return {**totals, "median": statistics.median(ratios), "low": min(ratios), "high": max(ratios),
-            "p50": statistics.median(p50_ratios), "pooled": pooled_p999, "ratios": ratios}
+            "p50": statistics.median(p50_ratios), "pooled": pooled_p999, "overruns": overruns}
+
+
+def latest_stats(client) -> dict:
+    """The driver's next statistics record (they come 10 times a second), so a window's count is complete."""
+    first = client.stats()
+    deadline = time.monotonic() + 1.0
+    while (record := client.stats()) == first and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return record
 
 
 if __name__ == "__main__":

@@ -142,7 +142,8 @@ def _extrema(coefficients: np.ndarray, duration: float) -> tuple[float, float, f
 
 def _near_beyond(value: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """`_beyond` with a little less slack, so that the exact check sees every case that might fail it."""
-    return value > limit - SLACK * np.maximum(1.0, np.abs(limit))
+    finite = np.isfinite(limit)
+    return value > np.where(finite, limit - SLACK * np.maximum(1.0, np.abs(np.where(finite, limit, 0.0))), limit)
 
 
 def _suspect_jumps(limits: ArmLimits, jumps: np.ndarray, cycle_time_s: float) -> np.ndarray:
