@@ -17,6 +17,7 @@ import time
 import uuid
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import plem
 from plem.ipc.segment import SHM_DIRECTORY
@@ -181,6 +182,16 @@ def launched(arguments: Sequence[str], robot_ids: Sequence[str], directory: Path
         yield launch
     finally:
         launch.cleanup()
+
+
+@contextlib.contextmanager
+def launched_robot(tmp_path_factory: Any, *arguments: str) -> Iterator[Launch]:
+    """One simulated arm launched with `arguments` for a module's tests, in a temp folder of its own."""
+    directory = tmp_path_factory.mktemp("launch")
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}", *arguments], [robot_id], directory,
+                  clean_environment(directory / "plem_home")) as launch:
+        yield launch
 
 
 def system_python() -> str | None:

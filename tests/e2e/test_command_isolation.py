@@ -26,7 +26,8 @@ from plem.errors import CommandRejected, PlemError
 from plem.ipc.request_bounds import MAX_TEXT_CHARS
 from tests.e2e.cli import run_plem
 from tests.e2e.command_wire import RawConnection
-from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, new_robot_id, python_client, read_line,
+from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, launched_robot, new_robot_id,
+                                python_client, read_line,
                                 remove_shm, system_python, wait_until)
 
 NOBODY = 65534
@@ -34,10 +35,7 @@ NOBODY = 65534
 
 @pytest.fixture(scope="module")
 def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    directory = tmp_path_factory.mktemp("isolation")
-    robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}", "bridge:=false", "record:=false"], [robot_id], directory,
-                  clean_environment(directory / "plem_home")) as launch:
+    with launched_robot(tmp_path_factory, "bridge:=false", "record:=false") as launch:
         yield launch
 
 

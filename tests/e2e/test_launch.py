@@ -26,7 +26,8 @@ from plem.ipc.channels import PRIVATE_RINGS, channel_names
 from plem.ipc.command_socket import socket_path
 from tests.e2e.cli import run_plem
 from tests.e2e.command_wire import RawConnection
-from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, new_robot_id, process_gone,
+from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, launched_robot, new_robot_id,
+                                process_gone,
                                 process_reaped, python_client, read_line, remove_generated, shm_files, start_launch,
                                 system_python, wait_until)
 
@@ -72,10 +73,7 @@ STREAMING_CLIENT = """
 @pytest.fixture(scope="module")
 def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
     """One simulated Indy7 v2 shared by the tests that neither kill nor restart it."""
-    directory = tmp_path_factory.mktemp("launch")
-    robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], directory,
-                  clean_environment(directory / "plem_home")) as launch:
+    with launched_robot(tmp_path_factory) as launch:
         yield launch
 
 

@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
-from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
+from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
-from plem.ipc.requests import check_request, decode, encode, error_from_json, reply, request_id_of, result_from_json
+from plem.ipc.requests import (check_request, decode, encode, error_from_json, reply, request_id_of, result_from_json,
+                               tolerances_json)
 
 JOINTS = ("a", "b", "c")
 LIMITS = ArmLimits(JOINTS, -np.ones(3), np.ones(3), np.full(3, 2.0), np.full(3, 4.0), np.full(3, 40.0),
@@ -134,3 +135,11 @@ def test_a_reply_is_bounded_whatever_the_error_says():
     payload = decode(reply("1-1-abc", "rejected", error=error))
     assert all(len(payload["error"][key]) <= 2000 for key in ("summary", "what", "why"))
     assert payload["error"]["why"].endswith("more characters]")
+
+
+def test_tolerances_travel_as_requests_carry_them_and_come_back_the_same():
+    tolerances = TrajectoryTolerances(path=np.array([0.1, 0.0, 0.2]), goal_time=math.inf)
+    sent = tolerances_json(tolerances)
+    assert sent["path"] == [0.1, 0.0, 0.2] and sent["goal"] is None and sent["goal_time"] == 86_400.0
+    back = check_request(request("move_joints", target=[0, 0, 0], tolerances=sent), LIMITS).args["tolerances"]
+    assert back.path.tolist() == [0.1, math.inf, 0.2] and back.goal_time == 86_400.0

@@ -31,7 +31,8 @@ from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
 from plem.ipc.records import RawSample, event_from_record
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
-from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json
+from plem.ipc.requests import (check_request, encode, error_from_json, new_request_id, result_from_json,
+                               tolerances_json)
 from plem.ipc.ring import RingReader
 from plem.ipc.state_segment import STALE_AFTER_NS
 
@@ -357,10 +358,4 @@ def _floats(values: Sequence[float]) -> list[float]:
 def _tolerances(tolerances: TrajectoryTolerances | Mapping[str, Any] | None) -> dict[str, Any] | None:
     if tolerances is None or isinstance(tolerances, Mapping):
         return None if tolerances is None else dict(tolerances)
-
-    def plain(array: np.ndarray | None) -> list[float] | None:
-        return None if array is None else [0.0 if not np.isfinite(v) else float(v) for v in array]
-
-    return {"path": plain(tolerances.path), "goal": plain(tolerances.goal),
-            "goal_time": tolerances.goal_time if np.isfinite(tolerances.goal_time) else 1e9,
-            "stopped_velocity_tolerance": tolerances.stopped_velocity_tolerance}
+    return tolerances_json(tolerances)

@@ -148,6 +148,18 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
     return CheckedRequest(request_id, op, checked)
 
 
+def tolerances_json(tolerances: TrajectoryTolerances) -> dict[str, Any]:
+    """Tolerances as requests carry them: unchecked joints as 0 (as ROS sends them), waiting forever as the
+    longest goal time a request may give."""
+
+    def plain(values: np.ndarray | None) -> list[float] | None:
+        return None if values is None else [float(v) if math.isfinite(v) else 0.0 for v in values]
+
+    return {"path": plain(tolerances.path), "goal": plain(tolerances.goal),
+            "goal_time": min(tolerances.goal_time, bounds.MAX_SECONDS),
+            "stopped_velocity_tolerance": tolerances.stopped_velocity_tolerance}
+
+
 def encode(payload: Mapping[str, Any]) -> bytes:
     """One JSON record; NaN and infinity are refused (JSON has no such numbers)."""
     try:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import itertools
 import json
 import logging
-import math
 import selectors
 import socket
 import sys
@@ -28,12 +27,11 @@ import numpy as np
 from plem.control.motion import plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
 from plem.control.spline import Spline
-from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import (CommandSocketError, FrameReader, frame, listen, peer_credentials,
                                      remove_own_socket, trusted)
-from plem.ipc.requests import MOTIONS, CheckedRequest, check_request, decode, reply, request_id_of
+from plem.ipc.requests import MOTIONS, CheckedRequest, check_request, decode, reply, request_id_of, tolerances_json
 from plem.launch.component import announce, begin
 
 #: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.
@@ -45,6 +43,7 @@ MAX_CLIENTS = 64
 #: Bytes of answers waiting for a client that does not read; beyond this it is disconnected.
 MAX_PENDING_OUTPUT = 1 << 20
 POLL_S = 0.0005
+RESTART_HOW = "check the robot with `plem state`; restart it with `plem launch` if its loop stopped"
 COUNTERS_PERIOD_S = 0.1
 _log = logging.getLogger("plem.command_service")
 
@@ -233,7 +232,8 @@ class CommandService:
             self._commands[token] = _Command(client, request.id, slot)
             self._write_intake({"op": "start", "token": token, "prepared": prepared, "slot": slot,
                                 "segments": segments, "label": label,
-                                "tolerances": _tolerances_json(request.args["tolerances"])})
+                                "tolerances": None if request.args["tolerances"] is None
+                                else tolerances_json(request.args["tolerances"])})
             answer = self._await(token)
             if answer.get("stale"):
                 self._release(answer)
@@ -260,42 +260,36 @@ class CommandService:
         return fit
 
     # -- the driver --------------------------------------------------------------------------------
-    def _write_intake(self, record: dict[str, Any]) -> None:
-        data = json.dumps(record, allow_nan=False, separators=(",", ":")).encode()
+    def _until(self, done: Callable[[], bool], silent: DriverSilent) -> None:
+        """Pass the driver's answers on until `done()`; `silent` is raised if that takes DRIVER_TIMEOUT_S."""
         deadline = time.monotonic() + DRIVER_TIMEOUT_S
-        while not self.intake.write(data):
+        while not done():
             if time.monotonic() > deadline:
-                raise DriverSilent("the RT driver takes no commands", what="room in its intake ring",
-                                   why=f"it stayed full for {DRIVER_TIMEOUT_S:g} s",
-                                   how="check the robot with `plem state`; restart it if its loop stopped")
+                raise silent
             self._pump()
             time.sleep(POLL_S)
 
+    def _write_intake(self, record: dict[str, Any]) -> None:
+        data = json.dumps(record, allow_nan=False, separators=(",", ":")).encode()
+        self._until(lambda: self.intake.write(data), DriverSilent(
+            "the RT driver takes no commands", what="room in its intake ring",
+            why=f"it stayed full for {DRIVER_TIMEOUT_S:g} s", how=RESTART_HOW))
+
     def _await(self, token: int) -> dict[str, Any]:
         """The driver's next answer for `token` (passing on everything else meanwhile)."""
-        deadline = time.monotonic() + DRIVER_TIMEOUT_S
         self._answers[token] = {}
         try:
-            while not self._answers[token]:
-                if time.monotonic() > deadline:
-                    raise DriverSilent("the RT driver did not answer", what=f"an answer within {DRIVER_TIMEOUT_S:g} s",
-                                       why="its loop or its service thread is stalled",
-                                       how="check the robot with `plem state`; restart it if its loop stopped")
-                self._pump()
-                time.sleep(POLL_S)
+            self._until(lambda: bool(self._answers[token]), DriverSilent(
+                "the RT driver did not answer", what=f"an answer within {DRIVER_TIMEOUT_S:g} s",
+                why="its loop or its service thread is stalled", how=RESTART_HOW))
             return self._answers[token]
         finally:
             del self._answers[token]
 
     def _take_slot(self) -> int:
-        deadline = time.monotonic() + DRIVER_TIMEOUT_S
-        while not self.free_slots:
-            if time.monotonic() > deadline:
-                raise DriverSilent("no motion slot was released", what="the driver to release a finished motion",
-                                   why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s",
-                                   how="stop the robot and retry")
-            self._pump()
-            time.sleep(POLL_S)
+        self._until(lambda: bool(self.free_slots), DriverSilent(
+            "no motion slot was released", what="the driver to release a finished motion",
+            why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s", how="stop the robot and retry"))
         return self.free_slots.pop(0)
 
     def _pump(self) -> None:
@@ -339,18 +333,6 @@ class CommandService:
         self._next_counters = now + COUNTERS_PERIOD_S
         if self.intake.write(json.dumps({"op": "counters", "token": 0, **counters}).encode()):
             self._sent_counters = counters
-
-
-def _tolerances_json(tolerances: TrajectoryTolerances | None) -> dict[str, Any] | None:
-    """Tolerances as the driver's start record carries them (unchecked joints as 0, as ROS sends them)."""
-    if tolerances is None:
-        return None
-
-    def plain(values: np.ndarray | None) -> list[float] | None:
-        return None if values is None else [float(v) if math.isfinite(v) else 0.0 for v in values]
-
-    return {"path": plain(tolerances.path), "goal": plain(tolerances.goal), "goal_time": tolerances.goal_time,
-            "stopped_velocity_tolerance": tolerances.stopped_velocity_tolerance}
 
 
 def main(argv: list[str] | None = None) -> int:
