@@ -1,3 +1,4 @@
+import stat
 from pathlib import Path
 
 import pytest
@@ -27,6 +28,8 @@ def test_missing_controllers_are_generated_outside_the_package(package: Path, tm
     joints = load_config(resolved.controllers, "arm_controller.ros__parameters.joints", list[str])
     assert joints == [f"joint{i}" for i in range(6)]
     assert "Auto-generating controllers.yaml from joint_limits.yaml" in caplog.text
+    assert stat.S_IMODE(resolved.generated_dir.stat().st_mode) == 0o700   # owner-only, like the robot's other files
+    assert stat.S_IMODE(resolved.controllers.stat().st_mode) == 0o600
 
 
 def test_generated_controllers_pass_validation_when_kept(package: Path, tmp_path: Path):

@@ -88,7 +88,7 @@ def _fresh_directory(temp_root: Path | None) -> Path:
     path, attempt = base, 0
     while True:
         try:
-            path.mkdir(parents=True)
+            path.mkdir(parents=True, mode=0o700)  # owner-only, as everything else plem writes for a robot
             return path
         except FileExistsError:
             attempt += 1
@@ -118,7 +118,7 @@ def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.
         resolved.generated_dir = _fresh_directory(temp_root)
         for name, text in pending.items():
             path = resolved.generated_dir / name
-            write_atomic(path, text)
+            write_atomic(path, text, mode=0o600)
             resolved.generated.append(path)
             setattr(resolved, name.removesuffix(".yaml"), path)
         _say(resolved, f"Generated files are in {resolved.generated_dir}; copy them into config/ to keep them")
