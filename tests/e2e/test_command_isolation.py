@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 import os
 import signal
-import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -204,10 +203,16 @@ def test_a_killed_command_service_is_restarted_and_the_arm_holds_meanwhile(robot
 
 
 def command_service_pid(driver: int) -> int | None:
-    """The command service child of a driver process, if one runs."""
-    found = subprocess.run(["pgrep", "-P", str(driver), "-f", "plem.launch.command_service"],
-                           capture_output=True, text=True).stdout.split()
-    return int(found[0]) if found else None
+    """The command service child of a driver process, if one runs (read from /proc)."""
+    for entry in Path("/proc").iterdir():
+        try:
+            parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            command = (entry / "cmdline").read_bytes()
+        except (OSError, ValueError, IndexError):
+            continue
+        if parent == driver and b"plem.launch.command_service" in command:
+            return int(entry.name)
+    return None
 
 
 def answers_mode(client: RobotClient) -> bool:
