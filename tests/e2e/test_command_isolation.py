@@ -190,6 +190,12 @@ def test_a_cancel_names_its_goal_and_spares_the_goal_that_replaced_it(client: Ro
         client.wait_until_idle(10)
 
 
+def test_the_command_service_runs_at_ordinary_priority(robot: Launch):
+    """Its work grows with what clients send: it must never compete at the driver threads' real-time policy."""
+    service = command_service_pid(robot.driver_pids()[robot.robot_id])
+    assert service is not None and os.sched_getscheduler(service) == os.SCHED_OTHER
+
+
 def test_a_killed_command_service_is_restarted_and_the_arm_holds_meanwhile(robot: Launch, client: RobotClient):
     driver = robot.driver_pids()[robot.robot_id]
     service = command_service_pid(driver)

@@ -330,3 +330,18 @@ def test_a_user_other_than_root_renders_in_process_under_the_same_rules(shared_d
     assert len(lines) == 2 and all(line.startswith("refused") for line in lines), out + err
     assert "not allowed" in lines[1]
     assert not marker.exists()
+
+
+def _policy() -> str:
+    return str(os.sched_getscheduler(0))
+
+
+@needs_root
+def test_a_render_started_from_a_real_time_thread_runs_at_ordinary_priority():
+    previous = os.sched_getscheduler(0), os.sched_getparam(0)
+    os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+    try:
+        policy = run_sandboxed(_policy, task="reading the policy", owner=BUILTIN_PACKAGES_DIR)
+    finally:
+        os.sched_setscheduler(0, previous[0], previous[1])
+    assert int(policy) == os.SCHED_OTHER

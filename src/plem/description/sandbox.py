@@ -244,7 +244,11 @@ def _run(work: Callable[[], str]) -> dict[str, Any]:
 
 
 def _isolate(keep_fds: Sequence[int]) -> None:
-    """Default signal handling, standard streams to /dev/null, every other inherited descriptor closed."""
+    """Ordinary scheduling, default signal handling, standard streams to /dev/null, other descriptors closed.
+
+    A real-time parent (the RT driver's threads run at SCHED_FIFO) must not hand its priority to the work.
+    """
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(number, signal.SIG_DFL)
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write beyond RLIMIT_FSIZE fails instead of killing

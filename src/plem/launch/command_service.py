@@ -13,6 +13,7 @@ from __future__ import annotations
 import itertools
 import json
 import logging
+import os
 import selectors
 import socket
 import sys
@@ -338,6 +339,7 @@ class CommandService:
 def main(argv: list[str] | None = None) -> int:
     """Serve the robot named on the command line; one JSON line on stdout says it is ready or why not."""
     argv = sys.argv[1:] if argv is None else argv
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))  # not the real-time policy of the driver's threads
     stop = begin("command_service")
     robot_id = argv[0]
     try:
