@@ -7,7 +7,7 @@ Three pairs on the 7-DOF Indy RP2 v2 (built-in description; both sides use the s
                       vs pin.framesForwardKinematics(model, data, q); data.oMf[tip]
   Jacobian            ArmDynamics.jacobian(q)
                       vs pin.computeFrameJacobian(model, data, q, tip, pin.LOCAL_WORLD_ALIGNED)
-  ruckig step         RuckigMotion.sample(t, position, velocity, acceleration), mid-motion
+  ruckig step         RuckigMotion.sample(t, out), mid-motion
                       vs trajectory.at_time(t) on the same ruckig Trajectory
 Each round times `calls` back-to-back calls of one side, then of the other (A, B, A, B ...); the figure of a
 side is the median over the rounds of the time per call. The Python `for` loop around the calls (a few tens of ns)
@@ -112,13 +112,13 @@ def _motion(limits: ArmLimits, target: np.ndarray) -> Trajectory:
 def _sampling_loops(trajectory: Trajectory) -> tuple[TimedLoop, TimedLoop]:
     motion = RuckigMotion(trajectory)
     t = trajectory.duration / 2
-    position, velocity, acceleration = np.zeros((3, trajectory.degrees_of_freedom))
+    out = np.zeros((3, trajectory.degrees_of_freedom))
     sample, at_time = motion.sample, trajectory.at_time
 
     def plem_sample(n: int) -> int:
         start = time.perf_counter_ns()
         for _ in range(n):
-            sample(t, position, velocity, acceleration)
+            sample(t, out)
         return time.perf_counter_ns() - start
 
     def bare_at_time(n: int) -> int:

@@ -71,8 +71,10 @@ def test_position_check_names_joint_limit_and_value(indy7):
 def sampled(motion, dt=0.001):
     times = np.arange(0, motion.duration + dt, dt)
     p, v, a = (np.zeros((len(times), 6)) for _ in range(3))
+    out = np.zeros((3, 6))
     for i, t in enumerate(times):
-        motion.sample(t, p[i], v[i], a[i])
+        motion.sample(t, out)
+        p[i], v[i], a[i] = out
     return p, v, a
 
 
@@ -110,9 +112,9 @@ def test_stop_reaches_standstill_with_bounded_jerk(indy7):
 def test_state_at_matches_sampling(indy7):
     _, limits = indy7
     motion = plan_point_to_point(limits, (np.zeros(6), np.zeros(6), np.zeros(6)), np.full(6, 0.4))
-    out = [np.zeros(6) for _ in range(3)]
+    out = np.zeros((3, 6))
     for t in np.linspace(0, motion.duration, 17):
-        motion.sample(t, *out)
+        motion.sample(t, out)
         for expected, got in zip(out, motion.state_at(t)):
             assert np.allclose(expected, got, atol=1e-12)
 

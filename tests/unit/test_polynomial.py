@@ -17,9 +17,10 @@ vectors = st.lists(st.floats(-1.0, 1.0), min_size=DOF, max_size=DOF).map(np.arra
 
 
 def assert_same_motion(ruckig_motion, polynomial: PolynomialMotion) -> None:
-    position, velocity, acceleration = (np.zeros(DOF) for _ in range(3))
+    out = np.zeros((3, DOF))
+    position, velocity, acceleration = out
     for t in np.linspace(0.0, ruckig_motion.duration, 401):
-        polynomial.sample(t, position, velocity, acceleration)
+        polynomial.sample(t, out)
         expected = ruckig_motion.state_at(t)
         assert np.allclose(position, expected[0], atol=1e-7)
         assert np.allclose(velocity, expected[1], atol=1e-7)
@@ -50,17 +51,18 @@ def test_sampling_jumps_back_and_forth_and_ends_at_the_final_state():
     coefficients[:, 1, 0] = 1.0                              # position = t, velocity 1
     final = np.array([[3.0], [0.0], [0.0]])
     motion = PolynomialMotion(knots, coefficients, final)
-    position, velocity, acceleration = np.zeros(1), np.zeros(1), np.zeros(1)
+    out = np.zeros((3, 1))
+    position, velocity, acceleration = out
     for t in (0.5, 2.5, 0.25, 1.75, 2.999):
-        assert not motion.sample(t, position, velocity, acceleration)
+        assert not motion.sample(t, out)
         assert np.isclose(position[0], t) and velocity[0] == 1.0
-    assert motion.sample(3.0, position, velocity, acceleration) and position[0] == 3.0 and velocity[0] == 0.0
+    assert motion.sample(3.0, out) and position[0] == 3.0 and velocity[0] == 0.0
     final[0, 0] = 99.0                                       # the motion keeps its own copy of the final state
     assert motion.final_positions[0] == 3.0
 
 
 def test_a_motion_without_segments_is_at_its_final_state():
     motion = PolynomialMotion(np.array([0.0]), np.zeros((0, ORDER, 2)), np.array([[1.0, 2.0], [0, 0], [0, 0]]))
-    position = np.zeros(2)
-    assert motion.duration == 0.0 and motion.sample(0.0, position, np.zeros(2), np.zeros(2))
-    assert position.tolist() == [1.0, 2.0]
+    out = np.zeros((3, 2))
+    assert motion.duration == 0.0 and motion.sample(0.0, out)
+    assert out[0].tolist() == [1.0, 2.0]

@@ -103,9 +103,10 @@ def sample_times(knots):
 
 
 def assert_matches_reference(spline: Spline, knots) -> None:
-    p, v, a = np.zeros(DOF), np.zeros(DOF), np.zeros(DOF)
+    out = np.zeros((3, DOF))
+    p, v, a = out
     for t in sample_times(knots):
-        done = spline.sample(t, p, v, a)
+        done = spline.sample(t, out)
         expected = reference(knots, t)
         assert done == (t >= knots[-1][0])
         for got, want in zip((p, v, a), expected):
@@ -150,9 +151,10 @@ def test_a_first_point_at_time_zero_on_the_start_has_no_start_segment():
 
 def test_a_single_point_at_the_start_is_done_at_once():
     spline = build([point(ramp(0.1), 0.0)], start=(np.array(ramp(0.1)), REST, REST))
-    p, v, a = np.ones(DOF), np.ones(DOF), np.ones(DOF)
+    out = np.ones((3, DOF))
+    p, v, a = out
     assert spline.duration == 0.0 and spline.segment_kinds == ()
-    assert spline.sample(0.0, p, v, a) and spline.sample(-1.0, p, v, a)
+    assert spline.sample(0.0, out) and spline.sample(-1.0, out)
     np.testing.assert_array_equal(p, ramp(0.1))
     np.testing.assert_array_equal(v, REST)
     spline.check_limits(LIMITS, CYCLE)
@@ -161,10 +163,11 @@ def test_a_single_point_at_the_start_is_done_at_once():
 def test_the_final_point_is_held_after_the_end():
     points = [point(ramp(0.5), 1.0, REST, REST), point(ramp(0.8), 2.0)]
     spline = build(points)
-    p, v, a = np.full(DOF, 9.0), np.full(DOF, 9.0), np.full(DOF, 9.0)
-    assert not spline.sample(1.999, p, v, a)
+    out = np.full((3, DOF), 9.0)
+    p, v, a = out
+    assert not spline.sample(1.999, out)
     for t in (2.0, 2.5, 100.0):
-        assert spline.sample(t, p, v, a)
+        assert spline.sample(t, out)
         np.testing.assert_array_equal(p, ramp(0.8))
         np.testing.assert_array_equal(v, REST)
         np.testing.assert_array_equal(a, REST)
@@ -174,9 +177,10 @@ def test_the_final_point_is_held_after_the_end():
 def test_sampling_backwards_in_time_finds_the_segment_again():
     knots = [(0.0, REST, REST, REST)] + [(t, np.array(ramp(0.1 * t)), REST, REST) for t in (1.0, 2.0, 3.0)]
     spline = build([point(p, t, v, a) for t, p, v, a in knots[1:]])
-    p, v, a = np.zeros(DOF), np.zeros(DOF), np.zeros(DOF)
+    out = np.zeros((3, DOF))
+    p, v, a = out
     for t in (2.5, 0.5, 2.9, 1.0, -0.1):
-        spline.sample(t, p, v, a)
+        spline.sample(t, out)
         np.testing.assert_allclose(p, reference(knots, max(t, 0.0))[0], atol=1e-12)
 
 
@@ -185,8 +189,9 @@ def test_columns_are_mapped_to_the_arm_joint_order():
     target = np.array(ramp(0.3, -0.6))
     names = [NAMES[i] for i in order]
     spline = build([point(target[order], 1.0, REST, REST)], names=names)
-    p, v, a = np.zeros(DOF), np.zeros(DOF), np.zeros(DOF)
-    assert spline.sample(1.0, p, v, a)
+    out = np.zeros((3, DOF))
+    p, v, a = out
+    assert spline.sample(1.0, out)
     np.testing.assert_array_equal(p, target)
     assert spline.joint_names == NAMES
 
@@ -392,8 +397,10 @@ def test_accepted_trajectories_stay_inside_the_limits_when_sampled(trajectory, p
     for step, offset, end in ((CYCLE, phase * CYCLE, math.inf), (CYCLE / 5, 0.0, 0.5)):
         times = np.arange(offset, min(spline.duration + 2 * step, end), step)
         p, v, a = (np.empty((len(times), DOF)) for _ in range(3))
+        out = np.zeros((3, DOF))
         for k, t in enumerate(times):
-            spline.sample(float(t), p[k], v[k], a[k])
+            spline.sample(float(t), out)
+            p[k], v[k], a[k] = out
         jerk = np.diff(a, axis=0) / step
         assert not (p < LIMITS.min_position - 1e-9 * 3.05).any() and not (p > LIMITS.max_position + 1e-9 * 3.05).any()
         assert not beyond(v, 2.6) and not beyond(a, 3.0) and not beyond(jerk, 30.0, slack=1e-6)
@@ -404,15 +411,16 @@ def test_accepted_trajectories_stay_inside_the_limits_when_sampled(trajectory, p
 
 def test_sampling_allocates_nothing_per_call():
     spline = build([point(ramp(0.3), 1.0, ramp(0.1), REST), point(ramp(0.5), 2.0, REST, REST)])
-    p, v, a = np.zeros(DOF), np.zeros(DOF), np.zeros(DOF)
+    out = np.zeros((3, DOF))
+    p, v, a = out
     for k in range(100):
-        spline.sample(k * 0.0003, p, v, a)
-    spline.sample(0.0, p, v, a)
+        spline.sample(k * 0.0003, out)
+    spline.sample(0.0, out)
     tracemalloc.start()
     try:
         before = tracemalloc.get_traced_memory()[0]
         for k in range(10_000):
-            spline.sample(k * 0.00025, p, v, a)  # runs through both segments and into the hold
+            spline.sample(k * 0.00025, out)  # runs through both segments and into the hold
         grown = tracemalloc.get_traced_memory()[0] - before
     finally:
         tracemalloc.stop()
@@ -462,10 +470,9 @@ def test_state_at_agrees_with_sample_even_behind_the_cursor():
     trajectory = JointTrajectory(limits.joint_names, (
         TrajectoryPoint((0.3,) * 6, 2.0, (0.1,) * 6, zeros), TrajectoryPoint((0.5,) * 6, 4.0, zeros, zeros)))
     spline = Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6))
-    out = [np.zeros(6) for _ in range(3)]
-    spline.sample(3.5, *out)
+    spline.sample(3.5, np.zeros((3, 6)))
     for t in (0.0, 0.7, 2.0, 3.1, 4.0, 9.0):
-        expected = [np.zeros(6) for _ in range(3)]
-        Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6)).sample(t, *expected)
+        expected = np.zeros((3, 6))
+        Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6)).sample(t, expected)
         for want, got in zip(expected, spline.state_at(t)):
             assert np.allclose(want, got, atol=1e-12)

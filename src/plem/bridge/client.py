@@ -329,9 +329,9 @@ class RobotClient:
                                      how="wait longer, or check the robot with `plem state`")
             with self._lock:
                 connection = self._socket
-            if connection is not None:
-                select.select([connection], [], [], POLL_S)
-            else:
+            try:
+                select.select([connection] if connection is not None else [], [], [], POLL_S)
+            except (OSError, ValueError):  # closed meanwhile by another thread: the next _collect() says why
                 time.sleep(POLL_S)
 
     def live_state(self) -> JointState:

@@ -1,7 +1,7 @@
 """Jerk-limited motions planned with ruckig: point-to-point moves and smooth stops.
 
 Both are planned once (offline, time-optimal within the velocity, acceleration and jerk limits) and
-then sampled each cycle. A motion is anything with `sample(t, position, velocity, acceleration) -> done`
+then sampled each cycle. A motion is anything with `sample(t, out) -> done`
 and `duration`; the trajectory controller's splines have the same shape.
 """
 
@@ -28,8 +28,9 @@ class Motion(Protocol):
         """Position, velocity and acceleration at `t` as new arrays; safe to call from any thread."""
         ...
 
-    def sample(self, t: float, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> bool:
-        """Write the commanded state at `t`; True once `t` is at or past the end."""
+    def sample(self, t: float, out: np.ndarray) -> bool:
+        """Write position, velocity and acceleration at `t` into the rows of `out` (3, dof); True once `t` is at
+        or past the end."""
         ...
 
 
@@ -45,12 +46,9 @@ class RuckigMotion:
         p, v, a = self._trajectory.at_time(min(max(t, 0.0), self.duration))
         return np.array(p), np.array(v), np.array(a)
 
-    def sample(self, t: float, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> bool:
+    def sample(self, t: float, out: np.ndarray) -> bool:
         done = t >= self.duration
-        p, v, a = self._trajectory.at_time(self.duration if done else t)
-        position[:] = p
-        velocity[:] = v
-        acceleration[:] = a
+        out[0], out[1], out[2] = self._trajectory.at_time(self.duration if done else t)
         return done
 
     def polynomial(self) -> PolynomialMotion:

@@ -17,8 +17,9 @@ ORDER = 6
 #: Knots closer than this (s) are one knot.
 KNOT_RESOLUTION = 1e-9
 _POWERS = np.arange(ORDER, dtype=float)
-_VELOCITY_WEIGHTS = _POWERS[1:]                       # d/dt τ^k = k τ^(k-1)
-_ACCELERATION_WEIGHTS = _POWERS[2:] * _POWERS[1:-1]   # d²/dt² τ^k = k (k-1) τ^(k-2)
+#: Row d of WEIGHTS * τ**EXPONENTS is the d-th time derivative of (1, τ, τ², …): d/dt τ^k = k τ^(k-1), and so on.
+EXPONENTS = np.maximum(_POWERS - np.arange(3)[:, None], 0.0)
+WEIGHTS = np.array([np.ones(ORDER), _POWERS, _POWERS * (_POWERS - 1)])
 
 
 def hermite_coefficients(duration: np.ndarray, p0: np.ndarray, p1: np.ndarray, v0: np.ndarray, v1: np.ndarray,
@@ -60,10 +61,8 @@ class PolynomialMotion:
         final = np.array(final, dtype=float)  # a private copy: the settle check reads it after the table is reused
         final.flags.writeable = False
         self.final_positions, self.final_velocities, self.final_accelerations = final
-        self._powers = np.zeros(ORDER)
-        self._powers[0] = 1.0
-        self._velocity = np.zeros(ORDER - 1)
-        self._acceleration = np.zeros(ORDER - 2)
+        self._final = final
+        self._basis = np.zeros((3, ORDER))    # derivatives of the powers of τ, for one matrix product per sample
         self._cursor = 0
 
     def _segment(self, t: float) -> int:
@@ -76,28 +75,18 @@ class PolynomialMotion:
         self._cursor = s
         return s
 
-    def sample(self, t: float, position_out: np.ndarray, velocity_out: np.ndarray,
-               acceleration_out: np.ndarray) -> bool:
-        """Write the state `t` s after activation into the (dof,) float64 arrays; True once the motion is over."""
+    def sample(self, t: float, out: np.ndarray) -> bool:
+        """Write position, velocity and acceleration `t` s after activation into the rows of `out` (3, dof);
+        True once the motion is over. One matrix product, nothing allocated."""
         if t >= self.duration or not self.segments:
-            np.copyto(position_out, self.final_positions)
-            np.copyto(velocity_out, self.final_velocities)
-            np.copyto(acceleration_out, self.final_accelerations)
+            np.copyto(out, self._final)
             return True
         s = self._segment(t)
         start = float(self.knots[s])
-        tau = t - start if t > start else 0.0
-        powers = self._powers
-        x = 1.0
-        for k in range(1, ORDER):
-            x *= tau
-            powers[k] = x
-        np.multiply(_VELOCITY_WEIGHTS, powers[:-1], out=self._velocity)
-        np.multiply(_ACCELERATION_WEIGHTS, powers[:-2], out=self._acceleration)
-        c = self.coefficients[s]
-        np.dot(powers, c, out=position_out)
-        np.dot(self._velocity, c[1:], out=velocity_out)
-        np.dot(self._acceleration, c[2:], out=acceleration_out)
+        basis = self._basis
+        np.power(t - start if t > start else 0.0, EXPONENTS, out=basis)
+        np.multiply(basis, WEIGHTS, out=basis)
+        np.dot(basis, self.coefficients[s], out=out)
         return False
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -106,9 +95,8 @@ class PolynomialMotion:
             return self.final_positions.copy(), self.final_velocities.copy(), self.final_accelerations.copy()
         t = max(t, 0.0)
         s = min(max(int(np.searchsorted(self.knots, t, side="right")) - 1, 0), self.segments - 1)
-        powers = (t - float(self.knots[s])) ** _POWERS
-        c = self.coefficients[s]
-        return powers @ c, (_VELOCITY_WEIGHTS * powers[:-1]) @ c[1:], (_ACCELERATION_WEIGHTS * powers[:-2]) @ c[2:]
+        position, velocity, acceleration = WEIGHTS * (t - float(self.knots[s])) ** EXPONENTS @ self.coefficients[s]
+        return position, velocity, acceleration
 
 
 def _ruckig_knots(trajectory: object) -> list[float]:

@@ -53,10 +53,8 @@ class _Flags:
         return np.count_nonzero(np.greater(values, bound, out=self.buffer)) != 0
 
     def not_within(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
-        """True when some value is above its bound or NaN (`not value <= bound`), marking those in the buffer."""
-        np.less_equal(values, bound, out=self.buffer)
-        np.logical_not(self.buffer, out=self.buffer)
-        return np.count_nonzero(self.buffer) != 0
+        """True when some value is above its bound or NaN (`not value <= bound`); the buffer marks those within."""
+        return np.count_nonzero(np.less_equal(values, bound, out=self.buffer)) != self.buffer.size
 
     def less(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
         return np.count_nonzero(np.less(values, bound, out=self.buffer)) != 0
@@ -223,8 +221,7 @@ class ArmRuntime:
         if active is not None:
             t = (self.cycle_count - active.start_cycle) * self.dt
             if not active.ended:
-                active.ended = active.motion.sample(t, self.command_position, self.command_velocity,
-                                                    self.command_acceleration)
+                active.ended = active.motion.sample(t, self.command)
                 if active.tolerances.path is not None:
                     self._check_path(active)
             if active.ended and self._active is active:
@@ -241,7 +238,7 @@ class ArmRuntime:
         np.abs(check, out=check)
         self._previous_acceleration[:] = self.command_acceleration
         if self._command_flags.not_within(check, self._command_bounds):
-            row, i = (int(x) for x in np.argwhere(self._command_flags.buffer)[0])
+            row, i = (int(x) for x in np.argwhere(~self._command_flags.buffer)[0])
             if not np.isfinite(self.command[:, i]).all():
                 self._follow_measurement()  # a stop is planned from where the arm really is, never from NaN
                 self._fault("invalid_command", f"command for {self.joint_names[i]} is not a finite number")
@@ -323,8 +320,7 @@ class ArmRuntime:
             return
         stop = plan_stop(self.limits, start)
         self._active = ActiveMotion(stop, self.cycle_count, TrajectoryTolerances(), None, f"stop ({reason})")
-        self._active.ended = stop.sample(0.0, self.command_position, self.command_velocity,
-                                         self.command_acceleration)
+        self._active.ended = stop.sample(0.0, self.command)
         self._rebase()
 
     def _rebase(self) -> None:

@@ -217,9 +217,7 @@ class Spline(PolynomialMotion):
         self.segment_kinds = kinds
         self.segment_starts = times[:-1]
         self._start = start
-        self._final = final
         self._first_point = first_point  # knot index of trajectory point 0: 1 when a start segment precedes it
-        self._knots = [float(t) for t in times]
         self._derivatives = _derivatives(coefficients)
 
     @classmethod
@@ -264,7 +262,7 @@ class Spline(PolynomialMotion):
         """Reject the spline if a joint leaves its range or exceeds a derivative limit anywhere along it."""
         if not cycle_time_s > 0.0:
             raise ValueError(f"cycle_time_s must be positive, got {cycle_time_s}")
-        durations = np.diff(self._knots)
+        durations = np.diff(self.knots)
         ends = np.einsum("sp,kspj->ksj", durations[:, None] ** np.arange(ORDER), self._derivatives[:3])
         before = np.concatenate([self._start[:, None], ends], axis=1)  # (3, knots, dof): value just before knot
         after = np.concatenate([self._derivatives[:3, :, 0], self._final[:, None]], axis=1)
@@ -306,7 +304,7 @@ class Spline(PolynomialMotion):
             level = np.abs(jumps[k]) / cycle_time_s
             for j in np.flatnonzero(_beyond(level, limit)):
                 where = (f"the {KINDS[k]} step of {abs(jumps[k, j]):.6g} {UNITS[f'max_{KINDS[k]}']} at "
-                         f"{self._knot_name(q)} (t = {self._knots[q]:.6g} s), made within one "
+                         f"{self._knot_name(q)} (t = {self.knots[q]:.6g} s), made within one "
                          f"{cycle_time_s * 1e3:.6g} ms cycle,")
                 error = limit_exceeded(KINDS[k + 1], self.joint_names[j], level[j], limit[j], where)
                 error.how = SMOOTH_HOW
@@ -317,8 +315,8 @@ class Spline(PolynomialMotion):
         between = f"between {self._knot_name(s)} and {self._knot_name(s + 1)}"
         for j, joint in enumerate(self.joint_names):
             low, t_low, high, t_high = _extrema(self._derivatives[0, s, :, j], duration)
-            self._check_position(limits, j, low, self._knots[s] + t_low, between)
-            self._check_position(limits, j, high, self._knots[s] + t_high, between)
+            self._check_position(limits, j, low, float(self.knots[s]) + t_low, between)
+            self._check_position(limits, j, high, float(self.knots[s]) + t_high, between)
             for k in (1, 2, 3):
                 limit = float(limits.maximum(KINDS[k])[j])
                 if math.isinf(limit):
@@ -326,7 +324,7 @@ class Spline(PolynomialMotion):
                 low, t_low, high, t_high = _extrema(self._derivatives[k, s, :, j], duration)
                 value, t = (low, t_low) if -low > high else (high, t_high)
                 if _beyond(abs(value), limit):
-                    where = f"the trajectory at t = {self._knots[s] + t:.6g} s ({between})"
+                    where = f"the trajectory at t = {float(self.knots[s]) + t:.6g} s ({between})"
                     error = limit_exceeded(KINDS[k], joint, value, limit, where)
                     error.how = SMOOTH_HOW if k == 3 and self.segment_kinds[s] != "quintic" else SLOWER_HOW
                     raise error

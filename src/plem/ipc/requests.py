@@ -204,8 +204,12 @@ def reply(request_id: str, stage: str, result: Any = None, error: PlemError | No
     Every text in it is cut to MAX_TEXT_CHARS with a marker, so an answer's size is bounded whatever
     the request held.
     """
-    return encode({"id": request_id, "stage": stage, "result": result_json(result),
-                   "error": None if error is None else error_json(error)})
+    return reply_of_json(request_id, stage, result_json(result), None if error is None else error_json(error))
+
+
+def reply_of_json(request_id: str, stage: str, result: Any, error: dict[str, Any] | None) -> bytes:
+    """The answer to a request from a result and an error already in JSON form (as the RT driver reports them)."""
+    return encode({"id": request_id, "stage": stage, "result": result, "error": error})
 
 
 def error_json(error: PlemError, limit: int = bounds.MAX_TEXT_CHARS) -> dict[str, Any]:

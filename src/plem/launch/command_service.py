@@ -32,7 +32,8 @@ from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import (CommandSocketError, FrameReader, frame, listen, peer_credentials,
                                      remove_own_socket, trusted)
-from plem.ipc.requests import MOTIONS, CheckedRequest, check_request, decode, reply, request_id_of, tolerances_json
+from plem.ipc.requests import (MOTIONS, CheckedRequest, check_request, decode, reply, reply_of_json, request_id_of,
+                               tolerances_json)
 from plem.launch.component import announce, begin
 
 #: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.
@@ -85,7 +86,6 @@ class CommandService:
     """Serves one robot's command socket until `stop` is set."""
 
     def __init__(self, channels: RobotChannels, server: socket.socket, cycle_time_s: float) -> None:
-        self.channels = channels
         self.limits = channels.state.limits
         self.cycle_time_s = cycle_time_s
         self.server = server
@@ -317,9 +317,8 @@ class CommandService:
             if command.client is not None:
                 command.client.goals.pop(command.request_id, None)
         if command.client is not None:
-            self._answer(command.client, json.dumps(
-                {"id": command.request_id, "stage": stage, "result": outcome.get("result"),
-                 "error": outcome.get("error")}, separators=(",", ":")).encode())
+            self._answer(command.client, reply_of_json(command.request_id, stage, outcome.get("result"),
+                                                       outcome.get("error")))
 
     def _release(self, outcome: dict[str, Any]) -> None:
         slot = outcome.get("slot")

@@ -43,7 +43,8 @@ _log = logging.getLogger("plem.rt_driver")
 
 @dataclass
 class _Pending:
-    token: int
+    """A command handed to the robot, by its token in `_pending`: what to report about it, and its slot."""
+
     handle: CommandHandle
     slot: int | None = None
     accepted_sent: bool = False
@@ -114,16 +115,16 @@ class DriverService:
         elif op == "start":
             self._start(token, command)
         elif op == "set_mode":
-            self._pending[token] = _Pending(token, robot.request_mode(Mode.parse(command["mode"])))
+            self._pending[token] = _Pending(robot.request_mode(Mode.parse(command["mode"])))
         elif op == "reset_fault":
-            self._pending[token] = _Pending(token, robot.request_reset())
+            self._pending[token] = _Pending(robot.request_reset())
         elif op == "stop":
             goal = command.get("goal")
             target = None if goal is None else self._pending.get(int(goal))
             if goal is not None and target is None:
                 self._write(token, "finished")  # the goal to cancel has ended already: nothing to stop
                 return
-            self._pending[token] = _Pending(token, robot.stop(target.handle if target else None))
+            self._pending[token] = _Pending(robot.stop(target.handle if target else None))
         else:
             raise ValueError(f"unknown intake operation {op!r}")
         self._answer_pending()
@@ -161,7 +162,7 @@ class DriverService:
         tolerances = command.get("tolerances")
         label = str(command.get("label", "motion"))[:32]
         handle = CommandHandle(label)
-        self._pending[token] = _Pending(token, handle, slot)
+        self._pending[token] = _Pending(handle, slot)
         self.robot.runtime.inbox.append(StartMotion(motion, basis, activation,
                                                     TrajectoryTolerances(**tolerances) if tolerances
                                                     else TrajectoryTolerances(), handle, label))
@@ -193,7 +194,7 @@ class DriverService:
                   "error": None if error is None else error_json(error, OUTCOME_TEXT_CHARS),
                   **{key: value for key, value in extra.items() if value is not None}}
         data = json.dumps(record, separators=(",", ":"), allow_nan=False, default=_plain).encode()
-        if len(data) > self._outcomes.slot_bytes:  # only a start state of very many joints could get here
+        if len(data) > self._outcomes.slot_bytes:  # a full-length result message and error text together
             record.update(result=None, error=None if error is None else {"error": "PlemError",
                                                                         "summary": truncated(error.summary, 200)})
             data = json.dumps(record, separators=(",", ":"), default=_plain).encode()
