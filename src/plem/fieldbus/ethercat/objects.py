@@ -1,0 +1,67 @@
+"""CiA402 objects of cyclic synchronous position and the process data plem maps, shared by master and drives.
+
+One table serves both ends of the wire: the master writes exactly this PDO assignment by SDO in PREOP
+(a drive's defaults are not trusted), and the emulated drives of the virtual network offer these objects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Object indices of the PDO assignment (sync manager 2 outputs, 3 inputs) and the PDO mappings used.
+RX_ASSIGN = 0x1C12
+TX_ASSIGN = 0x1C13
+RX_PDO = 0x1600
+TX_PDO = 0x1A00
+SM_COMM_TYPE = 0x1C00
+DEVICE_TYPE = 0x1000
+DEVICE_NAME = 0x1008
+IDENTITY = 0x1018
+RATED_TORQUE = 0x6076          # mN·m; torque objects (0x6077, 0x60B2) are in thousandths of it
+SUPPORTED_MODES = 0x6502
+
+#: Device type 0x1000 of a CiA402 servo drive: profile 402, "servo drive" in the additional information.
+CIA402_DEVICE_TYPE = 0x00020192
+
+
+@dataclass(frozen=True)
+class PdoEntry:
+    """One object mapped into process data: its index/subindex, size in bits, and numpy dtype."""
+
+    name: str
+    index: int
+    subindex: int
+    bits: int
+    dtype: str
+
+    @property
+    def mapping(self) -> int:
+        """The 32-bit value of this entry in a PDO mapping object (index << 16 | subindex << 8 | bits)."""
+        return self.index << 16 | self.subindex << 8 | self.bits
+
+
+#: Outputs (master → drive), in the order plem maps them into RxPDO 0x1600.
+RX_ENTRIES: tuple[PdoEntry, ...] = (
+    PdoEntry("controlword", 0x6040, 0, 16, "<u2"),
+    PdoEntry("target_position", 0x607A, 0, 32, "<i4"),
+    PdoEntry("velocity_offset", 0x60B1, 0, 32, "<i4"),
+    PdoEntry("torque_offset", 0x60B2, 0, 16, "<i2"),
+    PdoEntry("mode", 0x6060, 0, 8, "<i1"),
+)
+
+#: Inputs (drive → master), in the order plem maps them into TxPDO 0x1A00.
+TX_ENTRIES: tuple[PdoEntry, ...] = (
+    PdoEntry("statusword", 0x6041, 0, 16, "<u2"),
+    PdoEntry("position_actual", 0x6064, 0, 32, "<i4"),
+    PdoEntry("velocity_actual", 0x606C, 0, 32, "<i4"),
+    PdoEntry("torque_actual", 0x6077, 0, 16, "<i2"),
+    PdoEntry("error_code", 0x603F, 0, 16, "<u2"),
+    PdoEntry("mode_display", 0x6061, 0, 8, "<i1"),
+)
+
+ENTRIES_BY_OBJECT: dict[tuple[int, int], PdoEntry] = {(e.index, e.subindex): e for e in RX_ENTRIES + TX_ENTRIES}
+
+
+def pdo_bytes(entries: tuple[PdoEntry, ...]) -> int:
+    """Size in bytes of a PDO made of `entries`."""
+    return sum(e.bits for e in entries) // 8
