@@ -485,13 +485,14 @@ def test_bad_launch_arguments_are_reported_together_and_start_nothing():
 
 
 @pytest.mark.parametrize("bus", [[], ["bus:=ethercat"]], ids=["default", "explicit"])
-def test_ethercat_bus_is_refused_with_a_hint_to_use_mock(bus: list[str]):
+def test_ethercat_without_the_interface_names_the_interfaces_and_the_simulations(bus: list[str]):
     robot_id = new_robot_id()
-    result = run_plem("launch", *bus, f"robot_id:={robot_id}")
+    result = run_plem("launch", *bus, "eth_interface:=nosuch0", f"robot_id:={robot_id}")
     remove_generated(result.stdout)
     assert result.returncode == 1
     assert_error_form(result.stderr)
-    assert "EtherCAT bus is not available" in result.stderr and "bus:=mock" in result.stderr
+    assert "Network interface does not exist: nosuch0" in result.stderr and "lo" in result.stderr
+    assert "bus:=mock" in result.stderr and "bus:=ethercat_sim" in result.stderr
     assert "Traceback" not in result.stdout
     assert shm_files(robot_id) == []
 

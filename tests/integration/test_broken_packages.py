@@ -15,9 +15,10 @@ from typing import Any
 
 import pytest
 
+from plem.description.drives import drive_parameters
 from plem.description.problems import Problem, Severity
-from plem.description.validate import ValidationReport, validate_package
-from plem.errors import PackageNotFoundError, PlemError
+from plem.description.validate import Stage, ValidationReport, validate_package
+from plem.errors import ConfigError, PackageNotFoundError, PlemError
 from tests.integration.packages import copy_builtin
 
 ERROR, WARNING = Severity.ERROR, Severity.WARNING
@@ -33,6 +34,7 @@ KINEMATICS = "config/kinematics.yaml"
 CONTROLLERS = "config/controllers.yaml"
 COMPAT = "PLEM_COMPAT_VERSION"
 RP2_URDF = "urdf/indyrp2_v2.urdf.xacro"
+RP2_CONTROL = "urdf/indyrp2_v2.ros2_control.xacro"
 RP2 = "indyrp2_v2"
 JOINTS = [f"joint{i}" for i in range(6)]
 RC_CALL = '<xacro:indy7_v2_ros2_control prefix="$(arg prefix)"/>'
@@ -110,6 +112,24 @@ def joint_type(index: int, new_type: str) -> Mutation:
 def tcp_joint_type(new_type: str, urdf: str = URDF) -> Mutation:
     """The fixed joint between flange and tool centre point gets another type."""
     return replace(urdf, 'name="${pfx}tcp_joint" type="fixed"', f'name="${{pfx}}tcp_joint" type="{new_type}"')
+
+
+def joint_params(joint: int) -> str:
+    """An open regex group (the caller closes it): joint N's opening tag in the ros2_control file and the
+    <param> lines after it."""
+    return rf'(<joint name="\$\{{prefix\}}joint{joint}">\n(?: *<param [^\n]*\n)*?'
+
+
+def drive_param(name: str, old: str, new: str, joint: int = 0, rel: str = ROS2_CONTROL) -> Mutation:
+    """Change the value of drive parameter `name` of joint N."""
+    return sub(rel, joint_params(joint) + rf' *<param name="{name}">){old}<', rf"\g<1>{new}<")
+
+
+def drive_params_removed(joint: int, name: str | None = None) -> Mutation:
+    """Remove drive parameter `name` (default: every one) of joint N."""
+    if name is None:
+        return sub(ROS2_CONTROL, joint_params(joint) + r')(?: *<param [^\n]*\n)+', r"\1")
+    return sub(ROS2_CONTROL, joint_params(joint) + rf') *<param name="{name}">[^<]*</param>\n', r"\1")
 
 
 def srdf_state_value(joint: str, old: str, new: str) -> Mutation:
@@ -233,6 +253,38 @@ CASES = [
                                          replace(URDF, '<child link="${pfx}tcp"/>', '<child link="tcp"/>')),
          "urdf.prefix", ERROR, message={"why": "tcp"}),
     Case("ros2_control_file_not_included", unused_hardware_file(), "ros2_control.not_included", ERROR),
+    # --- drive parameters (<param> tags of the ros2_control joints)
+    Case("drive_resolution_not_integer", drive_param("encoder_resolution", "65536", "65536.5"), "drive.invalid",
+         ERROR, line=">65536.5<", message={"summary": "encoder_resolution of joint joint0", "why": "'65536.5'",
+                                           "how": '<param name="encoder_resolution">65536</param>'}),
+    Case("drive_resolution_zero", drive_param("encoder_resolution", "65536", "0", joint=3), "drive.invalid", ERROR,
+         line='"encoder_resolution">0<', message={"summary": "joint3"}),
+    Case("drive_gear_negative", drive_param("gear_ratio", "101", "-101", joint=4), "drive.invalid", ERROR,
+         line=">-101<", message={"summary": "gear_ratio of joint joint4"}),
+    Case("drive_gear_not_finite", drive_param("gear_ratio", "121", "inf"), "drive.invalid", ERROR, line=">inf<"),
+    Case("drive_direction_zero", drive_param("direction", "1", "0", joint=5), "drive.invalid", ERROR,
+         line='"direction">0<', message={"what": "-1 when the drive counts opposite"}),
+    Case("drive_vendor_id_too_large", replace(ROS2_CONTROL, '<param name="direction">1</param>',
+                                              '<param name="direction">1</param>\n'
+                                              '        <param name="vendor_id">0x100000000</param>'),
+         "drive.invalid", ERROR, line="0x100000000", message={"what": "32-bit"}),
+    Case("drive_product_code_not_a_number", replace(ROS2_CONTROL, '<param name="direction">1</param>',
+                                                    '<param name="direction">1</param>\n'
+                                                    '        <param name="product_code">ELMO</param>'),
+         "drive.invalid", ERROR, line=">ELMO<"),
+    Case("drive_gear_missing", drive_params_removed(2, "gear_ratio"), "drive.incomplete", ERROR,
+         line='<joint name="${prefix}joint2">',
+         message={"summary": "joint2 lacks drive parameter gear_ratio", "how": '<param name="gear_ratio">'}),
+    Case("drive_joint_without_params", drive_params_removed(4), "drive.incomplete", ERROR,
+         line='<joint name="${prefix}joint4">', message={"why": "declares none of them"}),
+    Case("drive_param_unknown", replace(ROS2_CONTROL, '<param name="direction">1</param>',
+                                        '<param name="direction">1</param>\n'
+                                        '        <param name="zero_offset">0</param>'),
+         "drive.unknown_param", WARNING, line="zero_offset", message={"what": "encoder_resolution"}),
+    Case("drive_params_none", sub(ROS2_CONTROL, r"^ *<param [^\n]*\n", "", count=0), "drive.none", WARNING,
+         message={"why": "bus:=ethercat needs them", "how": '<param name="gear_ratio">'}),
+    Case("rp2_drive_wrist_gear_zero", drive_param("gear_ratio", "101", "0", joint=6, rel=RP2_CONTROL),
+         "drive.invalid", ERROR, line='"gear_ratio">0<', message={"summary": "joint6"}, robot=RP2),
     # --- joint_limits.yaml
     Case("limits_file_missing", delete(LIMITS), "limits.missing_file", ERROR),
     Case("limits_yaml_syntax", replace(LIMITS, "    max_velocity: 2.617993878\n", "    max_velocity: 2.617993878: 1\n"),
@@ -416,6 +468,31 @@ def test_yaml_syntax_error_names_file_and_line(tmp_path, monkeypatch, rel, mutat
     assert f"{rel}:{line}:" in problem.why
     assert problem.file == root / rel
     assert problem.location == f"{root / rel}:{line}"
+
+
+def test_drive_parameters_are_checked_at_startup_and_named_by_file_and_line(tmp_path, monkeypatch):
+    """Launch refuses a malformed drive parameter before the bus opens; the bus's own reading names the same line."""
+    root = make_package(tmp_path, monkeypatch)
+    drive_param("gear_ratio", "121", "-121", joint=1)(root)
+    report = run_validation(root, stage=Stage.STARTUP)
+    (problem,) = report.findings.errors
+    line = line_of(root / ROS2_CONTROL, ">-121<")
+    assert (problem.code, problem.location) == ("drive.invalid", f"{root / ROS2_CONTROL}:{line}")
+    with pytest.raises(ConfigError) as caught:
+        drive_parameters(report.urdf, JOINTS, sources=(report.files.ros2_control, report.files.urdf))
+    assert caught.value.why.startswith(f"{root / ROS2_CONTROL}:{line}: ") and "joint1" in caught.value.summary
+
+
+def test_drive_parameters_from_xacro_properties(tmp_path, monkeypatch):
+    """Values xacro computes count as written: a property shared by the wrist joints reaches every one of them."""
+    root = make_package(tmp_path, monkeypatch)
+    together(replace(ROS2_CONTROL, "<ros2_control ", '<xacro:property name="wrist_gear" value="${100 + 1}"/>\n'
+                                                     "    <ros2_control "),
+             replace(ROS2_CONTROL, '<param name="gear_ratio">101</param>',
+                     '<param name="gear_ratio">${wrist_gear}</param>', count=-1))(root)
+    report = run_validation(root)
+    assert report.findings.problems == [], describe(report.findings.problems)
+    assert [d.gear_ratio for d in drive_parameters(report.urdf, JOINTS)] == [121.0] * 3 + [101.0] * 3
 
 
 ALL_AT_ONCE = ["compat_other_major", "two_root_links", "mesh_missing_file", "ros2_control_wrong_plugin",

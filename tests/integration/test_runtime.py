@@ -21,7 +21,6 @@ from plem.fieldbus.mock import MockBus
 from plem.ipc.request_bounds import MAX_POINTS
 from plem.robot import Indy7V2, IndyRP2V2, Robot, RobotFactory
 from plem.robot.profile import RobotProfile
-from plem.robot.robot import EtherCATUnavailable
 
 from .robot_fixtures import RAW_ZERO, assert_within_limits, simulated_robot, step_recording
 
@@ -46,12 +45,6 @@ def faults(robot):
 
 
 # -- building ------------------------------------------------------------------------------------
-
-def test_default_bus_is_ethercat_and_says_to_use_the_mock():
-    with pytest.raises(EtherCATUnavailable) as caught:
-        Robot.builder(Indy7V2()).build()
-    assert "bus:=mock" in caught.value.how
-
 
 def test_factory_uses_the_given_bus_and_builder_sets_robot_id():
     robot = RobotFactory.create(Indy7V2(), MockBus(6))

@@ -2,6 +2,7 @@ from pathlib import Path
 
 import pytest
 
+from plem.description.drives import DriveParameters, drive_parameters
 from plem.description.problems import DescriptionError
 from plem.description.render import render_xacro
 from plem.description.scaffold import ARMS, create_package
@@ -35,6 +36,33 @@ def test_generated_arm_is_kinematically_sensible(tmp_path: Path, dof: int):
     assert all(spec.mass > 0 and spec.length > 0 for spec in ARMS[dof])
     axes = [spec.axis for spec in ARMS[dof]]
     assert all(a != b or a == "y" for a, b in zip(axes, axes[1:]))  # no two consecutive colinear roll axes
+
+
+@pytest.mark.parametrize("dof", [6, 7])
+def test_generated_package_declares_its_drives(tmp_path: Path, dof: int):
+    root = create_package(tmp_path, "bot", dof).root
+    report = validate_package(root)
+    names = [joint.name for joint in report.urdf.actuated_joints]
+    assert drive_parameters(report.urdf, names) == tuple(DriveParameters(65536, spec.gear, 1) for spec in ARMS[dof])
+    assert {spec.gear for spec in ARMS[dof]} == {121.0, 101.0}
+    control = root / "urdf" / "bot.ros2_control.xacro"
+    text = control.read_text()
+    assert "drives' documentation" in text
+    for name in ("vendor_id", "product_code", "revision"):  # offered, commented out
+        assert text.count(f'<!-- <param name="{name}">0x00000000</param> -->') == dof
+
+
+def test_generated_identity_lines_validate_once_uncommented(tmp_path: Path):
+    root = create_package(tmp_path, "bot", 6).root
+    control = root / "urdf" / "bot.ros2_control.xacro"
+    text = control.read_text()
+    for name in ("vendor_id", "product_code", "revision"):
+        text = text.replace(f'<!-- <param name="{name}">0x00000000</param> -->', f'<param name="{name}">0x1A</param>')
+    control.write_text(text)
+    report = validate_package(root)
+    assert report.findings.problems == []
+    drives = drive_parameters(report.urdf, [joint.name for joint in report.urdf.actuated_joints])
+    assert all((d.vendor_id, d.product_code, d.revision) == (0x1A, 0x1A, 0x1A) for d in drives)
 
 
 def test_minimal_package_and_prefix(tmp_path: Path):

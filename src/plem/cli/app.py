@@ -13,6 +13,8 @@ from typer._click import exceptions as click_exceptions
 from plem.cli import bag as bag_commands
 from plem.cli import config as config_commands
 from plem.cli import description as description_commands
+from plem.cli import ethercat as ethercat_commands
+from plem.cli import doctor as doctor_command
 from plem.cli import launch as launch_command
 from plem.cli import robot as robot_commands
 from plem.cli import profile as profile_commands
@@ -31,6 +33,7 @@ app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
 app.add_typer(topic_commands.app, name="topic")
 app.add_typer(bag_commands.app, name="bag")
+app.add_typer(ethercat_commands.app, name="ethercat")
 app.command("validate")(description_commands.validate)
 app.command("create-description")(description_commands.create_description)
 app.command("launch", context_settings=launch_command.EXTRA_ARGS, add_help_option=False)(launch_command.launch)
@@ -38,6 +41,7 @@ app.command("state")(robot_commands.state)
 app.command("move")(robot_commands.move)
 app.command("mode")(robot_commands.mode)
 app.command("reset")(robot_commands.reset)
+app.command("doctor")(doctor_command.doctor)
 
 
 def _usage_error(error: click_exceptions.UsageError) -> UsageError:

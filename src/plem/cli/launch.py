@@ -55,7 +55,7 @@ def launch(ctx: typer.Context) -> int:
         return 0
     from plem.launch.arguments import parse
     from plem.launch.description import COMPONENTS, load_launch_file
-    from plem.launch.plan import plan_robot
+    from plem.launch.plan import check_shared_hardware, plan_robot
     from plem.launch.robots_file import load_robots
     from plem.launch.supervisor import Supervisor
 
@@ -72,4 +72,5 @@ def launch(ctx: typer.Context) -> int:
         arguments = {**described.arguments, "description_package": package, **arguments}
     robots = load_robots(arguments["robots"], arguments) if arguments.get("robots") else [arguments]
     plans = [plan_robot(robot) for robot in robots]
+    check_shared_hardware(plans)
     return Supervisor(plans, components).run()

@@ -1,4 +1,4 @@
-"""`plem profile create|show|list`: per-unit calibration files in ~/.plem/profiles.
+"""`plem profile create|calibrate|show|list`: per-unit calibration files in ~/.plem/profiles.
 
 The profile model (pydantic) is imported inside the commands so other commands start fast.
 """
@@ -61,8 +61,7 @@ def create(
             why=f"--offsets has {len(values)} values",
             how=f"give one offset per joint ({dof} values)",
         )
-    stamp = date or datetime.now(timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-    profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=stamp)
+    profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=date or _now())
     path = RobotProfile.default_path(serial)
     if path.exists() and not force:
         existing = _load_or_none(path)
@@ -75,6 +74,67 @@ def create(
             )
     profile.save(path)
     stdout.print(f"Saved profile {serial} ({len(values)} joints) to {path}", markup=False)
+
+
+def _now() -> str:
+    """This moment in ISO 8601 UTC, as profiles record it."""
+    return datetime.now(timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+
+
+#: Joint speed (rad/s) above which calibration refuses: the encoders must be read at rest.
+CALIBRATION_STANDSTILL = 1e-3
+#: How long calibration waits for the driver's next statistics record (published at 10 Hz).
+CALIBRATION_WAIT_S = 2.0
+
+
+@app.command("calibrate")
+def calibrate(
+    serial: Annotated[str, typer.Option("--serial", help="Serial of the robot unit, e.g. PE07I7E0E001.")],
+    robot_id: Annotated[str | None, typer.Option("--robot-id", help="Running robot to read (default: "
+                                                 "$PLEM_ROBOT_ID, else indy).", show_default=False)] = None,
+) -> None:
+    """Read the raw encoders of a running arm at its home pose and save their negation as its offsets."""
+    import time
+
+    from plem.bridge.client import connect
+    from plem.robot.profile import RobotProfile
+
+    client = connect(robot_id)
+    try:
+        state = client.state()
+        moving = [name for name, v in zip(client.joint_names, state.velocity) if abs(v) > CALIBRATION_STANDSTILL]
+        if moving or state.mode.name == "TRAJECTORY":
+            raise ProfileError(
+                f"robot {client.robot_id} is moving: calibration needs the arm at rest",
+                what="the arm standing still at its home pose (every joint at its mechanical zero)",
+                why=f"mode {state.mode.name.lower()}" + (f", moving: {', '.join(moving)}" if moving else ""),
+                how=f"wait for the motion to end (`plem state --robot-id {client.robot_id}`), then calibrate again")
+        since = time.monotonic_ns()
+        deadline = time.monotonic() + CALIBRATION_WAIT_S
+        stats = client.stats()
+        while (stats is None or stats["monotonic_ns"] < since) and time.monotonic() < deadline:
+            time.sleep(0.02)
+            stats = client.stats()
+        if stats is None or "encoders" not in stats:
+            raise ProfileError(f"robot {client.robot_id} does not report its encoders",
+                               what="the RT driver's statistics with raw encoder counts",
+                               why="no statistics record arrived within "
+                                   f"{CALIBRATION_WAIT_S:g} s", how="check that its `plem launch` runs")
+        offsets = [-int(raw) for raw in stats["encoders"]]
+        previous = [int(x) for x in stats["joint_offsets"]]
+    finally:
+        client.close()
+    path = RobotProfile.default_path(serial)
+    old = _load_or_none(path) if path.exists() else None
+    profile = RobotProfile(robot_serial=serial, joint_offsets=offsets, profile_date=_now())
+    profile.save(path)
+    table = new_table(f"Calibrated {serial} from robot {client.robot_id}", "joint", "raw counts", "old offset",
+                      "new offset")
+    before = old.joint_offsets if old is not None and len(old.joint_offsets) == len(offsets) else previous
+    for name, new, earlier in zip(client.joint_names, offsets, before):
+        table.add_row(name, str(-new), str(earlier), str(new))
+    stdout.print(table)
+    stdout.print(f"Saved {path}. Launch with robot_serial:={serial} to use these offsets.", markup=False)
 
 
 def _load_or_none(path: Path) -> RobotProfile | None:

@@ -32,7 +32,7 @@ class TimingSummary:
         return cls(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-class _Series:
+class TimingSeries:
     """One timed quantity: whole-run histogram plus a rolling window of raw samples."""
 
     def __init__(self, window: int) -> None:
@@ -97,8 +97,8 @@ class TimingStats:
     """Timing of every cycle of one loop run."""
 
     def __init__(self, window: int = 10_000) -> None:
-        self.latency = _Series(window)
-        self.compute = _Series(window)
+        self.latency = TimingSeries(window)
+        self.compute = TimingSeries(window)
         self.cycles = 0
         self.overruns = 0
         self.missed_periods = 0

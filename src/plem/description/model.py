@@ -21,6 +21,13 @@ def _float(value: str | None) -> float | None:
         return None
 
 
+def _params(element: etree._Element | None) -> tuple[dict[str, str], dict[str, int | None]]:
+    """The `<param name="...">text</param>` children of `element` by name (the last wins) and their lines."""
+    tags = element.findall("param") if element is not None else []
+    return ({tag.get("name") or "": (tag.text or "").strip() for tag in tags},
+            {tag.get("name") or "": tag.sourceline for tag in tags})
+
+
 def parse_xml(text: str | bytes, source: Path) -> etree._Element:
     """Parse XML keeping line numbers; syntax errors name the file and line."""
     data = text.encode("utf-8") if isinstance(text, str) else text
@@ -56,18 +63,27 @@ class Joint:
 
 @dataclass
 class HardwareJoint:
+    """A `<joint>` of a `<ros2_control>` block; `params` are its `<param name>` texts (stripped), the last of a
+    name winning as in ros2_control, and `param_lines` their lines in the rendered URDF."""
+
     name: str
     command_interfaces: list[str]
     state_interfaces: list[str]
     line: int | None
+    params: dict[str, str] = field(default_factory=dict)
+    param_lines: dict[str, int | None] = field(default_factory=dict)
 
 
 @dataclass
 class Ros2ControlBlock:
+    """A `<ros2_control>` block; `params` and `param_lines` are those of its `<hardware>`, read as a joint's are."""
+
     name: str
     plugin: str | None
     joints: list[HardwareJoint]
     line: int | None
+    params: dict[str, str] = field(default_factory=dict)
+    param_lines: dict[str, int | None] = field(default_factory=dict)
 
 
 @dataclass
@@ -132,18 +148,22 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
             effort=_float(limit.get("effort")) if limit is not None else None,
             mimic=mimic.get("joint") if mimic is not None else None,
         )
-    blocks = [
-        Ros2ControlBlock(
-            name=block.get("name") or "", line=block.sourceline,
-            plugin=(block.findtext("hardware/plugin") or "").strip() or None,
-            joints=[HardwareJoint(j.get("name") or "", [c.get("name") or "" for c in j.findall("command_interface")],
-                                  [s.get("name") or "" for s in j.findall("state_interface")], j.sourceline)
-                    for j in block.findall("joint")],
-        )
-        for block in root.findall("ros2_control")
-    ]
+    blocks = [_ros2_control(block) for block in root.findall("ros2_control")]
     meshes = [(mesh.get("filename") or "", mesh.sourceline) for mesh in root.iter("mesh")]
     return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes)
+
+
+def _ros2_control(block: etree._Element) -> Ros2ControlBlock:
+    """One `<ros2_control>` block: its hardware plugin and parameters, and its joints."""
+    params, param_lines = _params(block.find("hardware"))
+    return Ros2ControlBlock(
+        name=block.get("name") or "", line=block.sourceline,
+        plugin=(block.findtext("hardware/plugin") or "").strip() or None,
+        joints=[HardwareJoint(j.get("name") or "", [c.get("name") or "" for c in j.findall("command_interface")],
+                              [s.get("name") or "" for s in j.findall("state_interface")], j.sourceline, *_params(j))
+                for j in block.findall("joint")],
+        params=params, param_lines=param_lines,
+    )
 
 
 @dataclass

@@ -13,9 +13,11 @@ from pathlib import Path
 from plem.core.files import write_atomic
 from plem.description.compat import PROTOCOL_VERSION
 from plem.description.discover import COMPAT_FILE
+from plem.description.drives import param_line
 from plem.description.generate import controllers_yaml, kinematics_yaml
 from plem.description.problems import DescriptionError
 from plem.robot.config import SUPPORTED_DOF
+from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS, WRIST_GEAR
 
 PACKAGE_NAME = re.compile(r"[a-z][a-z0-9_]*")
 SEGMENT_RADIUS = 0.05
@@ -35,25 +37,26 @@ class JointSpec:
     jerk: float
     effort: float      # [N·m]
     home: float        # home position [rad]
+    gear: float        # gear ratio: motor revolutions per joint revolution
 
 
 ARMS: dict[int, tuple[JointSpec, ...]] = {
     6: (
-        JointSpec("z", 0.15, 0.10, 4.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.0),
-        JointSpec("y", 0.10, 0.40, 6.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.5),
-        JointSpec("y", 0.40, 0.35, 3.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0),
-        JointSpec("z", 0.35, 0.10, 1.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0),
-        JointSpec("y", 0.10, 0.10, 1.2, 3.05, 3.0, 8.0, 80.0, 30.0, 1.0),
-        JointSpec("z", 0.10, 0.05, 0.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0),
+        JointSpec("z", 0.15, 0.10, 4.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.0, LARGE_JOINT_GEAR),
+        JointSpec("y", 0.10, 0.40, 6.0, 3.05, 2.0, 5.0, 50.0, 150.0, 0.5, LARGE_JOINT_GEAR),
+        JointSpec("y", 0.40, 0.35, 3.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0, LARGE_JOINT_GEAR),
+        JointSpec("z", 0.35, 0.10, 1.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0, WRIST_GEAR),
+        JointSpec("y", 0.10, 0.10, 1.2, 3.05, 3.0, 8.0, 80.0, 30.0, 1.0, WRIST_GEAR),
+        JointSpec("z", 0.10, 0.05, 0.5, 3.05, 3.0, 8.0, 80.0, 30.0, 0.0, WRIST_GEAR),
     ),
     7: (
-        JointSpec("z", 0.15, 0.10, 4.0, 2.9, 2.0, 5.0, 50.0, 150.0, 0.0),
-        JointSpec("y", 0.10, 0.20, 4.0, 1.75, 2.0, 5.0, 50.0, 150.0, 0.5),
-        JointSpec("z", 0.20, 0.20, 3.0, 2.9, 2.0, 5.0, 50.0, 100.0, 0.0),
-        JointSpec("y", 0.20, 0.20, 2.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0),
-        JointSpec("z", 0.20, 0.20, 1.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0),
-        JointSpec("y", 0.20, 0.10, 1.2, 2.9, 3.0, 8.0, 80.0, 30.0, 1.0),
-        JointSpec("z", 0.10, 0.05, 0.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0),
+        JointSpec("z", 0.15, 0.10, 4.0, 2.9, 2.0, 5.0, 50.0, 150.0, 0.0, LARGE_JOINT_GEAR),
+        JointSpec("y", 0.10, 0.20, 4.0, 1.75, 2.0, 5.0, 50.0, 150.0, 0.5, LARGE_JOINT_GEAR),
+        JointSpec("z", 0.20, 0.20, 3.0, 2.9, 2.0, 5.0, 50.0, 100.0, 0.0, LARGE_JOINT_GEAR),
+        JointSpec("y", 0.20, 0.20, 2.5, 2.6, 2.5, 6.0, 60.0, 80.0, 1.0, LARGE_JOINT_GEAR),
+        JointSpec("z", 0.20, 0.20, 1.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0, WRIST_GEAR),
+        JointSpec("y", 0.20, 0.10, 1.2, 2.9, 3.0, 8.0, 80.0, 30.0, 1.0, WRIST_GEAR),
+        JointSpec("z", 0.10, 0.05, 0.5, 2.9, 3.0, 8.0, 80.0, 30.0, 0.0, WRIST_GEAR),
     ),
 }
 BASE_MASS = 5.0
@@ -128,8 +131,13 @@ def urdf_xacro(name: str, dof: int) -> str:
 
 
 def ros2_control_xacro(name: str, dof: int) -> str:
+    identity = "".join(f"        <!-- {param_line(key, '0x00000000')} -->\n"
+                       for key in ("vendor_id", "product_code", "revision"))
     joints = "".join(f"""      <joint name="${{prefix}}joint{i}">
-        <command_interface name="position"/>
+        {param_line("encoder_resolution", str(MOTOR_ENCODER_COUNTS))}
+        {param_line("gear_ratio", f"{joint.gear:g}")}
+        {param_line("direction", "1")}
+{identity}        <command_interface name="position"/>
         <command_interface name="velocity"/>
         <command_interface name="acceleration"/>
         <command_interface name="effort"/>
@@ -137,15 +145,22 @@ def ros2_control_xacro(name: str, dof: int) -> str:
         <state_interface name="velocity"/>
         <state_interface name="effort"/>
       </joint>
-""" for i in range(1, dof + 1))
+""" for i, joint in enumerate(ARMS[dof], start=1))
     return f"""<?xml version="1.0"?>
-<!-- Hardware interface of {name}: plem's RT driver, every actuated joint with its interfaces. -->
+<!-- Hardware interface of {name}: plem's RT driver, every actuated joint with its interfaces and drive. -->
 <robot xmlns:xacro="http://www.ros.org/wiki/xacro">
   <xacro:macro name="{name}_ros2_control" params="prefix:=''">
     <ros2_control name="${{prefix}}{name}_hardware" type="system">
       <hardware>
         <plugin>hardware/HardwareInterface</plugin>
       </hardware>
+      <!-- Drive parameters of each joint, which the EtherCAT bus needs to turn encoder counts into angles:
+             encoder_resolution  encoder counts per motor revolution (a positive integer)
+             gear_ratio          motor revolutions per joint revolution
+             direction           1, or -1 when the drive counts opposite to the joint's URDF axis
+           and, optionally, each drive's EtherCAT identity: vendor_id, product_code, revision (from its ESI
+           file, hex or decimal). The values below are placeholders for a 16-bit encoder and strain-wave
+           gearing: set them from your drives' documentation. -->
 {joints}    </ros2_control>
   </xacro:macro>
 </robot>

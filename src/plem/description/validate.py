@@ -1,8 +1,8 @@
 """Validation of a description package: every rule of the protocol, all problems reported at once.
 
 The same checks serve three stages, as the protocol's timing table says: LAUNCH (files exist, YAML and
-XML parse, the URDF renders), STARTUP (adds ros2_control tags, joint count and types) and FULL (adds
-every cross-file consistency check; what `plem validate` runs).
+XML parse, the URDF renders), STARTUP (adds ros2_control tags and drive parameters, joint count and types)
+and FULL (adds every cross-file consistency check; what `plem validate` runs).
 """
 
 from __future__ import annotations
@@ -21,6 +21,8 @@ from plem.core.config.yaml_document import YamlDocument
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
 from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
+from plem.description.drives import (REQUIRED, ParamSources, check_drive_parameters, declares_drive_parameters,
+                                     param_line)
 from plem.description.limits import JointLimit, read_joint_limits
 from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings
@@ -285,7 +287,27 @@ def _check_ros2_control(report: ValidationReport) -> None:
                         what="every actuated joint declared in <ros2_control> with its interfaces",
                         why=f"{joint.name} ({joint.type}) is missing", how=f'add <joint name="{joint.name}"> with '
                                                                            "command and state interfaces", file=source)
+    _check_drive_parameters(report, [joint.name for joint in urdf.actuated_joints if joint.name in declared])
     _check_prefix(report)
+
+
+def _check_drive_parameters(report: ValidationReport, joints: list[str]) -> None:
+    """The drive parameters of the actuated joints in <ros2_control>: well-formed and complete, or none at all
+    (a warning, since only bus:=ethercat needs them)."""
+    urdf, files, found = report.urdf, report.files, report.findings
+    sources = ParamSources((files.ros2_control, files.urdf))
+    if not declares_drive_parameters(urdf):
+        found.warning("drive.none", "No drive parameters in <ros2_control>",
+                      what=f"{', '.join(REQUIRED)} as <param> tags of every <joint> in <ros2_control>",
+                      why="no joint declares them: bus:=ethercat needs them to turn encoder counts into joint angles, "
+                          "bus:=mock uses the model preset's encoder resolution and gearing (or plem's default)",
+                      how="add to each <joint> of the ros2_control block, with the values of its drive:\n"
+                          + "\n".join(param_line(name) for name in REQUIRED), file=sources.default)
+    for problem in check_drive_parameters(urdf, joints):
+        path, line = sources.locate(problem.joint, problem.param)
+        record = found.error if problem.error else found.warning
+        record(problem.code, problem.summary, what=problem.what, why=problem.why_at(line), how=problem.how,
+               file=path, line=line)
 
 
 def _check_prefix(report: ValidationReport) -> None:

@@ -10,9 +10,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from plem.description.drives import DriveParameters
 
 
 class DriveState(IntEnum):
@@ -38,7 +41,11 @@ class OperationMode(IntEnum):
 
 @dataclass(frozen=True)
 class BusSetup:
-    """What a bus needs to know about the arm when it opens."""
+    """What a bus needs to know about the arm when it opens.
+
+    `counts_per_radian` is signed: negative where a drive counts against the joint's axis. `drives` are
+    the description package's drive parameters (ids, gearing, direction), empty when it has none.
+    """
 
     joint_names: tuple[str, ...]
     counts_per_radian: tuple[float, ...]
@@ -46,6 +53,7 @@ class BusSetup:
     urdf_xml: str | None = None
     network_interface: str = "eth0"
     master_index: int = 0
+    drives: tuple[DriveParameters, ...] = ()
 
     @property
     def dof(self) -> int:
@@ -85,6 +93,7 @@ class BusStatus:
     working_counter: int = 0
     expected_working_counter: int = 0
     lost_frames: int = 0
+    working_counter_errors: int = 0
     detail: str = ""
 
 

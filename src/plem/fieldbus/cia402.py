@@ -270,3 +270,47 @@ def describe_drive_fault(joint: str, statusword: int, error_code: int) -> str:
     """One line naming the joint, the decoded error code and the statusword bits, for events and errors."""
     return (f"{joint} drive fault: {describe_error_code(error_code)} "
             f"(statusword 0x{statusword:04X}: {describe_statusword(statusword)})")
+
+
+class PowerSequencer:
+    """The master's side of CiA402 power control: the controlword each drive gets this cycle.
+
+    `request()` sets the state wanted of every drive and `request_reset()` asks for one fault-reset edge;
+    `commands(seen)` then chooses, from the states the drives last reported, the controlword that moves
+    each one step toward it. A drive seen in fault is wanted down (switch on disabled) until enabled again.
+    """
+
+    def __init__(self, dof: int) -> None:
+        self.wanted = [DriveState.SWITCH_ON_DISABLED] * dof
+        self.reset = [False] * dof
+        self.sent = [int(Controlword.DISABLE_VOLTAGE)] * dof
+
+    def request(self, state: DriveState) -> None:
+        """Ask every drive for `state`; it is reached over the next cycles."""
+        self.wanted = [state] * len(self.wanted)
+
+    def request_reset(self) -> None:
+        """Send one fault-reset edge to every drive that is in fault."""
+        self.reset = [True] * len(self.wanted)
+
+    def master_lost(self) -> None:
+        """The exchange failed: stop asking for operation and forget pending resets."""
+        self.request(DriveState.SWITCH_ON_DISABLED)
+        self.reset = [False] * len(self.wanted)
+
+    def commands(self, seen: list[DriveState]) -> list[int]:
+        """This cycle's controlwords for drives last seen in the states `seen` (remembered as sent)."""
+        self.sent = [self._command(drive, state, self.sent[drive]) for drive, state in enumerate(seen)]
+        return self.sent
+
+    def _command(self, drive: int, seen: DriveState, previous: int) -> int:
+        if seen is DriveState.FAULT:
+            self.wanted[drive] = DriveState.SWITCH_ON_DISABLED
+            if not self.reset[drive]:
+                return Controlword.DISABLE_VOLTAGE
+            command = next_controlword(seen, DriveState.SWITCH_ON_DISABLED, previous)
+            self.reset[drive] = command != Controlword.FAULT_RESET
+            return command
+        self.reset[drive] = False
+        return next_controlword(seen, self.wanted[drive], previous)
+

@@ -27,7 +27,8 @@ Without dynamics every joint follows its target with a first-order lag and veloc
 torques read 0 and cyclic-sync torque holds the joint still.
 
 Encoders. raw position = round(q · counts_per_radian) + raw_zero, raw velocity = round(v · counts_per_radian),
-so a calibration offset (minus the raw reading at home) maps raw counts back to the joint angle.
+so a calibration offset (minus the raw reading at home) maps raw counts back to the joint angle; a negative
+counts_per_radian is an encoder that counts against the joint's axis.
 
 Fault injection (for tests and demos): inject_drive_fault, inject_communication_loss /
 restore_communication (the drives then quick-stop on their own ramp and hold position),
@@ -47,14 +48,14 @@ import numpy as np
 
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus.bus import BusIO, BusSetup, BusStatus, DriveState, OperationMode
-from plem.fieldbus.cia402 import STATUSWORD, Controlword, decode_statusword, drive_transition, next_controlword
+from plem.fieldbus.cia402 import STATUSWORD, Controlword, PowerSequencer, decode_statusword, drive_transition
 
 if TYPE_CHECKING:
     from plem.control.kinematics import ArmDynamics
 
 _RUNNING = (DriveState.OPERATION_ENABLED, DriveState.QUICK_STOP_ACTIVE)
 _BOUNDS = {"finite": lambda a: True, "positive": lambda a: bool(np.all(a > 0)),
-           "non-negative": lambda a: bool(np.all(a >= 0))}
+           "non-negative": lambda a: bool(np.all(a >= 0)), "nonzero": lambda a: bool(np.all(a != 0))}
 
 
 def _joint_array(name: str, values: float | Sequence[float], dof: int, *, bound: str = "finite",
@@ -90,10 +91,9 @@ class _Drives:
         self.states = [DriveState.SWITCH_ON_DISABLED] * dof
         self.statusword = np.full(dof, STATUSWORD[DriveState.SWITCH_ON_DISABLED], dtype=np.uint16)
         self.error_code = np.zeros(dof, dtype=np.uint16)
-        self.wanted = [DriveState.SWITCH_ON_DISABLED] * dof
-        self.reset = [False] * dof
-        self.controlword = [int(Controlword.DISABLE_VOLTAGE)] * dof
+        self.controlword = [int(Controlword.DISABLE_VOLTAGE)] * dof  # the last one each drive received
         self.latched = [False] * dof
+        self.master = PowerSequencer(dof)
         self.settled = True
 
     def set_state(self, drive: int, state: DriveState) -> None:
@@ -102,11 +102,11 @@ class _Drives:
 
     def request(self, state: DriveState) -> None:
         """Ask every drive for `state`; it is reached over the next cycles."""
-        self.wanted = [state] * len(self.states)
+        self.master.request(state)
         self.settled = False
 
     def request_reset(self) -> None:
-        self.reset = [True] * len(self.states)
+        self.master.request_reset()
         self.settled = False
 
     def fault(self, drive: int, error_code: int, latched: bool) -> None:
@@ -121,11 +121,6 @@ class _Drives:
                 self.set_state(drive, DriveState.SWITCH_ON_DISABLED)
         self.request(DriveState.SWITCH_ON_DISABLED)
 
-    def master_lost(self) -> None:
-        """The bus saw the exchange fail: it stops asking for operation and forgets pending resets."""
-        self.request(DriveState.SWITCH_ON_DISABLED)
-        self.reset = [False] * len(self.states)
-
     def lose_communication(self) -> bool:
         """Drives that no longer hear the master quick-stop; True when a drive changed state."""
         running = [d for d, s in enumerate(self.states) if s is DriveState.OPERATION_ENABLED]
@@ -135,14 +130,19 @@ class _Drives:
 
     def exchange(self, seen_statuswords: np.ndarray) -> bool:
         """One cycle of controlwords chosen from the statuswords the master last read; True when a state changed."""
+        previous = list(self.controlword)
+        seen = [decode_statusword(int(sw)) for sw in seen_statuswords]
+        commands = self.master.commands(seen)
+        changed = self.apply(commands)
+        self.settled = not changed and commands == previous and seen == self.states
+        return changed
+
+    def apply(self, commands: Sequence[int]) -> bool:
+        """The drives' side of one cycle: each takes its controlword; True when a state changed."""
         changed = False
-        quiet = True
-        for drive, state in enumerate(self.states):
-            seen = decode_statusword(int(seen_statuswords[drive]))
-            previous = self.controlword[drive]
-            command = self._command(drive, seen, previous)
-            self.controlword[drive] = command
-            new = drive_transition(state, command, previous)
+        for drive, (state, command) in enumerate(zip(self.states, commands)):
+            previous, self.controlword[drive] = self.controlword[drive], int(command)
+            new = drive_transition(state, int(command), previous)
             if state is DriveState.FAULT and new is not state:
                 if self.latched[drive]:
                     new = state
@@ -151,20 +151,7 @@ class _Drives:
             if new is not state:
                 self.set_state(drive, new)
                 changed = True
-            quiet = quiet and new is state and seen is state and command == previous
-        self.settled = quiet
         return changed
-
-    def _command(self, drive: int, seen: DriveState, previous: int) -> int:
-        if seen is DriveState.FAULT:
-            self.wanted[drive] = DriveState.SWITCH_ON_DISABLED
-            if not self.reset[drive]:
-                return Controlword.DISABLE_VOLTAGE
-            command = next_controlword(seen, DriveState.SWITCH_ON_DISABLED, previous)
-            self.reset[drive] = command != Controlword.FAULT_RESET
-            return command
-        self.reset[drive] = False
-        return next_controlword(seen, self.wanted[drive], previous)
 
 
 class MockBus:
@@ -217,7 +204,7 @@ class MockBus:
                               what=f"a BusSetup naming {self.dof} joints, as the MockBus was created for {self.dof}",
                               why=f"the setup names {setup.dof}: {', '.join(setup.joint_names) or 'none'}",
                               how=f"create MockBus({setup.dof}) or open it with the arm's {self.dof} joint names")
-        counts = _joint_array("counts_per_radian", setup.counts_per_radian, self.dof, bound="positive")
+        counts = _joint_array("counts_per_radian", setup.counts_per_radian, self.dof, bound="nonzero")
         dt = _number("cycle_time_s", setup.cycle_time_s, positive=True)
         urdf_xml = self._urdf_xml(setup)
         arm = None
@@ -267,7 +254,7 @@ class MockBus:
             status.working_counter = 0
             status.lost_frames += 1
             status.detail = "simulated communication loss: no drive answered"
-            self._drives.master_lost()
+            self._drives.master.master_lost()
             return False
         if self._lost:
             self.restore_communication()
@@ -299,10 +286,28 @@ class MockBus:
             raise self._not_open("write")
         drives = self._drives
         if self._lost:
-            if drives.lose_communication():
-                self._dirty = True
+            self.quick_stop()
         elif not drives.settled and drives.exchange(self.io.statusword):
             self._dirty = True
+        self._advance()
+
+    def serve(self, controlwords: Sequence[int]) -> None:
+        """Be the drives of a real master: take its controlwords (not enable()/disable()) and advance one cycle.
+
+        The virtual EtherCAT network runs its emulated drives this way; targets and modes come in `io`.
+        """
+        self._require_open("serve")
+        if self._drives.apply(controlwords):
+            self._dirty = True
+        self._advance()
+
+    def quick_stop(self) -> None:
+        """The drives no longer hear their master: running ones quick-stop on their own ramp and hold."""
+        if self._drives.lose_communication():
+            self._dirty = True
+
+    def _advance(self) -> None:
+        """Advance the arm by one cycle under the drives' current states and modes."""
         if self._dirty or self.io.mode.tobytes() != self._modes:
             self._configure()
         if self._any_running:

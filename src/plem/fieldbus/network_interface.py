@@ -35,7 +35,8 @@ def check_network_interface(name: str, sys_class_net: Path = SYS_CLASS_NET) -> N
             f"Network interface does not exist: {name}",
             what="an existing wired Ethernet interface for EtherCAT (e.g. eth0, enp3s0)",
             why=f"{name!r} is not among this machine's interfaces: {listing}",
-            how="list interfaces with `ip link show` and pass eth_interface:=<name>, or use bus:=mock to simulate",
+            how="list interfaces with `ip link show` and pass eth_interface:=<name>; without hardware use "
+                "bus:=ethercat_sim (the virtual EtherCAT network) or bus:=mock (the simulated arm)",
         )
     if (device / "wireless").exists() or (device / "phy80211").exists():
         raise ConfigError(

@@ -19,7 +19,8 @@ class LaunchArgument:
 
 #: Every argument of `plem launch`; config fields without a launch default come from the config layers.
 LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
-    LaunchArgument("bus", "ethercat", "fieldbus: ethercat, or mock for the simulated arm"),
+    LaunchArgument("bus", "ethercat", "fieldbus: ethercat, ethercat_sim (the virtual EtherCAT network), or mock "
+                                      "for the simulated arm"),
     LaunchArgument("robot_id", "indy", "instance id: prefix of shared memory, namespace of topics"),
     LaunchArgument("robot_type", DEFAULT_ROBOT_TYPE, "built-in arm (used when description_package is "
                                                       "wim_description)"),

@@ -58,10 +58,14 @@ def die_with_parent() -> None:
 
 
 def stop_on_signals() -> threading.Event:
-    """An event set by SIGTERM or SIGINT."""
+    """An event set by SIGTERM or SIGINT.
+
+    The handler sets it from a thread of its own: a handler runs inside whatever the main thread was doing,
+    which may hold the event's lock (or be an earlier handler setting it), and setting it there would deadlock.
+    """
     stop = threading.Event()
     for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, lambda *_: stop.set())
+        signal.signal(signum, lambda *_: threading.Thread(target=stop.set, daemon=True).start())
     return stop
 
 

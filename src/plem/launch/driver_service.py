@@ -212,6 +212,7 @@ class DriverService:
         interval = (histogram_summary(latency - self._previous[0]), histogram_summary(compute - self._previous[1]))
         self._previous = (latency, compute)
         report = robot.loop.report
+        bus, round_trip = robot.bus.status, getattr(robot.bus, "round_trip", None)
         record = {
             "monotonic_ns": time.monotonic_ns(), "cycles": stats.cycles, "overruns": stats.overruns,
             "missed_periods": stats.missed_periods, "mode": robot.mode.name.lower(),
@@ -225,6 +226,12 @@ class DriverService:
                               "written": self.channels.rings["intake"].head},
             "realtime": {"policy": report.policy, "priority": report.priority,
                          "memory_locked": report.memory_locked, "dma_latency_held": report.dma_latency_held},
+            "bus": {"lost_frames": bus.lost_frames, "working_counter_errors": bus.working_counter_errors,
+                    "working_counter": bus.working_counter,
+                    "expected_working_counter": bus.expected_working_counter,
+                    "round_trip": asdict(round_trip.whole_run()) if round_trip is not None else None},
+            "encoders": robot.bus.io.position.tolist(),
+            "joint_offsets": robot.runtime.offsets.tolist(),
         }
         self.channels.rings["stats"].write(json.dumps(record, default=_plain).encode())
 

@@ -26,7 +26,8 @@ from plem.robot.config import SerialArmConfig
 from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
 
-BUSES = ("ethercat", "mock")
+BUSES = ("ethercat", "ethercat_sim", "mock")
+ETHERCAT_BUSES = ("ethercat", "ethercat_sim")
 #: joint_states rates: the most a user may ask for, and the most the default follows controllers.yaml.
 MAX_JOINT_STATES_RATE = 1000.0
 DEFAULT_JOINT_STATES_RATE_CAP = 100.0
@@ -154,7 +155,9 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
     errors: list[PlemError] = []
     bus = arguments.get("bus", DEFAULTS["bus"])
     if bus not in BUSES:
-        errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}", "use bus:=mock for the simulated arm"))
+        errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}",
+                               "use bus:=mock for the simulated arm, bus:=ethercat_sim for the virtual EtherCAT "
+                               "network"))
     record, bridge, bridge_commands = (_boolean(arguments, name, errors)
                                        for name in ("record", "bridge", "bridge_commands"))
     rate_text = arguments.get("joint_states_rate", "")
@@ -195,6 +198,25 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
     return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, record, bridge,
                      group, report, description, bridge_commands)
+
+
+def check_shared_hardware(plans: list[RobotPlan]) -> None:
+    """Robots of one launch on EtherCAT need their own interface and master index; all clashes raised together."""
+    errors: list[PlemError] = []
+    for key, argument in (("network_interface", "eth_interface"), ("master_index", "master_index")):
+        seen: dict[object, str] = {}
+        for plan in plans:
+            if plan.bus not in ETHERCAT_BUSES or (plan.bus == "ethercat_sim" and key == "network_interface"):
+                continue
+            value = getattr(plan.config, key)
+            if value in seen:
+                errors.append(ConfigError(
+                    f"robots {seen[value]} and {plan.robot_id} both use {argument} {value}",
+                    what=f"a distinct {argument} for each EtherCAT robot of a launch",
+                    why=f"{seen[value]} and {plan.robot_id} would drive one EtherCAT master",
+                    how=f"give each robot its own {argument}:= (and its own wired port) in robots.yaml"))
+            seen[value] = plan.robot_id
+    raise_collected(errors, "the robots of the launch")
 
 
 def _builtin_model(package: Path) -> str | None:

@@ -36,7 +36,7 @@ def _bus(plan: RobotPlan) -> Any:
         from plem.fieldbus.mock import MockBus
 
         return MockBus(plan.config.dof)
-    return None  # the builder explains that EtherCAT is not available
+    return None  # the builder opens the EtherCAT master (bus:=ethercat, or the virtual network's)
 
 
 def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChannels]:

@@ -30,8 +30,8 @@ STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
 #: Components of later releases: listed in the summary, never faked.
 NOT_BUILT = {"planner": "motion planner"}
-MODULES = {"rt_driver": "plem.launch.rt_driver", "bridge": "plem.launch.ros_bridge",
-           "recorder": "plem.launch.recorder"}
+MODULES = {"ethercat_sim": "plem.launch.ethercat_sim", "rt_driver": "plem.launch.rt_driver",
+           "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder"}
 
 
 class LaunchFailed(PlemError):
@@ -111,6 +111,11 @@ class Supervisor:
     def _start_robot(self, plan: RobotPlan) -> None:
         for line in plan.description.log_lines if plan.description else ():
             self.say(f"[{plan.robot_id}] {line}")
+        if plan.bus == "ethercat_sim":
+            self._start(plan, "ethercat_sim", critical=True)
+            if self.stop_requested.is_set():
+                return
+            plan.arguments["eth_interface"] = self.children[-1].ready["interface"]
         self._start(plan, "rt_driver", critical=True)
         if self.components.get("bridge", True) and plan.bridge and not self.stop_requested.is_set():
             self._start(plan, "bridge", critical=False)
@@ -166,6 +171,10 @@ class Supervisor:
             for warning in ready["warnings"]:
                 self.say(f"  warning: {warning}")
             self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
+            if "ethercat_sim" in children:
+                sim = children["ethercat_sim"]
+                self.say(f"  ethercat_sim  running, pid {sim.process.pid}, {sim.ready['slaves']} emulated drives "
+                         f"behind {sim.ready['interface']} (the virtual EtherCAT network)")
             self.say(f"  bridge        {self._bridge_status(children.get('bridge'))}")
             self.say(f"  recorder      {self._recorder_status(children.get('recorder'))}")
             for component, title in NOT_BUILT.items():

@@ -134,7 +134,8 @@ class MonitorFeed:
             missed_periods=driver["missed_periods"], period_ns=round(self.client.cycle_time_s * 1e9),
             mode=driver["mode"], fault_reason=driver["fault_reason"] or "", **timing,
             commands_received=commands["received"], commands_accepted=commands["accepted"],
-            commands_rejected=commands["rejected"], queues=queues), wall_ns)
+            commands_rejected=commands["rejected"], bus_lost_frames=driver["bus"]["lost_frames"],
+            bus_working_counter_errors=driver["bus"]["working_counter_errors"], queues=queues), wall_ns)
 
     def reader_queues(self) -> list[QueueCount]:
         """The rings this feed reads, as it reads them: fill and records lost to the writer."""

@@ -28,6 +28,7 @@ from plem.control.motion import Motion, plan_point_to_point
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, Spline, TrajectoryTolerances
+from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus.bus import BusSetup, IBus
 from plem.ipc.request_bounds import point_count
@@ -51,8 +52,10 @@ def _warn(runtime: ArmRuntime, text: str) -> None:
     runtime.events.emit(EventKind.WARNING, "realtime_setup", text, runtime.mode, runtime.cycle_count)
 
 
-class EtherCATUnavailable(ConfigError):
-    """The EtherCAT bus was asked for but plem has no EtherCAT master yet."""
+def arm_joint_names(config: SerialArmConfig, report: Any) -> tuple[str, ...]:
+    """The arm's joints in drive order: the preset's names, else the URDF's actuated joints."""
+    model = config.MODEL
+    return tuple(model.joint_names) if model else tuple(j.name for j in report.urdf.actuated_joints)
 
 
 class Robot:
@@ -363,16 +366,18 @@ class RobotBuilder:
                               why=f"{config.model_name()} is not a preset and none was given",
                               how="call .with_description('my_robot_description') on the builder")
         report = require_valid(package, stage=Stage.STARTUP, urdf_file=self.urdf_file)
-        joint_names = tuple(model.joint_names) if model else tuple(j.name for j in report.urdf.actuated_joints)
+        joint_names = arm_joint_names(config, report)
         if len(joint_names) != config.dof:
             raise ConfigError("the URDF's DOF does not match the configuration",
                               what=f"{config.dof} actuated joints", why=f"{package} has {len(joint_names)}",
                               how="use the description package that belongs to this arm")
-        counts = self.counts_per_radian or (model.counts_per_radian() if model else
+        drives = drive_parameters(report.urdf, joint_names) or ()
+        counts = self.counts_per_radian or (tuple(d.signed_counts_per_radian for d in drives) if drives else
+                                            model.counts_per_radian() if model else
                                             (DEFAULT_COUNTS_PER_RADIAN,) * config.dof)
         bus = self._bus(config)
         setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, report.urdf_xml,
-                         config.network_interface, config.master_index)
+                         config.network_interface, config.master_index, drives)
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
         loop_dynamics = ArmDynamics(report.urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
         state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)
@@ -396,11 +401,9 @@ class RobotBuilder:
     def _bus(self, config: SerialArmConfig) -> IBus:
         bus = self.bus or config.custom_bus
         if bus is None:
-            raise EtherCATUnavailable("the EtherCAT bus is not available in this version of plem",
-                                      what="a bus to drive the arm",
-                                      why="no custom_bus was given, so the default EtherCAT bus was requested",
-                                      how="use the simulated arm: config.custom_bus = MockBus(dof) "
-                                          "(CLI: bus:=mock)")
+            from plem.fieldbus.ethercat.master import EtherCATBus
+
+            return EtherCATBus()
         if not isinstance(bus, IBus):
             raise ConfigError("custom_bus does not implement IBus", what="an object with the IBus methods",
                               why=f"got {type(bus).__name__}", how="pass a MockBus or an IBus implementation")

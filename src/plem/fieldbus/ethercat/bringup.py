@@ -1,0 +1,318 @@
+"""Bringing an EtherCAT segment up to OP and down again on pysoem, with an error for every step that fails.
+
+Opening: the interface and the raw-socket permission are checked, SOEM enumerates the slaves, the slaves
+found are compared with the drives the arm expects (one CiA402 drive per joint, in order, with the ids
+the description package gives), the PDO assignment of `objects` is written by SDO in PREOP, the process
+data is mapped and its size checked, distributed clocks are set up where the slaves have them, and the
+segment goes SAFEOP → OP within timeouts, naming each slave's AL status code when a transition fails.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import struct
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from plem.description.drives import DriveParameters
+from plem.errors import ConfigError, PlemError
+from plem.fieldbus.ethercat import objects
+from plem.fieldbus.ethercat.host import Finding, check_raw_sockets
+from plem.fieldbus.network_interface import check_network_interface
+
+ETHERLAB_CONF = Path("/opt/etherlab/etc/ethercat.conf")
+STATE_TIMEOUT_S = 5.0          # for each of SAFEOP and OP to be reached by every slave
+REG_AL_STATUS = 0x0130
+REG_ESC_FEATURES = 0x0008
+DC_SUPPORTED = 0x0004
+
+
+class EtherCATError(PlemError):
+    """The EtherCAT segment could not be brought up, or does not match the arm."""
+
+
+def _pysoem() -> Any:
+    import pysoem
+
+    return pysoem
+
+
+def default_interface(master_index: int, conf: Path = ETHERLAB_CONF) -> str | None:
+    """`MASTER<index>_DEVICE` of an EtherLab configuration, when one is installed and names an interface."""
+    try:
+        text = conf.read_text()
+    except (OSError, UnicodeDecodeError):
+        return None
+    key = f"MASTER{master_index}_DEVICE"
+    for line in text.splitlines():
+        name, _, value = line.partition("=")
+        if name.strip() == key:
+            value = value.split("#")[0].strip().strip("\"'")
+            return value or None
+    return None
+
+
+def _permission_error(interface: str, finding: Finding) -> EtherCATError:
+    return EtherCATError(f"no permission to open {interface} for EtherCAT", what=finding.what, why=finding.why,
+                         how=finding.how)
+
+
+LOCK_DIR = Path("/dev/shm")
+
+
+@contextlib.contextmanager
+def interface_lock(interface: str, holder: str = "plem ethercat scan") -> Iterator[None]:
+    """Hold `interface` for one master (a running robot or a scan); a clear error when it is taken."""
+    path = LOCK_DIR / f"plem-ethercat-{interface}.lock"
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            owner = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
+            raise EtherCATError(
+                f"{interface} is in use by another EtherCAT master",
+                what=f"{interface} free for {holder}",
+                why=f"{owner} holds it ({path})",
+                how="stop that robot first (Ctrl-C in its `plem launch`), or give each robot its own interface "
+                    "with eth_interface:= and master_index:=") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{holder} (pid {os.getpid()})".encode(), 0)
+        yield
+    finally:
+        os.close(fd)
+
+
+def open_master(interface: str) -> Any:
+    """A pysoem master on `interface`, after checking that the interface can carry EtherCAT and may be opened."""
+    check_network_interface(interface)
+    permission = check_raw_sockets()
+    if not permission.ok:
+        raise _permission_error(interface, permission)
+    master = _pysoem().Master()
+    try:
+        master.open(interface)
+    except ConnectionError as error:
+        raise EtherCATError(f"{interface} could not be opened for EtherCAT", what=permission.what,
+                            why=f"SOEM could not open a raw socket on {interface}: {error}",
+                            how="check `ip link show` for the interface and `plem doctor "
+                                f"{interface}` for the host's permissions") from error
+    return master
+
+
+def find_slaves(master: Any, interface: str) -> int:
+    """Enumerate the slaves on the open master; 'EtherCAT master not found' when nothing answers."""
+    found = master.config_init()
+    if found <= 0:
+        raise EtherCATError(
+            "EtherCAT master not found",
+            what=f"EtherCAT slaves answering on {interface}",
+            why=f"no slave answered the master's frames on {interface}",
+            how=f"check the cable and the drives' power, that {interface} is the port the robot is wired to "
+                f"(`plem ethercat scan {interface}`; `ip link show {interface}` must say LOWER_UP), and that "
+                "no other EtherCAT master uses the interface; without hardware use bus:=ethercat_sim (the virtual "
+                "EtherCAT network) or bus:=mock")
+    return found
+
+
+def _hex(value: int | None) -> str:
+    return "any" if value is None else f"0x{value:08X}"
+
+
+def check_topology(slaves: Sequence[Any], joint_names: Sequence[str], drives: Sequence[DriveParameters]) -> None:
+    """One drive per joint in order, with the description's vendor/product/revision where it gives them."""
+    if len(slaves) != len(joint_names):
+        listing = "; ".join(f"{i}: {s.name} (vendor 0x{s.man:08X}, product 0x{s.id:08X})"
+                            for i, s in enumerate(slaves))
+        raise EtherCATError(
+            f"the EtherCAT segment has {len(slaves)} slaves, the arm has {len(joint_names)} joints",
+            what=f"one CiA402 drive per actuated joint, in joint order: {', '.join(joint_names)}",
+            why=f"found {listing}",
+            how="check the cabling and the drives' power (`plem ethercat scan` lists what answers), or use "
+                "the description package of this arm")
+    for position, (slave, joint, drive) in enumerate(zip(slaves, joint_names, drives)):
+        wrong = [(name, expected, found) for name, expected, found in (
+            ("vendor_id", drive.vendor_id, slave.man), ("product_code", drive.product_code, slave.id),
+            ("revision", drive.revision, slave.rev)) if expected is not None and expected != found]
+        if wrong:
+            found = ", ".join(f"{name} 0x{value:08X}" for name, _, value in wrong)
+            expected = ", ".join(f"{name} {_hex(value)}" for name, value, _ in wrong)
+            raise EtherCATError(
+                f"slave {position} ({slave.name}) is not the drive of {joint}",
+                what=f"at position {position}: the drive of {joint} with {expected}",
+                why=f"found {found}",
+                how=f"wire the drives in joint order, or correct the <param> tags of {joint} in the "
+                    "description package's ros2_control block (`plem ethercat scan` shows each slave's ids)")
+
+
+def _sdo_error(slave: Any, position: int, joint: str, index: int, subindex: int, error: Exception) -> EtherCATError:
+    entry = objects.ENTRIES_BY_OBJECT.get((index, subindex))
+    name = f" ({entry.name}, {entry.bits} bits)" if entry else ""
+    abort = getattr(error, "abort_code", None)
+    detail = f"SDO abort 0x{abort:08X}: {getattr(error, 'desc', error)}" if abort is not None else str(error)
+    return EtherCATError(
+        f"slave {position} ({slave.name}, {joint}) refused object 0x{index:04X}:{subindex}{name}",
+        what="a CiA402 drive in cyclic synchronous position that accepts plem's PDO assignment (RxPDO 0x6040, "
+             "0x607A, 0x60B1, 0x60B2, 0x6060; TxPDO 0x6041, 0x6064, 0x606C, 0x6077, 0x603F, 0x6061)",
+        why=detail,
+        how="check in the drive's documentation that it maps these objects with these sizes (a drive that "
+            "cannot map one needs a firmware or configuration change); `plem ethercat scan` shows the drive")
+
+
+def assign_process_data(slave: Any, position: int, joint: str) -> int:
+    """Write plem's PDO assignment into one drive by SDO (in PREOP) and set CSP mode; its rated torque (mN·m)."""
+    def write(index: int, subindex: int, data: bytes) -> None:
+        try:
+            slave.sdo_write(index, subindex, data)
+        except Exception as error:  # pysoem raises SdoError, MailboxError or PacketError
+            raise _sdo_error(slave, position, joint, index, subindex, error) from error
+
+    for assign, pdo, entries in ((objects.RX_ASSIGN, objects.RX_PDO, objects.RX_ENTRIES),
+                                 (objects.TX_ASSIGN, objects.TX_PDO, objects.TX_ENTRIES)):
+        write(assign, 0, b"\x00")
+        write(pdo, 0, b"\x00")
+        for subindex, entry in enumerate(entries, start=1):
+            write(pdo, subindex, struct.pack("<I", entry.mapping))
+        write(pdo, 0, bytes([len(entries)]))
+        write(assign, 1, struct.pack("<H", pdo))
+        write(assign, 0, b"\x01")
+    write(0x6060, 0, struct.pack("<b", 8))
+    try:
+        return struct.unpack("<I", slave.sdo_read(objects.RATED_TORQUE, 0)[:4].ljust(4, b"\0"))[0]
+    except Exception as error:
+        raise _sdo_error(slave, position, joint, objects.RATED_TORQUE, 0, error) from error
+
+
+def check_mapping(slaves: Sequence[Any], joint_names: Sequence[str]) -> None:
+    """Every slave's mapped process data has exactly the size of plem's PDOs."""
+    rx, tx = objects.pdo_bytes(objects.RX_ENTRIES), objects.pdo_bytes(objects.TX_ENTRIES)
+    for position, (slave, joint) in enumerate(zip(slaves, joint_names)):
+        outputs, inputs = len(slave.output), len(slave.input)
+        if (outputs, inputs) != (rx, tx):
+            raise EtherCATError(
+                f"slave {position} ({slave.name}, {joint}) mapped {outputs} output and {inputs} input bytes",
+                what=f"{rx} output and {tx} input bytes: plem's RxPDO and TxPDO",
+                why="the drive accepted the PDO assignment but its sync managers carry a different size",
+                how="the drive ignores SDO PDO assignment: configure its PDOs to plem's objects with the "
+                    "vendor's tool, or check its ESI file for fixed PDOs")
+
+
+def slave_states(master: Any) -> list[tuple[int, int]]:
+    """(AL state, AL status code) of every slave, read afresh."""
+    master.read_state()
+    return [(slave.state, slave.al_status) for slave in master.slaves]
+
+
+def state_name(state: int) -> str:
+    """An AL state as EtherCAT tools print it, e.g. SAFEOP+ERROR."""
+    names = {1: "INIT", 2: "PREOP", 3: "BOOT", 4: "SAFEOP", 8: "OP"}
+    base = names.get(state & 0x0F, f"0x{state & 0x0F:X}")
+    return base + ("+ERROR" if state & 0x10 else "")
+
+
+def reach_state(master: Any, state: int, joint_names: Sequence[str], *, while_waiting: Callable[[], None] | None = None,
+                timeout_s: float = STATE_TIMEOUT_S) -> None:
+    """Request `state` of every slave and wait for it, exchanging process data meanwhile when asked to."""
+    master.state = state
+    master.write_state()
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if while_waiting is not None:
+            while_waiting()
+        if master.state_check(state, 5000) == state:
+            return
+    pysoem = _pysoem()
+    stuck = [(i, slave, st, code) for i, (slave, (st, code)) in enumerate(zip(master.slaves, slave_states(master)))
+             if st != state]
+    detail = "; ".join(f"slave {i} ({slave.name}, {joint_names[i] if i < len(joint_names) else '?'}) is in "
+                       f"{state_name(st)}, AL status 0x{code:04X} ({pysoem.al_status_code_to_string(code)})"
+                       for i, slave, st, code in stuck)
+    raise EtherCATError(
+        f"the EtherCAT slaves did not reach {state_name(state)} within {timeout_s:g} s",
+        what=f"every drive in {state_name(state)}",
+        why=detail or "the state check timed out",
+        how="read the AL status code in the drive's documentation; invalid sync manager or PDO configuration "
+            "(0x001D/0x001E) means the drive rejects plem's process data; 0x001B is a watchdog (cycle too slow); "
+            "power-cycle the drives and launch again")
+
+
+def setup_distributed_clocks(master: Any, cycle_time_ns: int) -> list[bool]:
+    """SYNC0 at the cycle time on every slave that has distributed clocks; which slaves have them."""
+    if not master.config_dc():
+        return [False] * len(master.slaves)
+    has_dc = []
+    for slave in master.slaves:
+        try:
+            features = struct.unpack("<H", slave._fprd(REG_ESC_FEATURES, 2))[0]  # noqa: SLF001 — register read
+        except Exception:  # a slave that does not answer a register read has no usable clock
+            features = 0
+        has_dc.append(bool(features & DC_SUPPORTED))
+        if has_dc[-1]:
+            slave.dc_sync(1, cycle_time_ns)
+    return has_dc
+
+
+def close_master(master: Any) -> None:
+    """Bring every slave down to INIT (outputs off first: SAFEOP) and release the interface; never raises."""
+    pysoem = _pysoem()
+    for state in (pysoem.SAFEOP_STATE, pysoem.INIT_STATE):
+        try:
+            master.state = state
+            master.write_state()
+            master.state_check(state, 50000)
+        except Exception:  # the segment may already be gone; closing goes on
+            pass
+    try:
+        master.close()
+    except Exception:  # noqa: BLE001 — closing an interface that vanished
+        pass
+
+
+@dataclass(frozen=True)
+class Segment:
+    """What opening found: the master, its slaves in joint order, rated torques (mN·m) and DC support."""
+
+    master: Any
+    slaves: tuple[Any, ...]
+    rated_torque_mnm: tuple[int, ...]
+    distributed_clocks: tuple[bool, ...]
+
+
+def bring_up(interface: str, joint_names: Sequence[str], drives: Sequence[DriveParameters], cycle_time_ns: int,
+             first_exchange: Callable[[Any], None]) -> Segment:
+    """Open `interface` and bring the arm's drives to OP; `first_exchange(master)` runs while waiting for OP.
+
+    On any failure the slaves are brought down again and the interface released before the error is raised.
+    """
+    if len(drives) != len(joint_names):
+        raise ConfigError("the arm has no drive parameters for EtherCAT",
+                          what="encoder_resolution, gear_ratio and direction <param> tags for every joint",
+                          why=f"{len(drives)} drives for {len(joint_names)} joints",
+                          how="add the <param> tags to each <joint> of the description package's ros2_control "
+                              "block (docs/ethercat.md), then `plem validate` the package")
+    pysoem = _pysoem()
+    master = open_master(interface)
+    try:
+        find_slaves(master, interface)
+        slaves = tuple(master.slaves)
+        check_topology(slaves, joint_names, drives)
+        rated: list[int] = [0] * len(slaves)
+        for position, slave in enumerate(slaves):
+            def configure(_: int, position: int = position, slave: Any = slave) -> None:
+                rated[position] = assign_process_data(slave, position, joint_names[position])
+            slave.config_func = configure
+        master.config_map()
+        check_mapping(slaves, joint_names)
+        dc = setup_distributed_clocks(master, cycle_time_ns)
+        reach_state(master, pysoem.SAFEOP_STATE, joint_names)
+        first_exchange(master)
+        reach_state(master, pysoem.OP_STATE, joint_names, while_waiting=lambda: first_exchange(master))
+        return Segment(master, slaves, tuple(rated), tuple(dc))
+    except BaseException:
+        close_master(master)
+        raise
