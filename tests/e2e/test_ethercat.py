@@ -172,3 +172,144 @@ def test_a_drive_with_other_ids_is_named_with_what_was_expected(network: Network
     assert result.returncode == 1, result.stdout
     assert "slave 0" in result.stderr and "product_code 0x00001234" in result.stderr
     assert "0x00000402" in result.stderr
+
+
+# -- injected faults -----------------------------------------------------------------------------------------------
+def fault_events(client: RobotClient, timeout: float = 10.0) -> list:
+    """Fault events so far, waiting up to `timeout` for the first."""
+    found: list = []
+    wait_until(lambda: bool(found.extend(faults(client)) or found), timeout)
+    return found
+
+
+def slow_motion(client: RobotClient, joint: int, distance: float) -> None:
+    """Start a motion of one joint (rad) at a tenth of the speed limit, without waiting for it."""
+    target = client.state().position.copy()
+    target[joint] += distance
+    client.move_joints(target, speed_scale=0.1)
+
+
+def assert_no_jump(client: RobotClient, seconds: float = 0.5) -> None:
+    """Over `seconds` of cycles no joint's measured position moves more than a still arm's noise per cycle."""
+    samples = [state.position.copy() for state in _states(client, seconds)]
+    steps = np.abs(np.diff(np.array(samples), axis=0))
+    assert steps.max() < 1e-3, steps.max()
+
+
+def _states(client: RobotClient, seconds: float) -> Iterator:
+    cycle = 0
+    end = client.state().cycle + round(seconds / PERIOD_S)
+    while cycle < end:
+        state = client.wait_for_state(1.0, after_cycle=cycle)
+        assert state is not None
+        cycle = state.cycle
+        yield state
+
+
+def enabled_launch(network: Network, home: Path, tmp_path: Path) -> Iterator[tuple[Launch, RobotClient]]:
+    with launch_on(network, home, tmp_path) as launch, connect(launch.robot_id) as client:
+        client.set_mode("hold")
+        yield launch, client
+
+
+def test_drive_fault_is_named_stops_the_arm_and_reset_reenables_without_a_jump(network, home, tmp_path):
+    for launch, client in enabled_launch(network, home, tmp_path):
+        slow_motion(client, 1, 0.3)
+        wait_until(lambda: abs(client.state().velocity[1]) > 0.01, 10)
+        network.control.request("drive_fault", drive=2, code=0x7121)
+        events = fault_events(client)
+        assert events and events[0].cause == "drive_fault", events
+        assert "joint2" in events[0].reason and "0x7121" in events[0].reason, events[0].reason
+        assert wait_until(lambda: np.max(np.abs(client.state().velocity)) < 1e-3, 10)
+        assert client.reset_fault() is not None
+        client.set_mode("hold")
+        assert_no_jump(client)
+        state = client.state()
+        assert np.allclose(state.command_position, state.position, atol=1e-3)
+
+
+def test_a_drive_that_refuses_to_enable_is_named(network, home, tmp_path):
+    with launch_on(network, home, tmp_path) as launch, connect(launch.robot_id) as client:
+        network.control.request("refuse_enable", drive=4, refuse=True)
+        try:
+            with pytest.raises(Exception) as caught:
+                client.set_mode("hold")
+        finally:
+            network.control.request("refuse_enable", drive=4, refuse=False)
+        assert "did not enable" in str(caught.value) and "joint4" in str(caught.value)
+
+
+def test_lost_frames_are_counted_and_alone_do_not_fault(network, home, tmp_path):
+    for launch, client in enabled_launch(network, home, tmp_path):
+        network.control.request("drop_rate", rate=0.05)
+        try:
+            assert wait_until(lambda: (client.stats() or {}).get("bus", {}).get("lost_frames", 0) >= 5, 20)
+        finally:
+            network.control.request("drop_rate", rate=0.0)
+        assert faults(client) == []
+        assert client.state().mode.name == "HOLD"
+
+
+def test_a_slave_that_disappears_faults_naming_it_and_reset_recovers(network, home, tmp_path):
+    for launch, client in enabled_launch(network, home, tmp_path):
+        network.control.request("disappear", slave=3)
+        try:
+            events = fault_events(client)
+        finally:
+            network.control.request("reappear", slave=3)
+        assert events[0].cause == "communication_lost" and "slave 3" in events[0].reason, events[0].reason
+        assert wait_until(lambda: (client.stats() or {}).get("bus", {}).get("working_counter")
+                          == client.stats()["bus"]["expected_working_counter"], 10)
+        client.reset_fault()
+        client.set_mode("hold")
+        assert_no_jump(client)
+
+
+def test_a_master_killed_leaves_the_drives_stopping_on_their_watchdog(network, home, tmp_path):
+    for launch, client in enabled_launch(network, home, tmp_path):
+        slow_motion(client, 0, 0.5)
+        wait_until(lambda: abs(client.state().velocity[0]) > 0.01, 10)
+        os.kill(launch.driver_pids()[launch.robot_id], signal.SIGKILL)
+        assert wait_until(lambda: all(sw & 0x6F == 0x07 for sw in network.control.state()["statuswords"]), 10), \
+            [hex(sw) for sw in network.control.state()["statuswords"]]
+        assert wait_until(lambda: max(abs(v) for v in network.control.state()["velocities"]) < 1e-6, 10)
+
+
+def test_robots_of_one_launch_on_one_master_index_are_refused(home: Path, tmp_path: Path):
+    robots = tmp_path / "robots.yaml"
+    robots.write_text("robots:\n"
+                      "  - {robot_id: left, bus: ethercat, eth_interface: eth0, master_index: 0}\n"
+                      "  - {robot_id: right, bus: ethercat, eth_interface: eth1, master_index: 0}\n")
+    result = run_plem("launch", f"robots:={robots}", env=clean_environment(home))
+    assert result.returncode == 1
+    assert "robots left and right both use master_index 0" in result.stderr
+
+
+def test_without_raw_socket_permission_the_fix_is_named(network: Network):
+    from tests.e2e.launched import as_nobody, system_python
+
+    if system_python() is None:
+        pytest.skip("no system interpreter that user nobody can run")
+    process = as_nobody("""
+        import sys
+        from plem.cli.app import run
+        sys.exit(run(["ethercat", "scan", sys.argv[1]]))
+    """, network.interface)
+    _, errors = process.communicate(timeout=60)
+    assert process.returncode == 1, errors
+    assert "no permission to open" in errors and "CAP_NET_RAW" in errors and "setcap" in errors
+
+
+def test_one_launch_brings_up_the_virtual_network_and_the_real_master(home: Path, tmp_path: Path):
+    robot_id = new_robot_id()
+    with launched(["bus:=ethercat_sim", "master_index:=42", f"robot_id:={robot_id}", "bridge:=false",
+                   "record:=false"], [robot_id], tmp_path, clean_environment(home)) as launch, \
+            connect(robot_id) as client:
+        assert re.search(r"ethercat_sim\s+running, pid \d+, 6 emulated drives behind plemec42", launch.output)
+        assert "bus ethercat_sim" in launch.output
+        client.set_mode("hold")
+        target = [0.1, 0.1, -0.1, 0.2, 0.0, -0.2]
+        client.move_joints(target).wait(30)
+        assert np.allclose(client.state().position, target, atol=2e-4)
+        assert launch.stop() == 0, launch.describe()
+    assert not Path("/sys/class/net/plemec42").exists()

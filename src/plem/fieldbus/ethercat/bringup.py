@@ -68,8 +68,14 @@ LOCK_DIR = Path("/dev/shm")
 @contextlib.contextmanager
 def interface_lock(interface: str, holder: str = "plem ethercat scan") -> Iterator[None]:
     """Hold `interface` for one master (a running robot or a scan); a clear error when it is taken."""
+    check_access(interface)
     path = LOCK_DIR / f"plem-ethercat-{interface}.lock"
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        writable = True
+    except PermissionError:  # another user's lock file: a read-only descriptor locks it as well
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        writable = False
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -81,24 +87,31 @@ def interface_lock(interface: str, holder: str = "plem ethercat scan") -> Iterat
                 why=f"{owner} holds it ({path})",
                 how="stop that robot first (Ctrl-C in its `plem launch`), or give each robot its own interface "
                     "with eth_interface:= and master_index:=") from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{holder} (pid {os.getpid()})".encode(), 0)
+        if writable:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{holder} (pid {os.getpid()})".encode(), 0)
         yield
     finally:
         os.close(fd)
 
 
-def open_master(interface: str) -> Any:
-    """A pysoem master on `interface`, after checking that the interface can carry EtherCAT and may be opened."""
+def check_access(interface: str) -> None:
+    """The interface can carry EtherCAT and this process may open it; an EtherCATError naming the fix if not."""
     check_network_interface(interface)
     permission = check_raw_sockets()
     if not permission.ok:
         raise _permission_error(interface, permission)
+
+
+def open_master(interface: str) -> Any:
+    """A pysoem master on `interface`, after checking that the interface can carry EtherCAT and may be opened."""
+    check_access(interface)
     master = _pysoem().Master()
     try:
         master.open(interface)
     except ConnectionError as error:
-        raise EtherCATError(f"{interface} could not be opened for EtherCAT", what=permission.what,
+        raise EtherCATError(f"{interface} could not be opened for EtherCAT",
+                            what="a raw socket on the interface for EtherCAT frames",
                             why=f"SOEM could not open a raw socket on {interface}: {error}",
                             how="check `ip link show` for the interface and `plem doctor "
                                 f"{interface}` for the host's permissions") from error

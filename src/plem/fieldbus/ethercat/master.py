@@ -5,8 +5,11 @@ most `RECEIVE_SHARE` of the cycle (a later answer counts as lost, so the loop ne
 deadline); the next cycle's `read()` decodes what came back. The working counter is checked every cycle:
 lost frames and wrong counters are counted in `status`, the round trip of every exchange in
 `round_trip`; the last good inputs stand in for a bad cycle, and `bad_cycles_to_fault` consecutive bad
-cycles make `read()` fail, which faults the arm naming the slaves that stopped answering. No mailbox
-traffic runs while the segment is in OP.
+cycles make `read()` fail, which faults the arm naming the slaves that stopped answering. While frames
+come back with a short working counter (a slave fell to SAFEOP, e.g. on its watchdog), the bus asks the
+slaves for OP again every `RECOVERY_PERIOD_S`, acknowledging their errors: one broadcast register write,
+with the drives kept disabled, so a reset can enable them once the counter is whole. No mailbox traffic
+runs while the segment is in OP.
 """
 
 from __future__ import annotations
@@ -29,6 +32,9 @@ from plem.fieldbus.ethercat.bringup import REG_AL_STATUS, Segment, bring_up, clo
 DEFAULT_BAD_CYCLES_TO_FAULT = 10
 #: Longest wait for a frame to come back, as a share of the cycle time.
 RECEIVE_SHARE = 0.5
+#: While frames come back but some slave is out of OP, ask every slave for OP (acknowledging errors) this often.
+RECOVERY_PERIOD_S = 0.2
+OP_WITH_ACKNOWLEDGE = 0x18
 
 _RX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.RX_ENTRIES])
 _TX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.TX_ENTRIES])
@@ -63,6 +69,7 @@ class EtherCATBus:
         self._seen = [DriveState.SWITCH_ON_DISABLED] * n
         cycle_ns = round(setup.cycle_time_s * 1e9)
         self._receive_timeout_us = max(50, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE))
+        self._recovery_cycles = max(1, round(RECOVERY_PERIOD_S / setup.cycle_time_s))
         with contextlib.ExitStack() as held:
             held.enter_context(interface_lock(setup.network_interface, f"an RT driver (master {setup.master_index})"))
             self.segment = bring_up(setup.network_interface, setup.joint_names, setup.drives, cycle_ns,
@@ -122,6 +129,8 @@ class EtherCATBus:
         else:
             status.working_counter_errors += 1
         self._bad += 1
+        if wkc > 0 and self._bad % self._recovery_cycles == 0:
+            self._request_operational()
         if self._bad < self.bad_cycles_to_fault:
             return True
         if status.communication_ok:
@@ -182,6 +191,12 @@ class EtherCATBus:
         master.send_processdata()
         self._wkc = master.receive_processdata(self._receive_timeout_us)
         self.round_trip.add(time.perf_counter_ns() - sent)
+
+    def _request_operational(self) -> None:
+        """Ask every slave for OP, acknowledging an error (slaves already in OP stay there)."""
+        master = self._master
+        master.state = OP_WITH_ACKNOWLEDGE
+        master.write_state()
 
     def _silent_slaves(self, wkc: int) -> str:
         """Which slaves stopped answering, read from their AL status registers once, at the fault."""
