@@ -80,12 +80,13 @@ class Launch:
 
 
 def launch(robot_id: str, env: dict[str, str], log: Path, children: list[subprocess.Popen], *, bridge: bool,
-           record: bool, **arguments: object) -> Launch:
-    """`plem launch bus:=mock robot_id:=… bridge:=… record:=… name:=value…` of the simulated arm (output to
-    `log`), returned once its summary is printed; checks that the bridge and recorder run exactly as asked."""
+           record: bool, bus: str = "mock", **arguments: object) -> Launch:
+    """`plem launch bus:=mock robot_id:=… bridge:=… record:=… name:=value…` of the simulated arm, or of another
+    `bus` (output to `log`), returned once its summary is printed; checks that the bridge and recorder run
+    exactly as asked."""
     extra = [f"{name}:={value}" for name, value in arguments.items()]
     with log.open("w") as output:
-        process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", "bus:=mock", f"robot_id:={robot_id}",
+        process = subprocess.Popen([sys.executable, "-m", "plem.cli", "launch", f"bus:={bus}", f"robot_id:={robot_id}",
                                     f"record:={str(record).lower()}", f"bridge:={str(bridge).lower()}", *extra],
                                    stdout=output, stderr=subprocess.STDOUT, text=True, env=env,
                                    start_new_session=True)

@@ -59,6 +59,7 @@ class Segment:
         self._present = [True] * len(self.stacks)
         self._line: tuple[Esc, ...] = ()
         self._operational = np.zeros(len(self.stacks), dtype=bool)
+        self._cycle_due = False
         self._relink()
 
     def disappear(self, slave: int) -> None:
@@ -104,10 +105,19 @@ class Segment:
                 process_data = process_data or wkc > 0
             elif command != Command.NOP:
                 self._registers(datagram, line)
-        if process_data:
-            self._cycle()
+        self._cycle_due = self._cycle_due or process_data
         decoded.mark_passed()
         return decoded.encode()
+
+    def finish_cycle(self) -> None:
+        """After a process-data frame's answer left: outputs in, one application step, inputs out for the next.
+
+        Real slaves answer at wire speed and run their application on their own time; stepping the drives
+        only once the answer is on its way keeps their computation out of the master's round trip.
+        """
+        if self._cycle_due:
+            self._cycle_due = False
+            self._cycle()
 
     def _registers(self, datagram: frames.Datagram, line: tuple[Esc, ...]) -> None:
         """A physically addressed datagram (auto-increment, configured, broadcast) on its way along the line."""
@@ -140,7 +150,6 @@ class Segment:
                 datagram.wkc += 2 if command in _READ_WRITES else 1
 
     def _cycle(self) -> None:
-        """After a process-data frame: outputs in, one application step, inputs out for the next frame."""
         stacks, mask = self.stacks, self._operational
         for drive, stack in enumerate(stacks):
             stack.take_outputs()

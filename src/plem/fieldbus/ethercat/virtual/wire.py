@@ -72,6 +72,7 @@ def serve(sock: socket.socket, segment: Segment, *, stop: threading.Event,
                     heapq.heappush(late, (time.monotonic() + segment.delay_s, next(order), answer))
                 else:
                     _send(sock, answer)
+                segment.finish_cycle()
         now = time.monotonic()
         while late and late[0][0] <= now:
             _send(sock, heapq.heappop(late)[2])
