@@ -76,3 +76,57 @@ def simulate(
                      markup=False)
 
     network.run(ready=announce)
+
+
+INJECTIONS = {
+    "drive-fault": ("drive_fault", "drive=N code=0x7121 [persistent=true]: drive N faults with that 0x603F code"),
+    "clear-fault": ("clear_fault", "drive=N: the cause of a persistent fault is gone"),
+    "refuse-enable": ("refuse_enable", "drive=N [refuse=false]: drive N stays switched on when enabled"),
+    "drop-frames": ("drop_rate", "rate=0.01: the share of frames lost on the way"),
+    "delay-frames": ("delay", "seconds=0.002: every answer comes back this late"),
+    "disappear": ("disappear", "slave=N: slave N neither answers nor counts"),
+    "reappear": ("reappear", "slave=N: slave N is back on the line"),
+    "state": ("state", "the emulated arm's true positions and the drives' statuswords"),
+}
+
+
+def _value(text: str, item: str) -> bool | int | float:
+    """A name=value's value: true/false, an integer (0x... for hex), or a number."""
+    from plem.errors import UsageError
+
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    for parse in (lambda t: int(t, 0), float):
+        try:
+            return parse(text)
+        except ValueError:
+            continue
+    raise UsageError(f"{item!r} has no usable value", what="true, false, an integer (0x... for hex) or a number",
+                     why=f"got {text!r}", how="e.g. drive=2 code=0x7121, or rate=0.01")
+
+
+@app.command("inject", context_settings={"help_option_names": ["--help", "-h"]})
+def inject(
+    fault: Annotated[str, typer.Argument(help="; ".join(f"{name} {text}" for name, (_, text) in INJECTIONS.items()),
+                                         show_default=False)],
+    values: Annotated[list[str] | None, typer.Argument(help="name=value pairs.", show_default=False)] = None,
+    index: Annotated[int, typer.Option("--index", help="The virtual network's number (its master_index).")] = 0,
+) -> None:
+    """Inject a fault into a running virtual EtherCAT network (or read its true state)."""
+    import json
+
+    from plem.errors import UsageError
+    from plem.fieldbus.ethercat.virtual.emulator import Control
+
+    if fault not in INJECTIONS:
+        raise UsageError(f"unknown fault {fault!r}", what=f"one of {', '.join(INJECTIONS)}", why=f"got {fault!r}",
+                         how="run `plem ethercat inject --help`")
+    fields: dict[str, object] = {}
+    for item in values or []:
+        name, separator, text = item.partition("=")
+        if not separator:
+            raise UsageError(f"{item!r} is not name=value", what="name=value pairs, e.g. drive=2 code=0x7121",
+                             why=f"got {item!r}", how=f"plem ethercat inject {fault} {INJECTIONS[fault][1]}")
+        fields[name] = _value(text, item)
+    answer = Control(index).request(INJECTIONS[fault][0], **fields)
+    print_json(answer) if fault == "state" else stdout.print(f"{fault}: done ({json.dumps(fields)})", markup=False)

@@ -195,9 +195,25 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
         report = require_valid(package, stage=Stage.STARTUP, urdf_file=urdf_file, srdf_file=srdf_file)
     resolved = resolve_arm_config(launch_args=config_arguments, launch_defaults=LAUNCH_DEFAULTS,
                                   dof=None if builtin else report.dof)
+    if bus == "ethercat":
+        _interface_from_etherlab(resolved)
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
     return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, record, bridge,
                      group, report, description, bridge_commands)
+
+
+def _interface_from_etherlab(resolved: ResolvedConfig) -> None:
+    """No layer named the interface: an EtherLab installation's MASTER<index>_DEVICE serves as the default."""
+    from plem.core.config.layers import LayerKind, Source
+    from plem.fieldbus.ethercat.bringup import ETHERLAB_CONF, default_interface
+
+    if resolved.sources["network_interface"].kind > LayerKind.LAUNCH_DEFAULT:
+        return
+    device = default_interface(resolved.config.master_index)
+    if device:
+        resolved.config.network_interface = device
+        resolved.sources["network_interface"] = Source(LayerKind.LAUNCH_DEFAULT,
+                                                       f"MASTER{resolved.config.master_index}_DEVICE in {ETHERLAB_CONF}")
 
 
 def check_shared_hardware(plans: list[RobotPlan]) -> None:

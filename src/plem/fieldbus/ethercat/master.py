@@ -35,6 +35,8 @@ RECEIVE_SHARE = 0.5
 #: While frames come back but some slave is out of OP, ask every slave for OP (acknowledging errors) this often.
 RECOVERY_PERIOD_S = 0.2
 OP_WITH_ACKNOWLEDGE = 0x18
+#: Cycles `close()` exchanges at most while the drives switch off, before the slaves leave OP.
+CLOSING_CYCLES = 50
 
 _RX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.RX_ENTRIES])
 _TX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.TX_ENTRIES])
@@ -88,8 +90,8 @@ class EtherCATBus:
         self._decode()
         self.io.target_position[:] = self.io.position
         self._send()
+        self._period_s = setup.cycle_time_s
         self._keepalive = _Keepalive(self._send, setup.cycle_time_s)
-
 
     def close(self) -> None:
         """Disable the drives (switch on disabled), then bring the slaves to SAFEOP and INIT; safe to repeat."""
@@ -99,7 +101,8 @@ class EtherCATBus:
         self._keepalive.stop()
         try:
             self._power.request(DriveState.SWITCH_ON_DISABLED)
-            for _ in range(20):
+            for _ in range(CLOSING_CYCLES):
+                time.sleep(self._period_s)
                 self._send()
                 if self._wkc == self._expected:
                     self._decode()

@@ -14,7 +14,7 @@ import os
 import socket
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,6 +23,10 @@ import numpy as np
 from plem.description.drives import DriveParameters
 from plem.errors import PlemError
 from plem.fieldbus.ethercat.virtual.drives import EmulatedDrives
+from plem.fieldbus.ethercat.virtual.network import VethNamespace
+from plem.fieldbus.ethercat.virtual.segment import Segment
+from plem.fieldbus.ethercat.virtual.sii import SlaveIdentity
+from plem.fieldbus.ethercat.virtual.wire import serve
 from plem.ipc.command_socket import FrameReader, connect, frame, listen, remove_own_socket
 
 #: Identity of an emulated drive whose joint declares none (a vendor id reserved for no real vendor).
@@ -53,28 +57,25 @@ class Arm:
     encoder_zero: tuple[int, ...] | None = None
 
 
-class ClockedDrives:
+class ClockedDrives(EmulatedDrives):
     """The emulated drives, stepped by frames and, when frames stop, by their own clock; thread-safe."""
 
-    def __init__(self, drives: EmulatedDrives, cycle_time_s: float) -> None:
-        self.drives = drives
+    def __init__(self, arm: Arm) -> None:
+        super().__init__(arm.joint_names, arm.urdf_xml, arm.drives, arm.cycle_time_s, raw_zero=arm.encoder_zero)
         self.lock = threading.Lock()
-        self.cycle_time_s = cycle_time_s
+        self.cycle_time_s = arm.cycle_time_s
         self.last_step = time.monotonic()
         self.frames = 0
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.drives, name)
-
     def step(self, operational: np.ndarray) -> None:
         with self.lock:
-            self.drives.step(operational)
+            super().step(operational)
             self.last_step = time.monotonic()
             self.frames += 1
 
     def communication_lost(self, drive: int) -> None:
         with self.lock:
-            self.drives.communication_lost(drive)
+            super().communication_lost(drive)
 
     def tick_when_idle(self, stop: threading.Event) -> None:
         """Run the drives' clock while no frame arrives (in its own thread, until `stop`)."""
@@ -82,13 +83,11 @@ class ClockedDrives:
         while not stop.wait(period):
             with self.lock:
                 if time.monotonic() - self.last_step > IDLE_CYCLES * period:
-                    self.drives.idle_tick()
+                    self.idle_tick()
 
 
-def identities(arm: Arm) -> list[Any]:
+def identities(arm: Arm) -> list[SlaveIdentity]:
     """The SII identity of each emulated drive: the description's ids, else the emulator's own."""
-    from plem.fieldbus.ethercat.virtual.sii import SlaveIdentity
-
     return [SlaveIdentity(vendor_id=d.vendor_id if d.vendor_id is not None else DEFAULT_VENDOR_ID,
                           product_code=d.product_code if d.product_code is not None else DEFAULT_PRODUCT_CODE,
                           revision=d.revision if d.revision is not None else DEFAULT_REVISION,
@@ -99,16 +98,12 @@ def identities(arm: Arm) -> list[Any]:
 class VirtualNetwork:
     """One arm's virtual EtherCAT network, numbered `index` (its interfaces and namespace carry the number)."""
 
-    def __init__(self, arm: Arm, index: int = 0, *, seed: int = 0,
-                 identity_override: Sequence[Any] | None = None) -> None:
-        from plem.fieldbus.ethercat.virtual.network import VethNamespace
-
+    def __init__(self, arm: Arm, index: int = 0, *, seed: int = 0) -> None:
         self.arm = arm
         self.index = index
         self.link = VethNamespace(index)
-        self.drives = ClockedDrives(EmulatedDrives(arm.joint_names, arm.urdf_xml, arm.drives, arm.cycle_time_s,
-                                                   raw_zero=arm.encoder_zero), arm.cycle_time_s)
-        self.identities = list(identity_override) if identity_override is not None else identities(arm)
+        self.drives = ClockedDrives(arm)
+        self.identities = identities(arm)
         self.seed = seed
         self.stop = threading.Event()
 
@@ -119,9 +114,6 @@ class VirtualNetwork:
 
     def run(self, ready: Callable[[VirtualNetwork], None] | None = None) -> None:
         """Create the network, serve until `stop` is set, remove the network (on every exit path)."""
-        from plem.fieldbus.ethercat.virtual.segment import Segment
-        from plem.fieldbus.ethercat.virtual.wire import serve
-
         self.segment = Segment(self.identities, self.drives, seed=self.seed)
         self._replace_stale_network()
         self.link.create()
@@ -169,12 +161,12 @@ class VirtualNetwork:
         drives, segment = self.drives, self.segment
         with drives.lock:
             if op == "drive_fault":
-                drives.drives.inject_fault(int(request["drive"]), int(request["code"]),
+                drives.inject_fault(int(request["drive"]), int(request["code"]),
                                            bool(request.get("persistent", False)))
             elif op == "clear_fault":
-                drives.drives.clear_fault(int(request["drive"]))
+                drives.clear_fault(int(request["drive"]))
             elif op == "refuse_enable":
-                drives.drives.refuse_enable(int(request["drive"]), bool(request.get("refuse", True)))
+                drives.refuse_enable(int(request["drive"]), bool(request.get("refuse", True)))
             elif op == "drop_rate":
                 segment.drop_rate = float(request["rate"])
             elif op == "delay":
@@ -185,11 +177,11 @@ class VirtualNetwork:
                 segment.reappear(int(request["slave"]))
             elif op != "state":
                 raise ValueError(f"unknown control operation {op!r}")
-            arm = drives.drives.arm
+            arm = drives.arm
             return {"ok": True, "frames": drives.frames, "positions": arm.true_positions.tolist(),
                     "velocities": arm.true_velocities.tolist(),
-                    "statuswords": drives.drives.statusword.tolist(),
-                    "position_actual": drives.drives.position_actual.tolist()}
+                    "statuswords": drives.statusword.tolist(),
+                    "position_actual": drives.position_actual.tolist()}
 
     def _serve_control(self, server: socket.socket) -> None:
         server.setblocking(True)
