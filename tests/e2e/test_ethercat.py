@@ -133,6 +133,57 @@ def test_bring_up_calibrate_move_free_drive_and_stop(network: Network, home: Pat
     assert all(sw & 0x6F == 0x40 or sw & 0x4F == 0x40 for sw in statuswords), [hex(sw) for sw in statuswords]
 
 
+def test_direction_gear_and_resolution_of_the_package_reach_the_drives(home: Path, tmp_path: Path):
+    package = tmp_path / "indy7_v2_description"
+    shutil.copytree(BUILTIN_PACKAGES_DIR / "indy7_v2_description", package)
+    xacro = package / "urdf" / "indy7_v2.ros2_control.xacro"
+    blocks = xacro.read_text().split("<joint ")
+    blocks[2] = blocks[2].replace('<param name="direction">1</param>', '<param name="direction">-1</param>')
+    blocks[3] = (blocks[3].replace('<param name="encoder_resolution">65536</param>',
+                                   '<param name="encoder_resolution">131072</param>')
+                 .replace('<param name="gear_ratio">121</param>', '<param name="gear_ratio">50</param>'))
+    xacro.write_text("<joint ".join(blocks))
+    network = Network([f"description_package:={package}", "master_index:=43"], home)
+    try:
+        robot_id = new_robot_id()
+        with launched(["bus:=ethercat", f"eth_interface:={network.interface}", f"robot_id:={robot_id}",
+                       f"description_package:={package}", "bridge:=false", "record:=false"], [robot_id], tmp_path,
+                      clean_environment(home)) as launch, connect(robot_id) as client:
+            client.set_mode("hold")
+            target = [0.1, 0.3, -0.25, 0.0, 0.1, 0.0]
+            client.move_joints(target).wait(30)
+            wait_until(lambda: np.max(np.abs(client.state().velocity)) < 1e-4, 10)
+            state = network.control.state()
+            assert np.allclose(state["positions"], target, atol=2e-4), state["positions"]
+            assert np.allclose(client.state().position, state["positions"], atol=1e-5)
+            counts = np.array(state["position_actual"])
+            assert counts[1] == pytest.approx(-0.3 * 65536 * 121 / (2 * np.pi), abs=400)
+            assert counts[2] == pytest.approx(-0.25 * 131072 * 50 / (2 * np.pi), abs=400)
+            assert launch.stop() == 0
+    finally:
+        network.close()
+
+
+def test_calibration_on_the_simulated_arm_refuses_a_moving_arm(home: Path, tmp_path: Path):
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}", "bridge:=false", "record:=false"], [robot_id], tmp_path,
+                  clean_environment(home)) as launch, connect(robot_id) as client:
+        client.set_mode("hold")
+        handle = client.move_joints([0.5, 0.0, 0.0, 0.0, 0.0, 0.0], speed_scale=0.2)
+        wait_until(lambda: abs(client.state().velocity[0]) > 0.01, 10)
+        moving = run_plem("profile", "calibrate", "--serial", "MOCK01", "--robot-id", robot_id,
+                          env=clean_environment(home))
+        assert moving.returncode == 1 and "is moving" in moving.stderr
+        handle.wait(30)
+        wait_until(lambda: np.max(np.abs(client.state().velocity)) < 1e-4, 10)
+        done = run_plem("profile", "calibrate", "--serial", "MOCK01", "--robot-id", robot_id,
+                        env=clean_environment(home))
+        assert done.returncode == 0, done.stderr
+        raw = client.stats()["encoders"]
+    offsets = json.loads((home / "profiles" / "MOCK01.json").read_text())["joint_offsets"]
+    assert offsets == [-x for x in raw] and offsets[0] == pytest.approx(-0.5 * 65536 * 121 / (2 * np.pi), abs=50)
+
+
 # -- errors --------------------------------------------------------------------------------------------------------
 def test_interface_that_does_not_exist_lists_those_that_do(home: Path):
     result = run_plem("launch", "bus:=ethercat", "eth_interface:=nosuch0", f"robot_id:={new_robot_id()}",

@@ -35,8 +35,10 @@ class Slave:
             raise RuntimeError("Object cannot be mapped into the PDO")
         self.written.append((index, subindex, data))
 
+    device_type: int = objects.CIA402_DEVICE_TYPE
+
     def sdo_read(self, index: int, subindex: int) -> bytes:
-        return struct.pack("<I", 3562)
+        return struct.pack("<I", self.device_type if index == objects.DEVICE_TYPE else 3562)
 
 
 def test_the_slaves_must_match_the_joints_in_number_and_ids():
@@ -57,6 +59,12 @@ def test_the_pdo_assignment_is_written_in_full_and_the_rated_torque_read():
     assert rx == [entry.mapping for entry in objects.RX_ENTRIES]
     assert (objects.RX_ASSIGN, 1, struct.pack("<H", objects.RX_PDO)) in slave.written
     assert slave.written[-1] == (0x6060, 0, struct.pack("<b", 8))
+
+
+def test_a_slave_that_is_not_a_cia402_drive_is_named():
+    with pytest.raises(EtherCATError) as caught:
+        assign_process_data(Slave(device_type=0x00001389), 0, "joint0")
+    assert "slave 0 (drive, joint0) is not a CiA402 drive" == caught.value.summary and "5001" in caught.value.why
 
 
 def test_a_refused_object_names_slave_joint_object_and_size():

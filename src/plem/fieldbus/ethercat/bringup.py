@@ -177,8 +177,25 @@ def _sdo_error(slave: Any, position: int, joint: str, index: int, subindex: int,
             "cannot map one needs a firmware or configuration change); `plem ethercat scan` shows the drive")
 
 
+def _read_u32(slave: Any, position: int, joint: str, index: int) -> int:
+    try:
+        return int(struct.unpack("<I", slave.sdo_read(index, 0)[:4].ljust(4, b"\0"))[0])
+    except Exception as error:  # pysoem raises SdoError, MailboxError or PacketError
+        raise _sdo_error(slave, position, joint, index, 0, error) from error
+
+
 def assign_process_data(slave: Any, position: int, joint: str) -> int:
-    """Write plem's PDO assignment into one drive by SDO (in PREOP) and set CSP mode; its rated torque (mN·m)."""
+    """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode;
+    its rated torque (mN·m)."""
+    device_type = _read_u32(slave, position, joint, objects.DEVICE_TYPE)
+    if device_type & 0xFFFF != objects.CIA402_DEVICE_TYPE & 0xFFFF:
+        raise EtherCATError(
+            f"slave {position} ({slave.name}, {joint}) is not a CiA402 drive",
+            what="a drive following the CiA402 profile (device type 0x1000 = 0x....0192)",
+            why=f"its device type is 0x{device_type:08X} (profile {device_type & 0xFFFF})",
+            how="wire only the arm's servo drives, one per joint in joint order (`plem ethercat scan` lists "
+                "the slaves); I/O terminals and couplers belong on another segment")
+
     def write(index: int, subindex: int, data: bytes) -> None:
         try:
             slave.sdo_write(index, subindex, data)
@@ -195,10 +212,7 @@ def assign_process_data(slave: Any, position: int, joint: str) -> int:
         write(assign, 1, struct.pack("<H", pdo))
         write(assign, 0, b"\x01")
     write(0x6060, 0, struct.pack("<b", 8))
-    try:
-        return struct.unpack("<I", slave.sdo_read(objects.RATED_TORQUE, 0)[:4].ljust(4, b"\0"))[0]
-    except Exception as error:
-        raise _sdo_error(slave, position, joint, objects.RATED_TORQUE, 0, error) from error
+    return _read_u32(slave, position, joint, objects.RATED_TORQUE)
 
 
 def check_mapping(slaves: Sequence[Any], joint_names: Sequence[str]) -> None:
