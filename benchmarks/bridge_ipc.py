@@ -41,13 +41,14 @@ from pathlib import Path
 
 import numpy as np
 
-from launching import begin_run, drain_loop, first_sample, latency_figures, launch, read_line, stop_all, verdict
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.control.events import EventKind
 from plem.control.state import StateBlock
 from plem.fieldbus import MockBus
 from plem.robot import Indy7V2, Robot
+
+from launching import begin_run, drain_loop, first_sample, latency_figures, launch, read_line, stop_all, verdict
 
 AMPLITUDE = 0.02
 

@@ -41,11 +41,12 @@ import textwrap
 import time
 from pathlib import Path
 
-import launching
 import numpy as np
 
 from plem.bridge import connect
 from plem.control.events import EventKind
+
+import launching
 
 #: Processes of the "busy" control: about the CPU the invalid flood keeps busy (its client and the command service).
 BUSY_PROCESSES = 2

@@ -54,10 +54,25 @@ from pathlib import Path
 
 import numpy as np
 
-from launching import (SHM_CLIENT, CpuMeter, begin_run, drain_loop, finish, first_sample, latency_figures, launch,
-                       ratio, result, start_reader, stop, stop_all, verdict)
 from plem.bridge import connect
 from plem.middleware.qos import RT_RAW
+
+from launching import (
+    SHM_CLIENT,
+    CpuMeter,
+    begin_run,
+    drain_loop,
+    finish,
+    first_sample,
+    latency_figures,
+    launch,
+    ratio,
+    result,
+    start_reader,
+    stop,
+    stop_all,
+    verdict,
+)
 
 #: Environment variables that could widen discovery beyond this host and domain.
 DISCOVERY_OVERRIDES = ("ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY", "CYCLONEDDS_URI")

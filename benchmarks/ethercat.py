@@ -43,11 +43,12 @@ import textwrap
 import time
 from pathlib import Path
 
-import launching
-import loop_latency
 import numpy as np
 
 from plem.bridge import connect
+
+import launching
+import loop_latency
 
 INDEX = 60
 INTERFACE = f"plemec{INDEX}"

@@ -74,12 +74,13 @@ from pathlib import Path
 
 import numpy as np
 
-import micro_kinematics
 from plem.control.commands import CommandTimeout
 from plem.control.timing import HISTOGRAM_BIN_NS, TimingStats
 from plem.errors import PlemError
 from plem.fieldbus import MockBus
 from plem.robot import IndyRP2V2, Robot
+
+import micro_kinematics
 
 PRIORITY = 98
 DOF = 7

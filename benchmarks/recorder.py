@@ -64,8 +64,6 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
-from launching import (SHM_CLIENT, CpuMeter, Launch, begin_run, drain_loop, finish, first_sample, latency_figures,
-                       launch, ratio, result, start_component, start_reader, stop, stop_all, verdict)
 from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.ipc.records import raw_record_length
@@ -73,6 +71,25 @@ from plem.launch.recorder import DRAIN_TIMEOUT_S
 from plem.middleware.types import library
 from plem.recording.archive import directory_size
 from plem.recording.status import read_status
+
+from launching import (
+    SHM_CLIENT,
+    CpuMeter,
+    Launch,
+    begin_run,
+    drain_loop,
+    finish,
+    first_sample,
+    latency_figures,
+    launch,
+    ratio,
+    result,
+    start_component,
+    start_reader,
+    stop,
+    stop_all,
+    verdict,
+)
 
 TOPICS = ("rt_raw", "joint_states", "rt_monitor_stats", "rt_events")
 CPU_TARGET = 10.0

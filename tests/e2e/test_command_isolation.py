@@ -25,9 +25,19 @@ from plem.errors import CommandRejected, PlemError
 from plem.ipc.request_bounds import MAX_TEXT_CHARS
 from tests.e2e.cli import run_plem
 from tests.e2e.command_wire import RawConnection
-from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, launched_robot, new_robot_id,
-                                python_client, read_line,
-                                remove_shm, system_python, wait_until)
+from tests.e2e.launched import (
+    Launch,
+    as_nobody,
+    clean_environment,
+    launched,
+    launched_robot,
+    new_robot_id,
+    python_client,
+    read_line,
+    remove_shm,
+    system_python,
+    wait_until,
+)
 
 NOBODY = 65534
 

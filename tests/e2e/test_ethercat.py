@@ -20,8 +20,7 @@ from plem.control.events import EventKind
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.fieldbus.ethercat.virtual.emulator import Control
 from tests.e2e.cli import plem_executable, run_plem
-from tests.e2e.launched import (Launch, clean_environment, launched, new_robot_id, process_gone, read_line,
-                                wait_until)
+from tests.e2e.launched import Launch, clean_environment, launched, new_robot_id, process_gone, read_line, wait_until
 
 pytestmark = pytest.mark.skipif(os.geteuid() != 0, reason="the virtual EtherCAT network needs root "
                                                           "(network namespaces and raw sockets)")

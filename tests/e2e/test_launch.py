@@ -26,10 +26,23 @@ from plem.ipc.channels import PRIVATE_RINGS, channel_names
 from plem.ipc.command_socket import socket_path
 from tests.e2e.cli import run_plem
 from tests.e2e.command_wire import RawConnection
-from tests.e2e.launched import (Launch, as_nobody, clean_environment, launched, launched_robot, new_robot_id,
-                                process_gone,
-                                process_reaped, python_client, read_line, remove_generated, shm_files, start_launch,
-                                system_python, wait_until)
+from tests.e2e.launched import (
+    Launch,
+    as_nobody,
+    clean_environment,
+    launched,
+    launched_robot,
+    new_robot_id,
+    process_gone,
+    process_reaped,
+    python_client,
+    read_line,
+    remove_generated,
+    shm_files,
+    start_launch,
+    system_python,
+    wait_until,
+)
 
 ARRIVED = 1e-3
 LOOP_HZ = 1000.0

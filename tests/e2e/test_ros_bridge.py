@@ -26,10 +26,17 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.middleware.action import ABORTED, CANCEL_NONE, CANCELED, SUCCEEDED
 from plem.middleware.discovery import DiscoverySettings
-from tests.e2e.launched import (Launch, clean_environment, launched, new_robot_id, process_gone, python_client,
-                                wait_until)
-from tests.e2e.ros_peer import JOINT_NAMES, RosPeer, shifted, wait_for
 from tests.conftest import fresh_domain
+from tests.e2e.launched import (
+    Launch,
+    clean_environment,
+    launched,
+    new_robot_id,
+    process_gone,
+    python_client,
+    wait_until,
+)
+from tests.e2e.ros_peer import JOINT_NAMES, RosPeer, shifted, wait_for
 
 ARRIVED = 1e-3
 LOOP_HZ = 1000.0
@@ -203,7 +210,7 @@ def test_rt_monitor_stats_at_10_hz_with_queue_counters(peer: RosPeer):
         assert message.mode in ("idle", "hold", "trajectory", "free_drive") and message.fault_reason == ""
         assert message.latency.samples > 0 and message.latency.max_us >= message.latency.p50_us
         queues = {queue.name: queue for queue in message.queues}
-        assert QUEUES <= set(queues), set(queues)
+        assert set(queues) >= QUEUES, set(queues)
         assert all(queue.dropped == 0 for queue in message.queues), [(q.name, q.dropped) for q in message.queues]
         assert queues["rt_raw"].capacity > 0 and queues["rt_raw"].fill <= queues["rt_raw"].capacity
     first, last = ({q.name: q for q in message.queues} for message in (messages[0], messages[-1]))

@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 
 from plem.middleware.action import SUCCEEDED
+from tests.conftest import fresh_domain
 from tests.e2e.launched import READY_LINE, Launch, clean_environment, new_robot_id
 from tests.e2e.ros_peer import JOINT_NAMES
-from tests.conftest import fresh_domain
 
 ROOT = Path(__file__).resolve().parents[2]
 ARRIVED = 1e-3

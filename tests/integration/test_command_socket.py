@@ -8,8 +8,16 @@ import uuid
 
 import pytest
 
-from plem.ipc.command_socket import (CommandSocketError, FrameReader, connect, frame, listen, peer_credentials,
-                                     remove_own_socket, socket_path)
+from plem.ipc.command_socket import (
+    CommandSocketError,
+    FrameReader,
+    connect,
+    frame,
+    listen,
+    peer_credentials,
+    remove_own_socket,
+    socket_path,
+)
 from tests.e2e.launched import as_nobody, read_line, system_python
 
 

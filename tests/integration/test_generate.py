@@ -5,8 +5,8 @@ import pytest
 
 from plem.core.config import load_config
 from plem.description.generate import resolve_description
-from plem.errors import MultipleErrors
 from plem.description.validate import validate_package
+from plem.errors import MultipleErrors
 from tests.integration.packages import copy_builtin, tree_fingerprint
 
 

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from lxml import etree
 import yaml
+from lxml import etree
 
 from plem.description.compat import PROTOCOL_VERSION
 from plem.description.model import ACTUATED_TYPES

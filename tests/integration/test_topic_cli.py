@@ -9,6 +9,7 @@ import textwrap
 from collections.abc import Iterator
 
 import pytest
+
 from tests.conftest import fresh_domain
 
 DESCRIPTION = '<robot name="plem_topic_test"/>'

@@ -9,8 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from plem.description.drives import (PARAMS, REQUIRED, DriveParameters, ParamSources, check_drive_parameters,
-                                     drive_parameters)
+from plem.description.drives import (
+    PARAMS,
+    REQUIRED,
+    DriveParameters,
+    ParamSources,
+    check_drive_parameters,
+    drive_parameters,
+)
 from plem.description.model import UrdfModel, parse_urdf
 from plem.errors import ConfigError
 

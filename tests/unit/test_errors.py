@@ -1,6 +1,6 @@
-from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
-
 import pytest
+
+from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
 
 
 def test_render_has_four_labelled_lines():

@@ -10,8 +10,13 @@ import pytest
 
 from plem.description.drives import DriveParameters
 from plem.fieldbus.ethercat import objects
-from plem.fieldbus.ethercat.bringup import (EtherCATError, assign_process_data, check_mapping, check_topology,
-                                            default_interface)
+from plem.fieldbus.ethercat.bringup import (
+    EtherCATError,
+    assign_process_data,
+    check_mapping,
+    check_topology,
+    default_interface,
+)
 
 JOINTS = ("joint0", "joint1")
 DRIVES = (DriveParameters(65536, 121.0, 1), DriveParameters(65536, 101.0, -1, vendor_id=0x66F, product_code=0x1))
@@ -48,7 +53,7 @@ def test_the_slaves_must_match_the_joints_in_number_and_ids():
     assert "1 slaves, the arm has 2 joints" in caught.value.summary and "0: drive" in caught.value.why
     with pytest.raises(EtherCATError) as caught:
         check_topology([Slave(), Slave(id=0x99)], JOINTS, DRIVES)
-    assert "slave 1 (drive) is not the drive of joint1" == caught.value.summary
+    assert caught.value.summary == "slave 1 (drive) is not the drive of joint1"
     assert "product_code 0x00000001" in caught.value.what and "product_code 0x00000099" in caught.value.why
 
 
@@ -64,7 +69,7 @@ def test_the_pdo_assignment_is_written_in_full_and_the_rated_torque_read():
 def test_a_slave_that_is_not_a_cia402_drive_is_named():
     with pytest.raises(EtherCATError) as caught:
         assign_process_data(Slave(device_type=0x00001389), 0, "joint0")
-    assert "slave 0 (drive, joint0) is not a CiA402 drive" == caught.value.summary and "5001" in caught.value.why
+    assert caught.value.summary == "slave 0 (drive, joint0) is not a CiA402 drive" and "5001" in caught.value.why
 
 
 def test_a_refused_object_names_slave_joint_object_and_size():
@@ -77,7 +82,7 @@ def test_a_refused_object_names_slave_joint_object_and_size():
 def test_a_mapping_of_another_size_is_named():
     with pytest.raises(EtherCATError) as caught:
         check_mapping([Slave(), Slave(output=bytes(9))], JOINTS)
-    assert "slave 1 (drive, joint1) mapped 9 output and 15 input bytes" == caught.value.summary
+    assert caught.value.summary == "slave 1 (drive, joint1) mapped 9 output and 15 input bytes"
 
 
 def test_an_etherlab_configuration_names_the_default_interface(tmp_path: Path):

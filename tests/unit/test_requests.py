@@ -14,8 +14,16 @@ from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
-from plem.ipc.requests import (check_request, decode, encode, error_from_json, reply, request_id_of, result_from_json,
-                               tolerances_json)
+from plem.ipc.requests import (
+    check_request,
+    decode,
+    encode,
+    error_from_json,
+    reply,
+    request_id_of,
+    result_from_json,
+    tolerances_json,
+)
 
 JOINTS = ("a", "b", "c")
 LIMITS = ArmLimits(JOINTS, -np.ones(3), np.ones(3), np.full(3, 2.0), np.full(3, 4.0), np.full(3, 40.0),

@@ -9,10 +9,18 @@ import pytest
 
 from plem.errors import ConfigError
 from plem.middleware import robot_bridge
-from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.discovery import DiscoverySettings
-from plem.middleware.names import (ActionNames, check_name, dds_type_name, reply_topic, request_topic, ros_topic,
-                                   ros_type_name, topic)
+from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.names import (
+    ActionNames,
+    check_name,
+    dds_type_name,
+    reply_topic,
+    request_topic,
+    ros_topic,
+    ros_type_name,
+    topic,
+)
 from plem.middleware.node import Node
 from plem.middleware.types import library
 from tests.conftest import fresh_domain

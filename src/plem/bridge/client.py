@@ -31,8 +31,7 @@ from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
 from plem.ipc.records import RawSample, event_from_record
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
-from plem.ipc.requests import (check_request, encode, error_from_json, new_request_id, result_from_json,
-                               tolerances_json)
+from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json, tolerances_json
 from plem.ipc.ring import RingReader
 from plem.ipc.state_segment import STALE_AFTER_NS
 

@@ -13,11 +13,11 @@ from typer._click import exceptions as click_exceptions
 from plem.cli import bag as bag_commands
 from plem.cli import config as config_commands
 from plem.cli import description as description_commands
-from plem.cli import ethercat as ethercat_commands
 from plem.cli import doctor as doctor_command
+from plem.cli import ethercat as ethercat_commands
 from plem.cli import launch as launch_command
-from plem.cli import robot as robot_commands
 from plem.cli import profile as profile_commands
+from plem.cli import robot as robot_commands
 from plem.cli import topic as topic_commands
 from plem.cli.output import print_error
 from plem.errors import PlemError, UsageError

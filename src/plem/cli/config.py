@@ -6,6 +6,7 @@ import os
 from typing import Annotated
 
 import typer
+
 from plem.cli.output import OutputFormat, new_table, print_json, print_warnings, stdout
 from plem.core.config.environment import middleware_environment, plem_home
 from plem.core.config.launch_args import parse_launch_arguments

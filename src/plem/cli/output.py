@@ -12,6 +12,7 @@ from rich.table import Table
 
 from plem.errors import PlemError
 
+
 class OutputFormat(str, Enum):
     """`--format` choices shared by every command that can print JSON."""
 

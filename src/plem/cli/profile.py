@@ -5,12 +5,11 @@ The profile model (pydantic) is imported inside the commands so other commands s
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
-from typing import Annotated
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from pathlib import Path
-from typing import TYPE_CHECKING
 
 from plem.cli.output import new_table, print_json, stdout
 from plem.core.config.settings import parse_int_list
@@ -78,7 +77,7 @@ def create(
 
 def _now() -> str:
     """This moment in ISO 8601 UTC, as profiles record it."""
-    return datetime.now(timezone.utc).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+    return datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
 
 
 #: Joint speed (rad/s) above which calibration refuses: the encoders must be read at rest.

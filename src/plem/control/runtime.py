@@ -14,8 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plem.control.commands import (ActiveMotion, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion,
-                                   motion_error)
+from plem.control.commands import (
+    ActiveMotion,
+    CommandHandle,
+    PlanBasis,
+    ResetFault,
+    SetMode,
+    StartMotion,
+    StopMotion,
+    motion_error,
+)
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.limits import ArmLimits

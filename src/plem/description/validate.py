@@ -21,8 +21,13 @@ from plem.core.config.yaml_document import YamlDocument
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
 from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
-from plem.description.drives import (REQUIRED, ParamSources, check_drive_parameters, declares_drive_parameters,
-                                     param_line)
+from plem.description.drives import (
+    REQUIRED,
+    ParamSources,
+    check_drive_parameters,
+    declares_drive_parameters,
+    param_line,
+)
 from plem.description.limits import JointLimit, read_joint_limits
 from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings

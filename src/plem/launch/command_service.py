@@ -30,10 +30,25 @@ from plem.control.polynomial import PolynomialMotion
 from plem.control.spline import Spline
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
-from plem.ipc.command_socket import (CommandSocketError, FrameReader, frame, listen, peer_credentials,
-                                     remove_own_socket, trusted)
-from plem.ipc.requests import (MOTIONS, CheckedRequest, check_request, decode, reply, reply_of_json, request_id_of,
-                               tolerances_json)
+from plem.ipc.command_socket import (
+    CommandSocketError,
+    FrameReader,
+    frame,
+    listen,
+    peer_credentials,
+    remove_own_socket,
+    trusted,
+)
+from plem.ipc.requests import (
+    MOTIONS,
+    CheckedRequest,
+    check_request,
+    decode,
+    reply,
+    reply_of_json,
+    request_id_of,
+    tolerances_json,
+)
 from plem.launch.component import announce, begin
 
 #: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.

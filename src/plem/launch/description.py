@@ -65,7 +65,7 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
     sys.dont_write_bytecode = True  # never write __pycache__ into the user's package
     try:
         spec.loader.exec_module(module)
-        generate = getattr(module, "generate_launch_description")
+        generate = module.generate_launch_description
         description = generate()
     except PlemError:
         raise

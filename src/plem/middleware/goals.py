@@ -16,8 +16,13 @@ from typing import Any
 import numpy as np
 
 from plem.bridge.client import RemoteHandle, RobotClient
-from plem.control.trajectory import (ErrorCode, JointTrajectory, TrajectoryOutcome, TrajectoryResult,
-                                     TrajectoryTolerances)
+from plem.control.trajectory import (
+    ErrorCode,
+    JointTrajectory,
+    TrajectoryOutcome,
+    TrajectoryResult,
+    TrajectoryTolerances,
+)
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.request_bounds import point_count
 from plem.ipc.requests import error_from_json, result_from_json

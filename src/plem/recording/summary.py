@@ -26,8 +26,17 @@ from plem.launch.arguments import DEFAULTS
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_dtype, raw_field
 from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, read_event_log
-from plem.recording.mcap_records import (CHANNEL, CHUNK, MAGIC, MESSAGE_FIELDS, MESSAGE_INDEX, RECORD_HEADER,
-                                        chunk_records, records, string)
+from plem.recording.mcap_records import (
+    CHANNEL,
+    CHUNK,
+    MAGIC,
+    MESSAGE_FIELDS,
+    MESSAGE_INDEX,
+    RECORD_HEADER,
+    chunk_records,
+    records,
+    string,
+)
 from plem.recording.segment import bag_file
 from plem.recording.status import read_status
 

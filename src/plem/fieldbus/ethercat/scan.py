@@ -10,8 +10,16 @@ import struct
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from plem.fieldbus.ethercat.bringup import (REG_ESC_FEATURES, DC_SUPPORTED, close_master, find_slaves,
-                                            interface_lock, open_master, slave_states, state_name)
+from plem.fieldbus.ethercat.bringup import (
+    DC_SUPPORTED,
+    REG_ESC_FEATURES,
+    close_master,
+    find_slaves,
+    interface_lock,
+    open_master,
+    slave_states,
+    state_name,
+)
 
 SII_MAILBOX_PROTOCOLS = 0x1C
 COE = 0x0004

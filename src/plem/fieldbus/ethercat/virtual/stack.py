@@ -29,8 +29,15 @@ import numpy as np
 from plem.fieldbus.ethercat import objects
 from plem.fieldbus.ethercat.virtual import esc as escmod
 from plem.fieldbus.ethercat.virtual.application import DriveApplication
-from plem.fieldbus.ethercat.virtual.sii import (SM_INPUTS, SM_MAILBOX_IN, SM_MAILBOX_OUT, SM_OUTPUTS, SlaveIdentity,
-                                                SyncManagerSpec, build_image)
+from plem.fieldbus.ethercat.virtual.sii import (
+    SM_INPUTS,
+    SM_MAILBOX_IN,
+    SM_MAILBOX_OUT,
+    SM_OUTPUTS,
+    SlaveIdentity,
+    SyncManagerSpec,
+    build_image,
+)
 
 INIT = 0x01
 PREOP = 0x02
@@ -290,7 +297,7 @@ class DriveStack:
             return not sm.enabled or not sm.length
         return (sm.enabled and sm.length == size
                 and sm.control & (escmod.SM_MODE | escmod.SM_DIRECTION) == escmod.SM_BUFFERED | direction
-                and escmod.REGISTERS <= sm.start and sm.start + size <= escmod.MEMORY_SIZE)
+                and sm.start >= escmod.REGISTERS and sm.start + size <= escmod.MEMORY_SIZE)
 
     def _mapped(self, assignment: int) -> tuple[objects.PdoEntry, ...]:
         return tuple(_MAPPABLE[pdo][mapping]
@@ -326,9 +333,7 @@ class DriveStack:
 
     def poll(self, now_ns: int) -> None:
         """Check the sync-manager watchdog in OP, and the wait for the first outputs of a requested OP."""
-        if self.state == OP and self.esc.watchdog_expired(now_ns):
-            self._fault(SYNC_MANAGER_WATCHDOG, SAFEOP)
-        elif self._op_requested_ns is not None and now_ns - self._op_requested_ns > self.esc.watchdog_ns:
+        if self.state == OP and self.esc.watchdog_expired(now_ns) or self._op_requested_ns is not None and now_ns - self._op_requested_ns > self.esc.watchdog_ns:
             self._fault(SYNC_MANAGER_WATCHDOG, SAFEOP)
 
     # ---- mailbox ---------------------------------------------------------------------------------------------
