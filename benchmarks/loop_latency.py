@@ -276,7 +276,7 @@ COLUMNS = (("pair", 4), ("side", 10), ("cycles", 7), ("lat p50", 7), ("p99", 5),
 
 
 def format_row(cells: Sequence[str]) -> str:
-    return "  ".join(cell.ljust(width) for cell, (_, width) in zip(cells, COLUMNS)).rstrip()
+    return "  ".join(cell.ljust(width) for cell, (_, width) in zip(cells, COLUMNS, strict=False)).rstrip()
 
 
 def run_row(pair: int, run: Run) -> list[str]:
@@ -330,7 +330,7 @@ def measure_rate(binary: str, rate_hz: int, seconds: int, pairs: int) -> RateRes
 
 def summarize(result: RateResult) -> list[tuple[str, bool]]:
     """Print the median ratios and plem's compute figures of one rate; return its targets as (line, met)."""
-    pairs = list(zip(result.plem, result.cyclictest))
+    pairs = list(zip(result.plem, result.cyclictest, strict=False))
     ratios = {name: statistics.median(ratio(getattr(p.latency, field), getattr(c.latency, field)) for p, c in pairs)
               for name, field in (("p50", "p50"), ("p99", "p99"), ("p99.9", "p999"), ("max", "max"))}
     missed_ratio = statistics.median(ratio(p.missed, c.missed) for p, c in pairs)

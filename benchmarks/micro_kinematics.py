@@ -142,7 +142,7 @@ def measure(rounds: int, calls: int) -> list[MicroResult]:
     for name, (plem_loop, bare_loop) in pairs.items():
         per_call: tuple[list[float], list[float]] = ([], [])
         for round_index in range(WARMUP_ROUNDS + rounds):
-            for loop, bucket in zip((plem_loop, bare_loop), per_call):
+            for loop, bucket in zip((plem_loop, bare_loop), per_call, strict=False):
                 elapsed = loop(calls)
                 if round_index >= WARMUP_ROUNDS:
                     bucket.append(elapsed / calls / 1e3)
@@ -156,9 +156,9 @@ def print_results(results: Sequence[MicroResult], rounds: int, calls: int) -> No
     rows = [[r.name, f"{r.plem_us:.2f}", f"{r.bare_us:.2f}", f"{r.ratio:.2f}x", "yes" if r.met else "NO"]
             for r in results]
     headers = ["call", "plem", "bare pin/ruckig", "ratio", f"<= {TARGET_RATIO}x"]
-    widths = [max(len(cell) for cell in column) for column in zip(headers, *rows)]
+    widths = [max(len(cell) for cell in column) for column in zip(headers, *rows, strict=False)]
     for line in (headers, ["-" * width for width in widths], *rows):
-        print("  ".join(cell.ljust(width) for cell, width in zip(line, widths)).rstrip())
+        print("  ".join(cell.ljust(width) for cell, width in zip(line, widths, strict=False)).rstrip())
 
 
 def main(argv: Sequence[str] | None = None) -> None:

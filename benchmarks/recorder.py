@@ -374,7 +374,7 @@ def main(argv: Sequence[str] | None = None) -> None:
               f"cycle sequence ({missing} missing, {repeats} repeated).\n")
         print("| pair | p99.9 on | p99.9 off | ratio | p50 on | p50 off |")
         print("| --- | --- | --- | --- | --- | --- |")
-        for (pair, on, off), value in zip(rows, p999_ratios):
+        for (pair, on, off), value in zip(rows, p999_ratios, strict=False):
             print(f"| {pair} | {on[2]:.0f} | {off[2]:.0f} | {value:.2f} | {on[0]:.0f} | {off[0]:.0f} |")
         print(f"\nLoop p99.9 recording / not recording (one launch), median over {args.pairs} pair(s) of "
               f"{args.window:g} s: **{median:.2f}×** "

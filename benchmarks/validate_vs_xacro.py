@@ -1,6 +1,7 @@
 """Cost of `plem validate` against rendering the same xacro alone, per built-in description package.
 
-Usage: python benchmarks/validate_vs_xacro.py [--repeat N]. Every measurement interleaves the two sides (A, B, A, B ...).
+Usage: python benchmarks/validate_vs_xacro.py [--repeat N].
+Every measurement interleaves the two sides (A, B, A, B ...).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from plem.core.paths import BUILTIN_PACKAGES_DIR, find_package
 from plem.description.discover import URDF_SUFFIX
 from plem.description.validate import validate_package
 
-PACKAGES = tuple(f"{kind}_description" for kind in ("indy7", "indy7_v2", "indy12", "indy12_v2", "indyrp2", "indyrp2_v2"))
+PACKAGES = tuple(f"{kind}_description"
+                 for kind in ("indy7", "indy7_v2", "indy12", "indy12_v2", "indyrp2", "indyrp2_v2"))
 WARMUP = 3
 CLI_RUNS = 10
 CLI_WARMUP = 1
@@ -66,7 +68,7 @@ def interleave(jobs: Sequence[Job], repeat: int, warmup: int) -> list[Samples]:
     """Run the jobs in turn `warmup` times untimed, then `repeat` times timed; one Samples per job."""
     times: list[list[float]] = [[] for _ in jobs]
     for round_index in range(warmup + repeat):
-        for (prepare, call), bucket in zip(jobs, times):
+        for (prepare, call), bucket in zip(jobs, times, strict=False):
             prepare()
             start = time.perf_counter()
             call()
@@ -118,9 +120,9 @@ def failure(command: list[str], env: dict[str, str]) -> str | None:
 
 
 def print_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
-    widths = [max(len(cell) for cell in column) for column in zip(headers, *rows)]
+    widths = [max(len(cell) for cell in column) for column in zip(headers, *rows, strict=False)]
     for line in (headers, ["-" * width for width in widths], *rows):
-        print("  ".join(cell.ljust(width) for cell, width in zip(line, widths)).rstrip())
+        print("  ".join(cell.ljust(width) for cell, width in zip(line, widths, strict=False)).rstrip())
 
 
 def ratio_cells(plem: Samples, bare: Samples) -> list[str]:

@@ -82,10 +82,12 @@ class MultipleErrors(PlemError):
         self.exit_code = max(e.exit_code for e in self.errors)
 
     def render(self) -> str:
+        """The count, then each problem in its own four-line block."""
         header = f"ERROR: {self.summary}"
         return header + "\n\n" + "\n\n".join(e.render() for e in self.errors)
 
     def to_dict(self) -> dict[str, Any]:
+        """The summary and every problem's own JSON form, for `--format json` output."""
         return {"error": "MultipleErrors", "summary": self.summary, "errors": [e.to_dict() for e in self.errors]}
 
 

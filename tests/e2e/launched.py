@@ -151,7 +151,7 @@ class Launch:
             if not process_gone(pid):
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
-                wait_until(lambda: process_gone(pid), 10)
+                wait_until(lambda pid=pid: process_gone(pid), 10)
         return self.process.returncode
 
     def cleanup(self) -> None:

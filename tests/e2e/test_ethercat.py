@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -166,7 +167,7 @@ def test_direction_gear_and_resolution_of_the_package_reach_the_drives(home: Pat
 def test_calibration_on_the_simulated_arm_refuses_a_moving_arm(home: Path, tmp_path: Path):
     robot_id = new_robot_id()
     with launched(["bus:=mock", f"robot_id:={robot_id}", "bridge:=false", "record:=false"], [robot_id], tmp_path,
-                  clean_environment(home)) as launch, connect(robot_id) as client:
+                  clean_environment(home)), connect(robot_id) as client:
         client.set_mode("hold")
         handle = client.move_joints([0.5, 0.0, 0.0, 0.0, 0.0, 0.0], speed_scale=0.2)
         wait_until(lambda: abs(client.state().velocity[0]) > 0.01, 10)
@@ -256,6 +257,7 @@ def _states(client: RobotClient, seconds: float) -> Iterator:
         yield state
 
 
+@contextlib.contextmanager
 def enabled_launch(network: Network, home: Path, tmp_path: Path) -> Iterator[tuple[Launch, RobotClient]]:
     with launch_on(network, home, tmp_path) as launch, connect(launch.robot_id) as client:
         client.set_mode("hold")
@@ -263,7 +265,7 @@ def enabled_launch(network: Network, home: Path, tmp_path: Path) -> Iterator[tup
 
 
 def test_drive_fault_is_named_stops_the_arm_and_reset_reenables_without_a_jump(network, home, tmp_path):
-    for launch, client in enabled_launch(network, home, tmp_path):
+    with enabled_launch(network, home, tmp_path) as (launch, client):
         slow_motion(client, 1, 0.3)
         wait_until(lambda: abs(client.state().velocity[1]) > 0.01, 10)
         network.control.request("drive_fault", drive=2, code=0x7121)
@@ -290,7 +292,7 @@ def test_a_drive_that_refuses_to_enable_is_named(network, home, tmp_path):
 
 
 def test_lost_frames_are_counted_and_alone_do_not_fault(network, home, tmp_path):
-    for launch, client in enabled_launch(network, home, tmp_path):
+    with enabled_launch(network, home, tmp_path) as (launch, client):
         network.control.request("drop_rate", rate=0.05)
         try:
             assert wait_until(lambda: (client.stats() or {}).get("bus", {}).get("lost_frames", 0) >= 5, 20)
@@ -301,7 +303,7 @@ def test_lost_frames_are_counted_and_alone_do_not_fault(network, home, tmp_path)
 
 
 def test_a_slave_that_disappears_faults_naming_it_and_reset_recovers(network, home, tmp_path):
-    for launch, client in enabled_launch(network, home, tmp_path):
+    with enabled_launch(network, home, tmp_path) as (launch, client):
         network.control.request("disappear", slave=3)
         try:
             events = fault_events(client)
@@ -316,7 +318,7 @@ def test_a_slave_that_disappears_faults_naming_it_and_reset_recovers(network, ho
 
 
 def test_a_master_killed_leaves_the_drives_stopping_on_their_watchdog(network, home, tmp_path):
-    for launch, client in enabled_launch(network, home, tmp_path):
+    with enabled_launch(network, home, tmp_path) as (launch, client):
         slow_motion(client, 0, 0.5)
         wait_until(lambda: abs(client.state().velocity[0]) > 0.01, 10)
         os.kill(launch.driver_pids()[launch.robot_id], signal.SIGKILL)

@@ -398,7 +398,8 @@ def test_shm_group_member_can_read_the_state(group_robot: tuple[Launch, grp.stru
         unreachable = "Permission denied" in probe.stderr or re.search(
             r"ModuleNotFoundError: No module named '(?!plem)", probe.stderr)
         assert unreachable, probe.stderr
-        pytest.skip(f"the system Python cannot load plem's files as user nobody: {probe.stderr.strip().splitlines()[-1]}")
+        reason = probe.stderr.strip().splitlines()[-1]
+        pytest.skip(f"the system Python cannot load plem's files as user nobody: {reason}")
     result = _run_as_group_member(group, f"from plem.bridge import connect\n"
                                          f"print(connect({launch.robot_id!r}).state().cycle)")
     assert result.returncode == 0, result.stderr

@@ -5,6 +5,7 @@ Bags are read back with rosbags; types are decoded from the definitions embedded
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import random
@@ -68,7 +69,7 @@ def test_every_cycle_is_recorded_and_reads_back_with_embedded_definitions(tmp_pa
     cycles = [message.cycle for _, message in raw]
     assert cycles == list(range(1, len(cycles) + 1)), "every cycle from the first, once, in order"
     assert cycles[-1] > seen, "the smooth stop after Ctrl-C is recorded too"
-    assert all(later > earlier for (earlier, _), (later, _) in zip(raw, raw[1:])), "stamps strictly increase"
+    assert all(later > earlier for (earlier, _), (later, _) in itertools.pairwise(raw)), "stamps strictly increase"
     assert len(segments(bags / robot_id)) >= 3
     seconds = (raw[-1][0] - raw[0][0]) / 1e9                 # the cycles' own time, not the test's
     assert abs(len(topics["joint_states"]) - 100 * seconds) <= 2, "joint_states at 100 Hz of cycle time"

@@ -27,7 +27,8 @@ def test_prefix_renames_every_link_and_joint(robot_type):
     prefixed = parse_urdf(render_xacro(urdf, {"prefix": "left_"}), urdf)
     assert sorted(prefixed.joints) == sorted(f"left_{name}" for name in plain.joints)
     assert sorted(prefixed.links) == sorted(f"left_{name}" for name in plain.links)
-    assert [j.name for b in prefixed.ros2_control for j in b.joints] == [f"left_{j.name}" for j in plain.actuated_joints]
+    expected = [f"left_{j.name}" for j in plain.actuated_joints]
+    assert [j.name for b in prefixed.ros2_control for j in b.joints] == expected
 
 
 @pytest.mark.parametrize("robot_type", BUILTIN_TYPES)

@@ -8,6 +8,7 @@ could block runs under `finishes`, which fails the test instead of hanging the s
 
 from __future__ import annotations
 
+import contextlib
 import grp
 import json
 import logging
@@ -60,7 +61,7 @@ def as_user(action: Callable[[], str], uid: int = NOBODY, gid: int = NOBODY, gro
             os.setgid(gid)
             os.setuid(uid)
             result, code = action(), 0
-        except BaseException:
+        except BaseException:  # noqa: BLE001 - the child reports whatever the action raised, then exits
             result = traceback.format_exc()
         finally:
             os.write(write_end, result.encode())
@@ -80,7 +81,7 @@ def finishes(action: Callable[[], Any], unblock: Callable[[], None] | None = Non
     def target() -> None:
         try:
             action()
-        except BaseException as error:                       # handed to the test
+        except BaseException as error:  # noqa: BLE001 - handed to the test, which re-raises it
             outcome.append(error)
         else:
             outcome.append(None)
@@ -130,10 +131,8 @@ def robot_id() -> Iterator[str]:
     name = f"users_{uuid.uuid4().hex[:8]}"
     yield name
     for path in [*(segment_path(n) for n in channel_names(name).values()), status_path(name)]:
-        try:
+        with contextlib.suppress(FileNotFoundError, PermissionError):
             path.unlink()
-        except (FileNotFoundError, PermissionError):
-            pass
 
 
 def plant_fifo(path: Path) -> str:

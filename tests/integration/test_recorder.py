@@ -89,7 +89,7 @@ def test_segments_rotate_and_read_back_whole(tmp_path: Path, storage: str):
     recorder.close()
     rows = list(recorded(tmp_path / "arm"))
     assert [cycle for _, _, cycle in rows] == list(range(3500))
-    assert all(b[1] > a[1] for a, b in zip(rows, rows[1:])), "stamps strictly increase"
+    assert all(b[1] > a[1] for a, b in zip(rows, rows[1:], strict=False)), "stamps strictly increase"
     assert len({segment for segment, _, _ in rows}) == 4, "1 s segments of 3.5 s of cycles"
     assert log_kinds(tmp_path / "arm").count("segment_closed") == 4
 

@@ -1,3 +1,4 @@
+import itertools
 from pathlib import Path
 
 import pytest
@@ -35,7 +36,8 @@ def test_generated_arm_is_kinematically_sensible(tmp_path: Path, dof: int):
     assert 0.8 <= reach <= 1.3
     assert all(spec.mass > 0 and spec.length > 0 for spec in ARMS[dof])
     axes = [spec.axis for spec in ARMS[dof]]
-    assert all(a != b or a == "y" for a, b in zip(axes, axes[1:]))  # no two consecutive colinear roll axes
+    # no two consecutive colinear roll axes
+    assert all(a != b or a == "y" for a, b in itertools.pairwise(axes))
 
 
 @pytest.mark.parametrize("dof", [6, 7])

@@ -167,7 +167,8 @@ def joint_limits(joints: tuple[JointLimits, ...]) -> dict[str, object]:
 
 
 def srdf(robot: etree._Element, spec: ArmSpec, joints: tuple[JointLimits, ...]) -> bytes:
-    """Group `arm` as a base-to-tip chain, a `home` state of zeros within limits, adjacent links not collision-checked."""
+    """Group `arm` as a base-to-tip chain, a `home` state of zeros within limits, adjacent links not
+    collision-checked."""
     root = etree.Element("robot", name=robot.get("name"))
     group = etree.SubElement(root, "group", name="arm")
     etree.SubElement(group, "chain", base_link=spec.base_link, tip_link=spec.tip_link)

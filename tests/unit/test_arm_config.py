@@ -9,7 +9,8 @@ from plem.robot.config import robot_id_problem
 
 def test_defaults_follow_the_reference():
     config = SerialArmConfig(dof=6)
-    assert (config.network_interface, config.master_index, config.cycle_time, config.rt_priority) == ("eth0", 0, 1000, 98)
+    assert (config.network_interface, config.master_index, config.cycle_time, config.rt_priority) == (
+        "eth0", 0, 1000, 98)
     assert config.robot_serial is None and config.robot_id == "" and config.custom_bus is None
     assert config.joint_offsets == [0] * 6
     assert config.validate() == []

@@ -115,7 +115,7 @@ def test_state_at_matches_sampling(indy7):
     out = np.zeros((3, 6))
     for t in np.linspace(0, motion.duration, 17):
         motion.sample(t, out)
-        for expected, got in zip(out, motion.state_at(t)):
+        for expected, got in zip(out, motion.state_at(t), strict=False):
             assert np.allclose(expected, got, atol=1e-12)
 
 

@@ -25,7 +25,7 @@ def assert_same_motion(ruckig_motion, polynomial: PolynomialMotion) -> None:
         assert np.allclose(position, expected[0], atol=1e-7)
         assert np.allclose(velocity, expected[1], atol=1e-7)
         assert np.allclose(acceleration, expected[2], atol=1e-7)
-        assert all(np.allclose(a, b, atol=1e-7) for a, b in zip(polynomial.state_at(t), expected))
+        assert all(np.allclose(a, b, atol=1e-7) for a, b in zip(polynomial.state_at(t), expected, strict=False))
 
 
 @settings(max_examples=40, deadline=None)

@@ -34,7 +34,8 @@ def test_each_layer_names_its_source():
     )
     config, sources = resolved.config, resolved.sources
     assert config.rt_priority == 50 and str(sources["rt_priority"]) == "programmatic (set in code)"
-    assert config.network_interface == "enp2s0" and str(sources["network_interface"]) == "launch argument eth_interface:=enp2s0"
+    assert config.network_interface == "enp2s0"
+    assert str(sources["network_interface"]) == "launch argument eth_interface:=enp2s0"
     assert config.robot_id == "env_arm" and str(sources["robot_id"]) == "environment PLEM_ROBOT_ID"
     assert str(sources["cycle_time"]) == "model default Indy7V2"
 

@@ -62,7 +62,7 @@ def cubic_reference(s, T, p0, v0, p1, v1):
         (s**3 - s**2, 3 * s**2 - 2 * s, 6 * s - 2),
     ]
     weights = [p0, T * v0, p1, T * v1]
-    return tuple(sum(b[d] * w for b, w in zip(basis, weights)) / T**d for d in range(3))
+    return tuple(sum(b[d] * w for b, w in zip(basis, weights, strict=False)) / T**d for d in range(3))
 
 
 def quintic_reference(s, T, p0, v0, a0, p1, v1, a1):
@@ -76,7 +76,7 @@ def quintic_reference(s, T, p0, v0, a0, p1, v1, a1):
         (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3),
     ]
     weights = [p0, T * v0, T**2 * a0, T**2 * a1, T * v1, p1]
-    return tuple(sum(b[d] * w for b, w in zip(basis, weights)) / T**d for d in range(3))
+    return tuple(sum(b[d] * w for b, w in zip(basis, weights, strict=False)) / T**d for d in range(3))
 
 
 def reference(knots, t):
@@ -109,7 +109,7 @@ def assert_matches_reference(spline: Spline, knots) -> None:
         done = spline.sample(t, out)
         expected = reference(knots, t)
         assert done == (t >= knots[-1][0])
-        for got, want in zip((p, v, a), expected):
+        for got, want in zip((p, v, a), expected, strict=False):
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-9, err_msg=f"t = {t}")
 
 
@@ -129,7 +129,7 @@ def test_sampling_matches_the_closed_form_splines(fields, kinds):
     accelerations = [ramp(0.5, -0.4), ramp(-0.2, 0.1), REST]
     times = [0.7, 1.5, 2.6]
     points, knots = [], [(0.0, *START)]
-    for f, p, v, a, t in zip(fields, positions, velocities, accelerations, times):
+    for f, p, v, a, t in zip(fields, positions, velocities, accelerations, times, strict=False):
         v, a = (np.array(v) if "v" in f else None), (np.array(a) if "a" in f else None)
         points.append(point(p, t, v, a))
         knots.append((t, np.array(p), v, a))
@@ -405,7 +405,7 @@ def test_accepted_trajectories_stay_inside_the_limits_when_sampled(trajectory, p
         assert not (p < LIMITS.min_position - 1e-9 * 3.05).any() and not (p > LIMITS.max_position + 1e-9 * 3.05).any()
         assert not beyond(v, 2.6) and not beyond(a, 3.0) and not beyond(jerk, 30.0, slack=1e-6)
         peaks = np.maximum(peaks, [np.abs(v).max() / 2.6, np.abs(a).max() / 3.0, np.abs(jerk).max(initial=0) / 30.0])
-    for kind, peak in zip(("velocity", "acceleration", "jerk"), peaks):
+    for kind, peak in zip(("velocity", "acceleration", "jerk"), peaks, strict=False):
         target(float(peak), label=kind)  # steer towards trajectories that just pass
 
 
@@ -474,5 +474,5 @@ def test_state_at_agrees_with_sample_even_behind_the_cursor():
     for t in (0.0, 0.7, 2.0, 3.1, 4.0, 9.0):
         expected = np.zeros((3, 6))
         Spline.build(trajectory, limits, np.zeros(6), np.zeros(6), np.zeros(6)).sample(t, expected)
-        for want, got in zip(expected, spline.state_at(t)):
+        for want, got in zip(expected, spline.state_at(t), strict=False):
             assert np.allclose(want, got, atol=1e-12)

@@ -95,6 +95,7 @@ class RemoteHandle:
 
     @property
     def done(self) -> bool:
+        """True once the driver's final answer (finished, failed or rejected) arrived."""
         self._client._collect()
         return self.reply is not None
 
@@ -111,9 +112,11 @@ class RemoteHandle:
     def wait(self, timeout: float | None = None) -> Any:
         """Block until the command finished; returns its result, raises on rejection, abort or fault."""
         self._client._wait(self, lambda: self.reply is not None, timeout, "finished")
-        if self.reply["error"] is not None:
-            raise error_from_json(self.reply["error"])
-        return result_from_json(self.reply["result"])
+        reply = self.reply
+        assert reply is not None  # _wait returned, so the condition holds; a reply is never taken back
+        if reply["error"] is not None:
+            raise error_from_json(reply["error"])
+        return result_from_json(reply["result"])
 
 
 class RobotClient:
@@ -133,6 +136,7 @@ class RobotClient:
         self._lock = threading.RLock()
 
     def close(self) -> None:
+        """Drop the command connection and unmap the robot's shared memory (the robot runs on)."""
         with self._lock:
             self._disconnect()
         self.channels.close()
@@ -196,7 +200,7 @@ class RobotClient:
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
-        return self.request_mode(mode).wait(timeout)
+        return Mode(self.request_mode(mode).wait(timeout))
 
     def request_mode(self, mode: str | Mode) -> RemoteHandle:
         """Ask for a mode change without waiting; the handle's result is the mode reached."""
@@ -204,7 +208,7 @@ class RobotClient:
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
-        return self._send("reset_fault", {}).wait(timeout)
+        return Mode(self._send("reset_fault", {}).wait(timeout))
 
     def stop(self) -> RemoteHandle:
         """Cancel the running motion with a jerk-limited stop; the arm then holds."""
@@ -281,7 +285,7 @@ class RobotClient:
                 except BlockingIOError:
                     return
                 except OSError as error:
-                    data, reason = b"", error.strerror
+                    data, reason = b"", error.strerror or str(error)
                 else:
                     reason = "the command service closed the connection"
                 if not data:
@@ -291,7 +295,8 @@ class RobotClient:
                     self._route(json.loads(record))
 
     def _route(self, reply: dict[str, Any]) -> None:
-        handle = self._handles.get(reply.get("id"))
+        request_id = reply.get("id")
+        handle = self._handles.get(request_id) if isinstance(request_id, str) else None
         if handle is None:
             return
         if reply["stage"] == "accepted":
@@ -315,7 +320,7 @@ class RobotClient:
             self._socket.close()
             self._socket = None
 
-    def _wait(self, handle: RemoteHandle, condition: Any, timeout: float | None, stage: str) -> None:
+    def _wait(self, handle: RemoteHandle, condition: Callable[[], bool], timeout: float | None, stage: str) -> None:
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             self._collect()
@@ -337,7 +342,7 @@ class RobotClient:
         """The current state, or DriverGone when the heartbeat is older than the stale limit."""
         state = self.state()
         age = None if state is None else time.monotonic_ns() - state.monotonic_ns
-        if age is None or age > STALE_AFTER_NS:
+        if state is None or age is None or age > STALE_AFTER_NS:
             raise DriverGone(f"the RT driver of robot '{self.robot_id}' is not running",
                              what="a heartbeat in shared memory every cycle",
                              why="no cycle published yet" if age is None else f"last cycle {age / 1e9:.1f} s ago",

@@ -71,7 +71,7 @@ def run(argv: Sequence[str] | None = None) -> int:
         return error.exit_code
     except (typer.Abort, KeyboardInterrupt):
         return 130
-    except Exception as error:  # a bug in plem: still no traceback unless asked for
+    except Exception as error:  # noqa: BLE001 - a bug in plem: still no traceback unless asked for
         if os.environ.get("PLEM_DEBUG"):
             traceback.print_exc()
         print_error(PlemError(

@@ -219,9 +219,9 @@ def repair(directory: Directory) -> None:
                         why=str(error), how="check the disk and the segment's files")))
                     continue
                 typer.echo(f"{segment.name}: repaired, {report.messages} messages recovered")
-    for name, error in failures:
-        typer.echo(f"{name}: not repaired: {error.summary}")
+    for name, failure in failures:
+        typer.echo(f"{name}: not repaired: {failure.summary}")
     if failures:
         raise BagError(f"{_count(len(failures), 'segment')} could not be repaired", what="every killed segment rebuilt",
-                       why="; ".join(f"{name}: {error.why}" for name, error in failures),
-                       how="; ".join(dict.fromkeys(error.how for _, error in failures)))
+                       why="; ".join(f"{name}: {failure.why}" for name, failure in failures),
+                       how="; ".join(dict.fromkeys(failure.how for _, failure in failures)))

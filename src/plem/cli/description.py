@@ -18,8 +18,10 @@ def validate(
     package: Annotated[str, typer.Argument(help="Package directory, or package name on the search path.")],
     output_format: Annotated[OutputFormat, typer.Option("--format", help="Output format.")] = OutputFormat.text,
     strict: Annotated[bool, typer.Option("--strict", help="Fail on warnings too.")] = False,
-    urdf_file: Annotated[str | None, typer.Option("--urdf-file", help="URDF override (absolute or package-relative).")] = None,
-    srdf_file: Annotated[str | None, typer.Option("--srdf-file", help="SRDF override (absolute or package-relative).")] = None,
+    urdf_file: Annotated[str | None, typer.Option(
+        "--urdf-file", help="URDF override (absolute or package-relative).")] = None,
+    srdf_file: Annotated[str | None, typer.Option(
+        "--srdf-file", help="SRDF override (absolute or package-relative).")] = None,
 ) -> None:
     """Check a description package against every rule of the protocol; all problems are listed at once."""
     report = validate_package(package, urdf_file=urdf_file, srdf_file=srdf_file)

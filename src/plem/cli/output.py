@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
-from enum import Enum
+from enum import StrEnum
 from typing import Any
 
 from rich.console import Console
@@ -13,7 +13,7 @@ from rich.table import Table
 from plem.errors import PlemError
 
 
-class OutputFormat(str, Enum):
+class OutputFormat(StrEnum):
     """`--format` choices shared by every command that can print JSON."""
 
     text = "text"
@@ -40,6 +40,7 @@ def new_table(title: str, *columns: str) -> Table:
 
 
 def print_warnings(warnings: list[str]) -> None:
+    """Each warning as a WARNING: line on stderr, so it never mixes with the output on stdout."""
     for warning in warnings:
         stderr.print(f"WARNING: {warning}", markup=False)
 

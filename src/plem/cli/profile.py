@@ -100,8 +100,9 @@ def calibrate(
 
     client = connect(robot_id)
     try:
-        state = client.state()
-        moving = [name for name, v in zip(client.joint_names, state.velocity) if abs(v) > CALIBRATION_STANDSTILL]
+        state = client.live_state()
+        moving = [name for name, v in zip(client.joint_names, state.velocity, strict=True)
+                  if abs(v) > CALIBRATION_STANDSTILL]
         if moving or state.mode.name == "TRAJECTORY":
             raise ProfileError(
                 f"robot {client.robot_id} is moving: calibration needs the arm at rest",
@@ -130,7 +131,7 @@ def calibrate(
     table = new_table(f"Calibrated {serial} from robot {client.robot_id}", "joint", "raw counts", "old offset",
                       "new offset")
     before = old.joint_offsets if old is not None and len(old.joint_offsets) == len(offsets) else previous
-    for name, new, earlier in zip(client.joint_names, offsets, before):
+    for name, new, earlier in zip(client.joint_names, offsets, before, strict=True):
         table.add_row(name, str(-new), str(earlier), str(new))
     stdout.print(table)
     stdout.print(f"Saved {path}. Launch with robot_serial:={serial} to use these offsets.", markup=False)

@@ -12,6 +12,8 @@ from plem.cli.output import OutputFormat, new_table, print_json, stdout
 from plem.errors import UsageError
 
 if TYPE_CHECKING:
+    from rich.table import Table
+
     from plem.bridge.client import RobotClient
     from plem.control.state import JointState
 
@@ -26,7 +28,7 @@ def _connect(robot_id: str | None) -> RobotClient:
     return connect(robot_id)
 
 
-def _state_table(client: RobotClient, state: JointState) -> object:
+def _state_table(client: RobotClient, state: JointState) -> Table:
     table = new_table(f"{client.robot_id}: {state.mode.name}{' (FAULT)' if state.faulted else ''}, cycle "
                       f"{state.cycle}, drives {'enabled' if state.drives_enabled else 'disabled'}",
                       "joint", "position rad", "position °", "velocity rad/s", "effort N·m", "command rad")

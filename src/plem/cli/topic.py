@@ -12,7 +12,7 @@ import math
 import sys
 import time
 from collections import deque
-from enum import Enum
+from enum import StrEnum
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
@@ -36,7 +36,7 @@ Topic = Annotated[str, typer.Argument(help="ROS 2 topic, e.g. /indy/joint_states
 Timeout = Annotated[float, typer.Option("--timeout", help="Seconds to wait for a publisher of the topic.")]
 
 
-class Reliability(str, Enum):
+class Reliability(StrEnum):
     """`--qos-reliability` choices."""
 
     best_effort = "best_effort"

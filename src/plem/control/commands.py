@@ -45,15 +45,18 @@ class CommandHandle:
 
     # -- loop side -------------------------------------------------------------------------------
     def accept(self) -> None:
+        """Mark the command as taken by the loop; its completion comes later."""
         self._accepted.set()
 
     def reject(self, error: PlemError, *, stale: bool = False) -> None:
+        """Refuse the command (`stale`: planned from an outdated state, worth planning again); ends the wait."""
         self.rejection = error
         self.stale = stale
         self._accepted.set()
         self._finished.set()
 
     def finish(self, result: Any = None, error: PlemError | None = None) -> None:
+        """Complete the command with its result, or with the error its caller should see."""
         self.result = result
         self.error = error
         self._accepted.set()
@@ -62,6 +65,7 @@ class CommandHandle:
     # -- caller side -----------------------------------------------------------------------------
     @property
     def done(self) -> bool:
+        """The loop finished or refused the command."""
         return self._finished.is_set()
 
     @property
@@ -112,12 +116,16 @@ class PlanBasis:
 
 @dataclass
 class SetMode:
+    """Change the robot's mode; the handle finishes with the mode reached."""
+
     mode: Mode
     handle: CommandHandle
 
 
 @dataclass
 class StartMotion:
+    """Run a planned motion from `basis`, at `activation_cycle` when it preempts a running one."""
+
     motion: Motion
     basis: PlanBasis
     activation_cycle: int | None
@@ -136,7 +144,13 @@ class StopMotion:
 
 @dataclass
 class ResetFault:
+    """Clear a fault and re-enable the drives into HOLD."""
+
     handle: CommandHandle
+
+
+#: Everything the loop's inbox carries.
+Command = SetMode | StartMotion | StopMotion | ResetFault
 
 
 @dataclass

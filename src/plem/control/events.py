@@ -10,12 +10,14 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from enum import Enum
+from enum import StrEnum
 
 from plem.control.modes import Mode
 
 
-class EventKind(str, Enum):
+class EventKind(StrEnum):
+    """What an event records; the value is the name monitoring messages and records carry."""
+
     MODE_CHANGED = "mode_changed"
     FAULT = "fault"
     FAULT_CLEARED = "fault_cleared"
@@ -58,6 +60,7 @@ class EventLog:
 
     def emit(self, kind: EventKind, cause: str, reason: str, mode: Mode, cycle: int,
              previous_mode: Mode | None = None) -> Event:
+        """Record one event, stamped now, and hand it to every listener; returns it."""
         event = Event(kind, cause, reason, mode, cycle, time.monotonic_ns(), time.time(), previous_mode)
         self._events.append(event)
         for listener in self._listeners:

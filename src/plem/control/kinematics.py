@@ -62,6 +62,7 @@ class ArmDynamics:
 
     @property
     def dof(self) -> int:
+        """Number of arm joints."""
         return len(self.joint_names)
 
     def _load(self, target: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -108,6 +109,6 @@ class ArmDynamics:
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """6×dof Jacobian of the tip frame, in the world-aligned frame at the tip (columns in joint order)."""
-        jac = pin.computeFrameJacobian(self.model, self.data, self._load(self._q, q), self._tip_id,
+        jac: np.ndarray = pin.computeFrameJacobian(self.model, self.data, self._load(self._q, q), self._tip_id,
                                        pin.LOCAL_WORLD_ALIGNED)
         return jac if self._identity else jac[:, self._order]

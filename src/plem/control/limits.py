@@ -50,11 +50,13 @@ class ArmLimits:
 
     @property
     def dof(self) -> int:
+        """Number of joints."""
         return len(self.joint_names)
 
     def maximum(self, kind: str) -> np.ndarray:
         """The array of maxima for 'velocity', 'acceleration', 'jerk' or 'effort'."""
-        return getattr(self, f"max_{kind}")
+        maxima: np.ndarray = getattr(self, f"max_{kind}")
+        return maxima
 
     def check_vector(self, values: Sequence[float], what: str) -> np.ndarray:
         """`values` as a float array of length dof with finite entries, else CommandRejected."""

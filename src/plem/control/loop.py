@@ -61,10 +61,12 @@ class CycleLoop:
         self.error: BaseException | None = None
 
     def stop(self) -> None:
+        """Ask the loop to end after the cycle in progress (safe from any thread)."""
         self._stop.set()
 
     @property
     def stopping(self) -> bool:
+        """stop() was called."""
         return self._stop.is_set()
 
     def run(self, duration_s: float | None = None) -> RealtimeReport:

@@ -43,10 +43,12 @@ class RuckigMotion:
         self.final_positions = np.array(trajectory.at_time(self.duration)[0])
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration at `t` (clamped to the motion) as new arrays."""
         p, v, a = self._trajectory.at_time(min(max(t, 0.0), self.duration))
         return np.array(p), np.array(v), np.array(a)
 
     def sample(self, t: float, out: np.ndarray) -> bool:
+        """Write the state at `t` into the rows of `out` (3, dof); True once the motion is over."""
         done = t >= self.duration
         out[0], out[1], out[2] = self._trajectory.at_time(self.duration if done else t)
         return done
@@ -96,7 +98,7 @@ def plan_point_to_point(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, 
         raise CommandRejected("speed_scale is out of range", what="0 < speed_scale <= 1",
                               why=f"got {speed_scale!r}", how="pass e.g. speed_scale=0.5 for half speed")
     if not np.all(np.isfinite(limits.max_velocity)):
-        unlimited = [n for n, v in zip(limits.joint_names, limits.max_velocity) if not math.isfinite(v)]
+        unlimited = [n for n, v in zip(limits.joint_names, limits.max_velocity, strict=True) if not math.isfinite(v)]
         raise CommandRejected("move_joints needs a velocity limit for every joint",
                               what="max_velocity for each joint in config/joint_limits.yaml",
                               why=f"no velocity limit for {', '.join(unlimited)}",

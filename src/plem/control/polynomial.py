@@ -10,6 +10,8 @@ boundaries).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 #: Coefficients per segment and joint, lowest order first: enough for a quintic.
@@ -99,18 +101,18 @@ class PolynomialMotion:
         return position, velocity, acceleration
 
 
-def _ruckig_knots(trajectory: object) -> list[float]:
+def _ruckig_knots(trajectory: Any) -> list[float]:  # a ruckig.Trajectory: ruckig ships no types
     """Every phase boundary of every joint of a ruckig trajectory, merged: between two, each joint is a cubic."""
-    duration = float(trajectory.duration)  # type: ignore[attr-defined]
+    duration = float(trajectory.duration)
     times = [0.0, duration]
     offset = 0.0
-    for section, profiles in enumerate(trajectory.profiles):  # type: ignore[attr-defined]
+    for section, profiles in enumerate(trajectory.profiles):
         for profile in profiles:
             t = offset
             for phase in (*profile.brake.t, *profile.t, *profile.accel.t):
                 t += phase
                 times.append(t)
-        offset = float(trajectory.intermediate_durations[section])  # type: ignore[attr-defined]
+        offset = float(trajectory.intermediate_durations[section])
     knots: list[float] = []
     for t in sorted(min(max(t, 0.0), duration) for t in times):
         if not knots or t - knots[-1] > KNOT_RESOLUTION:
@@ -120,10 +122,10 @@ def _ruckig_knots(trajectory: object) -> list[float]:
     return knots
 
 
-def from_ruckig(trajectory: object, dof: int) -> PolynomialMotion:
+def from_ruckig(trajectory: Any, dof: int) -> PolynomialMotion:
     """The ruckig trajectory as a piecewise polynomial, exact: quintic Hermite pieces between phase boundaries."""
     knots = _ruckig_knots(trajectory)
-    states = np.array([[np.asarray(v, dtype=float) for v in trajectory.at_time(t)]  # type: ignore[attr-defined]
+    states = np.array([[np.asarray(v, dtype=float) for v in trajectory.at_time(t)]
                        for t in knots]).reshape(len(knots), 3, dof)
     final = states[-1]
     if len(knots) < 2:

@@ -6,6 +6,7 @@ that says how to allow it, and the loop runs anyway (a laptop without RT rights 
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import ctypes.util
 import gc
@@ -112,10 +113,8 @@ class RealtimeContext:
             _libc.munlockall()
         if self._previous_policy is not None:
             policy, param = self._previous_policy
-            try:
+            with contextlib.suppress(OSError):
                 os.sched_setscheduler(0, policy, param)
-            except OSError:
-                pass
 
     def _set_scheduler(self) -> None:
         try:

@@ -16,6 +16,7 @@ import numpy as np
 
 from plem.control.commands import (
     ActiveMotion,
+    Command,
     CommandHandle,
     PlanBasis,
     ResetFault,
@@ -58,17 +59,27 @@ class _Flags:
         self.buffer = np.zeros(shape, dtype=bool)
 
     def greater(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
-        return np.count_nonzero(np.greater(values, bound, out=self.buffer)) != 0
+        return bool(np.count_nonzero(np.greater(values, bound, out=self.buffer)))
 
-    def not_within(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
+    def not_within(self, values: np.ndarray, bound: np.ndarray | float) -> np.bool:
         """True when some value is above its bound or NaN (`not value <= bound`); the buffer marks those within."""
-        return np.count_nonzero(np.less_equal(values, bound, out=self.buffer)) != self.buffer.size
+        return np.count_nonzero(np.less_equal(values, bound, out=self.buffer)) < self.buffer.size
 
     def less(self, values: np.ndarray, bound: np.ndarray | float) -> bool:
-        return np.count_nonzero(np.less(values, bound, out=self.buffer)) != 0
+        return bool(np.count_nonzero(np.less(values, bound, out=self.buffer)))
 
     def not_equal(self, values: np.ndarray, other: np.ndarray | int) -> bool:
-        return np.count_nonzero(np.not_equal(values, other, out=self.buffer)) != 0
+        return bool(np.count_nonzero(np.not_equal(values, other, out=self.buffer)))
+
+
+@dataclass(slots=True)
+class _PendingMode:
+    """A mode change waiting for the drives to reach operation enabled."""
+
+    target: Mode
+    deadline_cycle: int
+    handle: CommandHandle | None
+    enable_sent: bool
 
 
 @dataclass(frozen=True)
@@ -87,7 +98,7 @@ class ArmRuntime:
     """The per-cycle logic of one arm on one bus."""
 
     def __init__(self, bus: IBus, setup: BusSetup, limits: ArmLimits, joint_offsets: np.ndarray,
-                 free_drive: FreeDriveController | None = None, settings: RuntimeSettings | None = None,
+                 free_drive: FreeDriveController, settings: RuntimeSettings | None = None,
                  state_block: StateBlock | None = None, events: EventLog | None = None) -> None:
         dof = setup.dof
         self.bus = bus
@@ -102,7 +113,7 @@ class ArmRuntime:
         self.counts_per_radian = np.asarray(setup.counts_per_radian, dtype=float)
         self.radians_per_count = 1.0 / self.counts_per_radian
         self.offsets = np.asarray(joint_offsets, dtype=np.int64)
-        self.inbox: deque = deque()
+        self.inbox: deque[Command] = deque()
         self.mode = Mode.IDLE
         self.cycle_count = 0
         self.fault_reason = ""
@@ -143,7 +154,7 @@ class ArmRuntime:
         self._command_flags = _Flags((4, dof))
         self._have_previous = False
         self._active: ActiveMotion | None = None
-        self._pending_mode: list | None = None  # [target mode, deadline cycle, handle, enable sent]
+        self._pending_mode: _PendingMode | None = None
         self.basis = PlanBasis(self.command_position.copy())
 
     # -- one cycle -------------------------------------------------------------------------------
@@ -169,8 +180,8 @@ class ArmRuntime:
         self._control()
         self._write()
         self.cycle_count += 1
-        self.state_block.publish(self._work, self.cycle_count, time.monotonic_ns(), int(self.mode), self.mode is Mode.FAULT,
-                                 self.mode in (Mode.HOLD, Mode.TRAJECTORY, Mode.FREE_DRIVE))
+        self.state_block.publish(self._work, self.cycle_count, time.monotonic_ns(), int(self.mode),
+                                 self.mode is Mode.FAULT, self.mode in (Mode.HOLD, Mode.TRAJECTORY, Mode.FREE_DRIVE))
 
     def _supervise_measurement(self, io: BusIO) -> None:
         """Fault on drive faults, implausible encoder jumps, limit breaches and tracking errors."""
@@ -218,8 +229,9 @@ class ArmRuntime:
         mode = self.mode
         if mode is Mode.IDLE or (mode is Mode.FAULT and not self._can_command()):
             self._seed_from_measurement()
-            if self._pending_mode is not None:
-                self._advance_enable()
+            pending = self._pending_mode
+            if pending is not None:
+                self._advance_enable(pending)
             return
         if mode is Mode.FREE_DRIVE:
             self._follow_measurement()
@@ -230,13 +242,15 @@ class ArmRuntime:
             t = (self.cycle_count - active.start_cycle) * self.dt
             if not active.ended:
                 active.ended = active.motion.sample(t, self.command)
-                if active.tolerances.path is not None:
-                    self._check_path(active)
+                path = active.tolerances.path
+                if path is not None:
+                    self._check_path(path)
             if active.ended and self._active is active:
                 self._settle(active)
         self._check_command()
-        if self._pending_mode is not None:
-            self._advance_enable()
+        pending = self._pending_mode
+        if pending is not None:
+            self._advance_enable(pending)
 
     def _check_command(self) -> None:
         """Fault when the command leaves the position, velocity or acceleration limits or jerks too hard."""
@@ -275,13 +289,13 @@ class ArmRuntime:
         self.bus.write()
 
     # -- motions ---------------------------------------------------------------------------------
-    def _check_path(self, active: ActiveMotion) -> None:
+    def _check_path(self, path: np.ndarray) -> None:
         np.subtract(self.command_position, self.position, out=self._scratch)
         np.abs(self._scratch, out=self._scratch)
-        if self._flags.greater(self._scratch, active.tolerances.path):
-            i = int(np.argmax(self._scratch - active.tolerances.path))
+        if self._flags.greater(self._scratch, path):
+            i = int(np.argmax(self._scratch - path))
             message = (f"path tolerance violated: {self.joint_names[i]} is {self._scratch[i]:.4g} rad from the "
-                       f"trajectory (tolerance {active.tolerances.path[i]:.4g} rad)")
+                       f"trajectory (tolerance {path[i]:.4g} rad)")
             self._end_motion(TrajectoryResult(TrajectoryOutcome.ABORTED, message, ErrorCode.PATH_TOLERANCE_VIOLATED))
             self._start_stop("path tolerance violated")
 
@@ -351,7 +365,7 @@ class ArmRuntime:
                                  self.cycle_count)
                 command.handle.reject(error)
 
-    def _execute(self, command) -> None:
+    def _execute(self, command: Command) -> None:
         if isinstance(command, StartMotion):
             self._activate(command)
         elif isinstance(command, SetMode):
@@ -397,7 +411,7 @@ class ArmRuntime:
         if self._pending_mode is not None:
             raise CommandRejected("a mode change is already in progress",
                                   what="one mode change at a time",
-                                  why=f"waiting for the drives to enable for {self._pending_mode[0].name}",
+                                  why=f"waiting for the drives to enable for {self._pending_mode.target.name}",
                                   how="wait for the previous set_mode to finish")
         check_transition(self.mode, requested)
         current = self.mode
@@ -443,15 +457,16 @@ class ArmRuntime:
         self.bus.io.mode[:] = CST if target is Mode.FREE_DRIVE else CSP
         if not after_reset:
             self.bus.enable()
-        self._pending_mode = [target, self.cycle_count + max(1, math.ceil(self.settings.enable_timeout_s / self.dt)),
-                              handle, not after_reset]
+        self._pending_mode = _PendingMode(
+            target, self.cycle_count + max(1, math.ceil(self.settings.enable_timeout_s / self.dt)), handle,
+            not after_reset)
 
-    def _advance_enable(self) -> None:
-        target, deadline, handle, enable_sent = self._pending_mode
+    def _advance_enable(self, pending: _PendingMode) -> None:
+        target, deadline, handle = pending.target, pending.deadline_cycle, pending.handle
         states = [self.bus.drive_state(i) for i in range(self.setup.dof)]
-        if not enable_sent and DriveState.FAULT not in states:
+        if not pending.enable_sent and DriveState.FAULT not in states:
             self.bus.enable()
-            self._pending_mode[3] = True
+            pending.enable_sent = True
         if all(state is DriveState.OPERATION_ENABLED for state in states):
             self._pending_mode = None
             self._seed_from_measurement()
@@ -510,9 +525,9 @@ class ArmRuntime:
             result = TrajectoryResult(TrajectoryOutcome.ABORTED, f"robot fault: {reason}",
                                       ErrorCode.PATH_TOLERANCE_VIOLATED)
             active.handle.finish(result, motion_error(result))
-        if self._pending_mode is not None and self._pending_mode[2] is not None:
-            self._pending_mode[2].reject(RobotFault("the robot faulted", what="the mode change to complete",
-                                                    why=reason, how="reset_fault() once the cause is gone"))
+        if self._pending_mode is not None and self._pending_mode.handle is not None:
+            self._pending_mode.handle.reject(RobotFault("the robot faulted", what="the mode change to complete",
+                                                        why=reason, how="reset_fault() once the cause is gone"))
         self._pending_mode = None
         if previous is Mode.FREE_DRIVE:
             self._leave_free_drive()

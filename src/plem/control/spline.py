@@ -77,12 +77,13 @@ def _field(values: Sequence[float], index: int, field: str, joint_names: Sequenc
         raise CommandRejected(f"point {index} has {array.size} {field} for {dof} joints",
                               what=f"one value per joint ({', '.join(joint_names)})",
                               why=f"point {index} {field} has shape {array.shape}", how=FIELDS_HOW)
-    bad = [joint_names[j] for j in np.flatnonzero(~np.isfinite(array))]
+    bad = [joint_names[int(j)] for j in np.flatnonzero(~np.isfinite(array))]
     if bad:
         raise CommandRejected(f"point {index} {field} contain NaN or infinity", what="finite numbers only",
                               why=f"point {index} {field} not finite for {', '.join(bad)}",
                               how="send finite values")
-    return array[order]
+    in_arm_order: np.ndarray = array[order]
+    return in_arm_order
 
 
 def _time(point: TrajectoryPoint, index: int, previous: float) -> float:

@@ -53,6 +53,7 @@ class StateBlock:
 
     @staticmethod
     def nbytes(dof: int) -> int:
+        """Bytes a block of `dof` joints occupies, for sizing a shared-memory segment."""
         return HEADER_SLOTS * 8 + len(ROWS) * dof * 8
 
     def publish(self, values: np.ndarray, cycle: int, monotonic_ns: int, mode: int, faulted: bool,

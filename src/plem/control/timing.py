@@ -29,6 +29,7 @@ class TimingSummary:
 
     @classmethod
     def empty(cls) -> TimingSummary:
+        """The summary of no cycles at all: every figure 0."""
         return cls(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
@@ -44,6 +45,7 @@ class TimingSeries:
         self.max_ns = 0
 
     def add(self, value_ns: int) -> None:
+        """Count one sample (negative values count as 0) in the histogram and the window."""
         if value_ns < 0:
             value_ns = 0
         bin_index = value_ns // HISTOGRAM_BIN_NS
@@ -58,6 +60,7 @@ class TimingSeries:
         self.total_ns += value_ns
 
     def recent(self) -> TimingSummary:
+        """Figures over the rolling window, from the raw samples."""
         filled = min(self.count, self.window.shape[0])
         if filled == 0:
             return TimingSummary.empty()
@@ -67,6 +70,7 @@ class TimingSeries:
                              float(p999), float(values.max()))
 
     def whole_run(self) -> TimingSummary:
+        """Figures over every sample so far; percentiles to 1 µs bins."""
         if self.count == 0:
             return TimingSummary.empty()
         p50, p99, p999 = _percentiles(self.histogram, self.count)
@@ -78,7 +82,8 @@ def _percentiles(histogram: np.ndarray, count: int) -> tuple[float, float, float
     """p50, p99, p99.9 in µs as the upper edges of their bins, like cyclictest."""
     cumulative = np.cumsum(histogram)
     indices = np.searchsorted(cumulative, np.array((0.5, 0.99, 0.999)) * count, side="left")
-    return tuple(float(i + 1) * HISTOGRAM_BIN_NS / 1e3 for i in indices)
+    p50, p99, p999 = (float(i + 1) * HISTOGRAM_BIN_NS / 1e3 for i in indices)
+    return p50, p99, p999
 
 
 def histogram_summary(histogram: np.ndarray) -> TimingSummary:
@@ -117,6 +122,7 @@ class TimingStats:
         self.consecutive_overruns += 1
 
     def record_on_time(self) -> None:
+        """A cycle ended before the next deadline: the run of consecutive overruns is over."""
         self.consecutive_overruns = 0
 
     def summary(self) -> dict[str, object]:

@@ -57,8 +57,8 @@ class JointTrajectory:
                 raise CommandRejected(
                     f"point {index} is not a trajectory point",
                     what=f"keys {', '.join(POINT_KEYS[:2])} and optionally {', '.join(POINT_KEYS[2:])}",
-                    why="; ".join(filter(None, [unknown and f"unknown keys: {', '.join(unknown)}",
-                                                absent and f"missing: {', '.join(absent)}"])),
+                    why="; ".join(filter(None, [f"unknown keys: {', '.join(unknown)}" if unknown else "",
+                                                f"missing: {', '.join(absent)}" if absent else ""])),
                     how="spell the keys as in trajectory_msgs/JointTrajectoryPoint (effort is not supported)")
             try:
                 converted.append(TrajectoryPoint(

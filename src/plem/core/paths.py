@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 from typing import IO, Any, Self
 
 from plem.errors import ConfigError, PackageNotFoundError, PlemError
@@ -23,7 +24,7 @@ BUILTIN_PACKAGES_DIR = Path(__file__).resolve().parent.parent / "description" / 
 PACKAGE_MARKER = "package.xml"
 
 
-_pinned: ContextVar[Mapping[str, Path]] = ContextVar("pinned_packages", default={})
+_pinned: ContextVar[Mapping[str, Path]] = ContextVar("pinned_packages", default=MappingProxyType({}))
 
 
 @contextlib.contextmanager
@@ -229,7 +230,8 @@ def resolve_resource(spec: str | os.PathLike[str], environ: Mapping[str, str] | 
     try:
         package_dir = find_package(package, environ)
     except PackageNotFoundError:
-        raise _not_found(str(spec), [local], f"no package named '{package}' ({_search_path_description(environ)})")
+        raise _not_found(str(spec), [local],
+                         f"no package named '{package}' ({_search_path_description(environ)})") from None
     in_package = package_dir / rest
     if in_package.exists():
         return in_package

@@ -139,15 +139,17 @@ def _discover_urdf(files: DescriptionFiles, urdf_file: str | os.PathLike[str] | 
     if not candidates:
         found.error("urdf.missing", f"No URDF file found in package '{root.name}'",
                     what=f"Auto-discovery expected exactly one {URDF_SUFFIX} file in urdf/ directory",
-                    why="Found 0 matching files" + (f" (urdf/ holds: {', '.join(others)})" if others else
-                                                   (" (urdf/ is empty)" if urdf_dir.is_dir() else " (no urdf/ directory)")),
+                    why="Found 0 matching files" + (f" (urdf/ holds: {', '.join(others)})" if others
+                                                   else " (urdf/ is empty)" if urdf_dir.is_dir()
+                                                   else " (no urdf/ directory)"),
                     how=f"Create urdf/{_base_name(root)}{URDF_SUFFIX} or use urdf_file:=/path launch argument",
                     file=urdf_dir)
     else:
         found.error("urdf.multiple", f"Several URDF files found in package '{root.name}'",
                     what=f"Auto-discovery expected exactly one {URDF_SUFFIX} file in urdf/ directory",
                     why=f"Found {len(candidates)} matching files: {', '.join(p.name for p in candidates)}",
-                    how=f"keep one, rename the others (e.g. to .xacro), or pick one with urdf_file:=urdf/{candidates[0].name}",
+                    how="keep one, rename the others (e.g. to .xacro), or pick one with "
+                        f"urdf_file:=urdf/{candidates[0].name}",
                     file=urdf_dir)
 
 

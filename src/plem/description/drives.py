@@ -28,7 +28,7 @@ from typing import Any
 
 from lxml import etree
 
-from plem.description.model import HardwareJoint, UrdfModel, parse_xml
+from plem.description.model import HardwareJoint, UrdfModel, parse_xml, source_line
 from plem.errors import ConfigError, PlemError
 
 U32_MAX = 0xFFFF_FFFF
@@ -299,7 +299,7 @@ class ParamSources:
             return self.default, None
         path, element = matches[0]
         tags = [tag for tag in element.iter("param") if tag.get("name") == param] if param else []
-        return path, (tags[-1] if tags else element).sourceline
+        return path, source_line(tags[-1] if tags else element)
 
 
 __all__ = ["PARAMS", "REQUIRED", "DriveParameters", "ParamProblem", "ParamSources", "check_drive_parameters",

@@ -12,6 +12,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -28,7 +29,7 @@ GOAL_TOLERANCE = 0.01
 GENERATED_DIR_PREFIX = "wim_launch_"
 
 
-def _dump(data: dict, header: str) -> str:
+def _dump(data: dict[str, Any], header: str) -> str:
     body = yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
     return "".join(f"# {line}\n" for line in header.splitlines()) + body
 
@@ -79,6 +80,7 @@ class ResolvedDescription:
 
     @property
     def planner_enabled(self) -> bool:
+        """Whether MoveIt starts: only with an SRDF."""
         return self.srdf is not None
 
 
@@ -100,31 +102,34 @@ def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.
                         stage: Stage = Stage.STARTUP, temp_root: Path | None = None) -> ResolvedDescription:
     """Validate for `stage`, then generate the missing optional files; the package is never written."""
     report = require_valid(package, stage=stage, urdf_file=urdf_file, srdf_file=srdf_file)
-    files = report.files
-    resolved = ResolvedDescription(report=report, urdf=files.urdf, srdf=files.srdf, joint_limits=files.joint_limits,
-                                   controllers=files.controllers, kinematics=files.kinematics)
+    files, urdf, srdf = report.files, report.urdf, report.srdf
+    # require_valid raised unless the URDF rendered and joint_limits.yaml exists; an SRDF that exists has parsed
+    assert urdf is not None and files.urdf is not None and files.joint_limits is not None
+    log_lines: list[str] = []
     pending: dict[str, str] = {}
-    if files.srdf is None:
-        _say(resolved, "SRDF not found - MoveIt will not be started")
+    if srdf is None:
+        _say(log_lines, "SRDF not found - MoveIt will not be started")
     elif files.kinematics is None:
-        _say(resolved, "Auto-generating kinematics.yaml (KDL solver)")
-        pending["kinematics.yaml"] = kinematics_yaml([g for g, body in report.srdf.groups.items() if body.chains])
+        _say(log_lines, "Auto-generating kinematics.yaml (KDL solver)")
+        pending["kinematics.yaml"] = kinematics_yaml([g for g, body in srdf.groups.items() if body.chains])
     if files.controllers is None:
-        _say(resolved, "Auto-generating controllers.yaml from joint_limits.yaml")
-        actuated = [j.name for j in report.urdf.actuated_joints]
+        _say(log_lines, "Auto-generating controllers.yaml from joint_limits.yaml")
+        actuated = [j.name for j in urdf.actuated_joints]
         pending["controllers.yaml"] = controllers_yaml([j for j in actuated if j in report.limits] or actuated,
                                                        cycle_time_us)
-    if pending:
-        resolved.generated_dir = _fresh_directory(temp_root)
+    generated_dir = _fresh_directory(temp_root) if pending else None
+    written: dict[str, Path] = {}
+    if generated_dir is not None:
         for name, text in pending.items():
-            path = resolved.generated_dir / name
-            write_atomic(path, text, mode=0o600)
-            resolved.generated.append(path)
-            setattr(resolved, name.removesuffix(".yaml"), path)
-        _say(resolved, f"Generated files are in {resolved.generated_dir}; copy them into config/ to keep them")
-    return resolved
+            written[name] = generated_dir / name
+            write_atomic(written[name], text, mode=0o600)
+        _say(log_lines, f"Generated files are in {generated_dir}; copy them into config/ to keep them")
+    return ResolvedDescription(report=report, urdf=files.urdf, srdf=files.srdf, joint_limits=files.joint_limits,
+                               controllers=files.controllers or written["controllers.yaml"],
+                               kinematics=files.kinematics or written.get("kinematics.yaml"),
+                               generated_dir=generated_dir, generated=list(written.values()), log_lines=log_lines)
 
 
-def _say(resolved: ResolvedDescription, line: str) -> None:
-    resolved.log_lines.append(line)
+def _say(log_lines: list[str], line: str) -> None:
+    log_lines.append(line)
     log.info(line)

@@ -67,18 +67,19 @@ def read_joint_limits(path: Path, found: Findings) -> dict[str, JointLimit]:
     return limits
 
 
-def _read_joint(name: str, entry: dict, document: YamlDocument, path: Path, found: Findings) -> JointLimit:
+def _read_joint(name: str, entry: dict[Any, Any], document: YamlDocument, path: Path, found: Findings) -> JointLimit:
     line = document.line("joint_limits", name)
 
     def line_of(key: str) -> int:
         return document.line("joint_limits", name, key) if key in entry else line
 
-    values: dict[str, float | None] = {}
+    values: dict[str, float] = {}
     for key, raw in entry.items():
         if key not in KNOWN_KEYS:
             found.warning("limits.unknown_key", f"Unknown key {key} for {name}",
-                          what=f"keys among {', '.join(sorted(KNOWN_KEYS))}", why=f"joint_limits.{name}.{key} is not one",
-                          how="remove it or fix its spelling", file=path, line=line_of(key))
+                          what=f"keys among {', '.join(sorted(KNOWN_KEYS))}",
+                          why=f"joint_limits.{name}.{key} is not one", how="remove it or fix its spelling", file=path,
+                          line=line_of(key))
         elif key.startswith("has_"):
             if not isinstance(raw, bool):
                 found.error("limits.type", f"{key} of {name} must be true or false",
@@ -89,7 +90,8 @@ def _read_joint(name: str, entry: dict, document: YamlDocument, path: Path, foun
             if number is None or not math.isfinite(number):
                 found.error("limits.type", f"{key} of {name} is not a number",
                             what=f"joint_limits.{name}.{key} as a finite number", why=f"found {raw!r}",
-                            how="write a plain number (radians, rad/s, rad/s², rad/s³, N·m)", file=path, line=line_of(key))
+                            how="write a plain number (radians, rad/s, rad/s², rad/s³, N·m)", file=path,
+                            line=line_of(key))
             else:
                 values[key] = number
     for key in MAXIMA:

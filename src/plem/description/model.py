@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 from lxml import etree
 
@@ -21,11 +22,16 @@ def _float(value: str | None) -> float | None:
         return None
 
 
+def source_line(element: etree._Element) -> int | None:
+    """The element's line in its source, None when unknown (lxml-stubs declares `sourceline` without a type)."""
+    return cast("int | None", element.sourceline)
+
+
 def _params(element: etree._Element | None) -> tuple[dict[str, str], dict[str, int | None]]:
     """The `<param name="...">text</param>` children of `element` by name (the last wins) and their lines."""
     tags = element.findall("param") if element is not None else []
     return ({tag.get("name") or "": (tag.text or "").strip() for tag in tags},
-            {tag.get("name") or "": tag.sourceline for tag in tags})
+            {tag.get("name") or "": source_line(tag) for tag in tags})
 
 
 def parse_xml(text: str | bytes, source: Path) -> etree._Element:
@@ -45,6 +51,8 @@ def parse_xml(text: str | bytes, source: Path) -> etree._Element:
 
 @dataclass
 class Joint:
+    """A URDF `<joint>`: its links, `<limit>` values (None where absent) and the joint it mimics."""
+
     name: str
     type: str
     parent: str | None
@@ -58,6 +66,7 @@ class Joint:
 
     @property
     def actuated(self) -> bool:
+        """Whether the driver commands it: revolute, prismatic or continuous, and not a mimic."""
         return self.type in ACTUATED_TYPES and self.mimic is None
 
 
@@ -107,6 +116,7 @@ class UrdfModel:
         return [link for link in self.links if link not in children]
 
     def parent_of(self, link: str) -> Joint | None:
+        """The joint whose child is `link`, or None for a root."""
         return next((j for j in self.joints.values() if j.child == link), None)
 
     def chain(self, base: str, tip: str) -> list[Joint] | None:
@@ -126,6 +136,7 @@ class UrdfModel:
 
 
 def parse_urdf(text: str, source: Path) -> UrdfModel:
+    """Read a rendered URDF; XML errors and a root other than `<robot>` raise a DescriptionError naming `source`."""
     root = parse_xml(text, source)
     if root.tag != "robot":
         raise DescriptionError(
@@ -133,13 +144,13 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
             what="a <robot> root element", why=f"{source}: the root element is <{root.tag}>",
             how="make <robot name=\"...\"> the top element",
         )
-    links = {el.get("name") or "": el.sourceline for el in root.findall("link")}
+    links = {el.get("name") or "": source_line(el) for el in root.findall("link")}
     joints: dict[str, Joint] = {}
     for el in root.findall("joint"):
         limit = el.find("limit")
         parent, child, mimic = el.find("parent"), el.find("child"), el.find("mimic")
         joints[el.get("name") or ""] = Joint(
-            name=el.get("name") or "", type=el.get("type") or "", line=el.sourceline,
+            name=el.get("name") or "", type=el.get("type") or "", line=source_line(el),
             parent=parent.get("link") if parent is not None else None,
             child=child.get("link") if child is not None else None,
             lower=_float(limit.get("lower")) if limit is not None else None,
@@ -149,7 +160,7 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
             mimic=mimic.get("joint") if mimic is not None else None,
         )
     blocks = [_ros2_control(block) for block in root.findall("ros2_control")]
-    meshes = [(mesh.get("filename") or "", mesh.sourceline) for mesh in root.iter("mesh")]
+    meshes = [(mesh.get("filename") or "", source_line(mesh)) for mesh in root.iter("mesh")]
     return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes)
 
 
@@ -157,10 +168,10 @@ def _ros2_control(block: etree._Element) -> Ros2ControlBlock:
     """One `<ros2_control>` block: its hardware plugin and parameters, and its joints."""
     params, param_lines = _params(block.find("hardware"))
     return Ros2ControlBlock(
-        name=block.get("name") or "", line=block.sourceline,
+        name=block.get("name") or "", line=source_line(block),
         plugin=(block.findtext("hardware/plugin") or "").strip() or None,
         joints=[HardwareJoint(j.get("name") or "", [c.get("name") or "" for c in j.findall("command_interface")],
-                              [s.get("name") or "" for s in j.findall("state_interface")], j.sourceline, *_params(j))
+                              [s.get("name") or "" for s in j.findall("state_interface")], source_line(j), *_params(j))
                 for j in block.findall("joint")],
         params=params, param_lines=param_lines,
     )
@@ -168,6 +179,8 @@ def _ros2_control(block: etree._Element) -> Ros2ControlBlock:
 
 @dataclass
 class SrdfGroup:
+    """An SRDF planning `<group>`: its links, joints, chains and subgroups, each with its line."""
+
     name: str
     line: int | None
     links: list[tuple[str, int | None]] = field(default_factory=list)
@@ -178,6 +191,8 @@ class SrdfGroup:
 
 @dataclass
 class GroupState:
+    """An SRDF `<group_state>`: a named pose of a group, as (joint, value or None if not a number, line)."""
+
     name: str
     group: str
     line: int | None
@@ -186,6 +201,8 @@ class GroupState:
 
 @dataclass
 class SrdfModel:
+    """A parsed SRDF: planning groups by name, named poses and the link pairs excluded from collision checks."""
+
     name: str
     groups: dict[str, SrdfGroup]
     group_states: list[GroupState]
@@ -202,19 +219,22 @@ class SrdfModel:
 
 
 def parse_srdf(text: str | bytes, source: Path) -> SrdfModel:
+    """Read an SRDF (rendered when it was a xacro); XML errors raise a DescriptionError naming `source`."""
     root = parse_xml(text, source)
     groups: dict[str, SrdfGroup] = {}
     for el in root.findall("group"):
-        group = SrdfGroup(el.get("name") or "", el.sourceline)
-        group.links = [(c.get("name") or "", c.sourceline) for c in el.findall("link")]
-        group.joints = [(c.get("name") or "", c.sourceline) for c in el.findall("joint")]
-        group.chains = [(c.get("base_link") or "", c.get("tip_link") or "", c.sourceline) for c in el.findall("chain")]
-        group.subgroups = [(c.get("name") or "", c.sourceline) for c in el.findall("group")]
+        group = SrdfGroup(el.get("name") or "", source_line(el))
+        group.links = [(c.get("name") or "", source_line(c)) for c in el.findall("link")]
+        group.joints = [(c.get("name") or "", source_line(c)) for c in el.findall("joint")]
+        group.chains = [(c.get("base_link") or "", c.get("tip_link") or "", source_line(c))
+                        for c in el.findall("chain")]
+        group.subgroups = [(c.get("name") or "", source_line(c)) for c in el.findall("group")]
         groups[group.name] = group
     states = [
-        GroupState(el.get("name") or "", el.get("group") or "", el.sourceline,
-                   [(j.get("name") or "", _float(j.get("value")), j.sourceline) for j in el.findall("joint")])
+        GroupState(el.get("name") or "", el.get("group") or "", source_line(el),
+                   [(j.get("name") or "", _float(j.get("value")), source_line(j)) for j in el.findall("joint")])
         for el in root.findall("group_state")
     ]
-    disabled = [(el.get("link1") or "", el.get("link2") or "", el.sourceline) for el in root.findall("disable_collisions")]
+    disabled = [(el.get("link1") or "", el.get("link2") or "", source_line(el))
+                for el in root.findall("disable_collisions")]
     return SrdfModel(name=root.get("name") or "", groups=groups, group_states=states, disabled_collisions=disabled)

@@ -19,6 +19,7 @@ from pathlib import Path
 from types import CodeType
 from typing import IO, Any
 from xml.dom import expatbuilder  # noqa: F401 - imported here: the sandboxed child may not read Python's library
+from xml.dom.minidom import Document
 from xml.parsers.expat import ExpatError
 
 import xacro
@@ -74,7 +75,8 @@ def _render(path: Path, mappings: dict[str, str], reader: PackageReader) -> str:
     token = _reader.set(reader)
     try:
         with contextlib.redirect_stderr(io.StringIO()):
-            return xacro.process_file(os.fspath(path), mappings=mappings).toxml()
+            document: Document = xacro.process_file(os.fspath(path), mappings=mappings)
+            return document.toxml()
     except PlemError as error:
         raise error from None
     except xacro.XacroException as error:

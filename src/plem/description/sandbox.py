@@ -256,7 +256,7 @@ def _isolate(keep_fds: Sequence[int]) -> None:
     for stream in (0, 1, 2):
         os.dup2(null, stream)
     kept = sorted({0, 1, 2, *keep_fds})
-    for low, high in zip(kept, [*kept[1:], os.sysconf("SC_OPEN_MAX")]):
+    for low, high in zip(kept, [*kept[1:], os.sysconf("SC_OPEN_MAX")], strict=True):
         os.closerange(low + 1, high)
 
 

@@ -83,6 +83,7 @@ def _link(name: str, mass: float, length: float) -> str:
 
 
 def urdf_xacro(name: str, dof: int) -> str:
+    """The arm's URDF: base, a revolute joint and cylinder link per axis, a tool frame and the ros2_control call."""
     joints = ARMS[dof]
     parts = [f"""<?xml version="1.0"?>
 <!-- {name}: a generic {dof}-axis arm made by `plem create-description`. Units: m, kg, rad, rad/s, N·m.
@@ -131,6 +132,7 @@ def urdf_xacro(name: str, dof: int) -> str:
 
 
 def ros2_control_xacro(name: str, dof: int) -> str:
+    """The ros2_control macro: plem's hardware plugin and each joint's interfaces and placeholder drive parameters."""
     identity = "".join(f"        <!-- {param_line(key, '0x00000000')} -->\n"
                        for key in ("vendor_id", "product_code", "revision"))
     joints = "".join(f"""      <joint name="${{prefix}}joint{i}">
@@ -168,6 +170,7 @@ def ros2_control_xacro(name: str, dof: int) -> str:
 
 
 def joint_limits_yaml(dof: int) -> str:
+    """joint_limits.yaml with every limit of every joint switched on, within the URDF `<limit>` values."""
     lines = ["# Joint limits. Units: rad, rad/s, rad/s^2, rad/s^3, N·m. They must stay within the URDF <limit>.",
              "joint_limits:"]
     for index, joint in enumerate(ARMS[dof], start=1):
@@ -180,11 +183,12 @@ def joint_limits_yaml(dof: int) -> str:
 
 
 def srdf(name: str, dof: int) -> str:
+    """An SRDF with the `arm` chain group, `home` and `zero` poses and adjacent links excluded from collisions."""
     home = "".join(f'    <joint name="joint{i}" value="{j.home:g}"/>\n' for i, j in enumerate(ARMS[dof], start=1))
     zero = "".join(f'    <joint name="joint{i}" value="0"/>\n' for i in range(1, dof + 1))
     links = ["base_link", *(f"link{i}" for i in range(1, dof + 1)), "tool0"]
     adjacent = "".join(f'  <disable_collisions link1="{a}" link2="{b}" reason="Adjacent"/>\n'
-                       for a, b in zip(links, links[1:]))
+                       for a, b in zip(links, links[1:], strict=False))
     return f"""<?xml version="1.0"?>
 <!-- Semantic description of {name} for planning: the arm group, named poses, collision filter. -->
 <robot name="{name}">
@@ -200,7 +204,9 @@ def srdf(name: str, dof: int) -> str:
 
 
 def launch_file(name: str) -> str:
-    return f'''"""Bring-up of {name}: switch components on or off, then run `plem launch {name}_description/launch/bringup.launch.py`."""
+    """A launch file calling plem's bringup, with each component as a switch to edit."""
+    command = f"plem launch {name}_description/launch/bringup.launch.py"
+    return f'''"""Bring-up of {name}: switch components on or off, then run `{command}`."""
 
 from plem.launch import bringup
 
@@ -217,6 +223,7 @@ def generate_launch_description():
 
 
 def package_xml(name: str) -> str:
+    """package.xml (format 3, ament_cmake) so colcon and the package search path find the package."""
     return f"""<?xml version="1.0"?>
 <package format="3">
   <name>{name}_description</name>
@@ -234,6 +241,7 @@ def package_xml(name: str) -> str:
 
 
 def cmakelists(name: str) -> str:
+    """CMakeLists.txt installing the package's directories and PLEM_COMPAT_VERSION into share/."""
     return f"""cmake_minimum_required(VERSION 3.8)
 project({name}_description)
 find_package(ament_cmake REQUIRED)
@@ -248,6 +256,7 @@ ament_package()
 
 
 def readme(name: str, dof: int, with_moveit: bool, launch: bool) -> str:
+    """README.md listing what the package holds and how to check it."""
     lines = [f"# {name}_description", "", f"A {dof}-axis arm described for plem.", "",
              "- `urdf/` — the arm (`" + name + ".urdf.xacro`, renders with no arguments) and its hardware interface",
              "- `config/joint_limits.yaml` — safety limits; `config/controllers.yaml` — trajectory controller"]
@@ -296,6 +305,8 @@ def _check_arguments(name: str, dof: int) -> None:
 
 @dataclass
 class ScaffoldResult:
+    """What `create_package` did, as paths relative to `root`: files created, left identical, overwritten."""
+
     root: Path
     created: list[str] = field(default_factory=list)
     identical: list[str] = field(default_factory=list)

@@ -29,7 +29,7 @@ from plem.description.drives import (
     param_line,
 )
 from plem.description.limits import JointLimit, read_joint_limits
-from plem.description.model import LESS_TESTED_TYPES, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
+from plem.description.model import LESS_TESTED_TYPES, Joint, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
 from plem.description.problems import DescriptionError, Findings
 from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
@@ -46,6 +46,8 @@ PREFIX_SENTINEL = "plemprefix_"
 
 
 class Stage(IntEnum):
+    """How far validation goes; each stage runs the checks of the ones before it."""
+
     LAUNCH = 1
     STARTUP = 2
     FULL = 3
@@ -67,6 +69,7 @@ class ValidationReport:
 
     @property
     def dof(self) -> int | None:
+        """The number of actuated joints, or None when the URDF did not render."""
         return len(self.urdf.actuated_joints) if self.urdf else None
 
     def passed(self, strict: bool = False) -> bool:
@@ -90,16 +93,19 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
     _render_urdf(report)
     _check_limits_file(report)
     _check_srdf(report)
-    if report.urdf is not None and stage >= Stage.STARTUP:
-        _check_tree(report.urdf, files.urdf, found)
-        _check_joint_types(report.urdf, files.urdf, found)
-        _check_ros2_control(report)
-    if report.urdf is not None and stage >= Stage.FULL:
-        _check_limits_against_urdf(report)
-        _check_meshes(report.urdf, files.urdf, found)
-        _check_controllers(report)
-        if report.srdf is not None:
-            _check_srdf_against_urdf(report)
+    urdf, source = report.urdf, files.urdf
+    if urdf is None or source is None:
+        return report  # no URDF, or it did not render: already reported, and every later check reads it
+    if stage >= Stage.STARTUP:
+        _check_tree(urdf, source, found)
+        _check_joint_types(urdf, source, found)
+        _check_ros2_control(report, urdf, source)
+    if stage >= Stage.FULL:
+        _check_limits_against_urdf(report, urdf)
+        _check_meshes(urdf, source, found)
+        _check_controllers(report, urdf)
+        if report.srdf is not None and files.srdf is not None:
+            _check_srdf_against_urdf(report, urdf, report.srdf, files.srdf)
         _check_kinematics(report)
     return report
 
@@ -177,8 +183,8 @@ def _check_tree(urdf: UrdfModel, source: Path, found: Findings) -> None:
             if link not in urdf.links:
                 found.error("urdf.joint_link_missing", f"Joint {joint.name} names a missing {role} link",
                             what=f"the {role} link of {joint.name} defined as a <link>",
-                            why=f"{role} link {link!r} does not exist", how=f"add <link name=\"{link}\"/> or fix the name",
-                            file=source)
+                            why=f"{role} link {link!r} does not exist",
+                            how=f"add <link name=\"{link}\"/> or fix the name", file=source)
     parents: dict[str, list[str]] = {}
     for joint in urdf.joints.values():
         parents.setdefault(joint.child or "", []).append(joint.name)
@@ -196,9 +202,9 @@ def _check_tree(urdf: UrdfModel, source: Path, found: Findings) -> None:
                     how="connect every part to the base with a joint", file=source)
     for link in urdf.links:
         walked, current = set(), link
-        while (joint := urdf.parent_of(current)) is not None and current not in walked:
+        while (up := urdf.parent_of(current)) is not None and current not in walked:
             walked.add(current)
-            current = joint.parent or ""
+            current = up.parent or ""
         if current in walked:
             found.error("urdf.tree.cycle", "The URDF joints form a cycle",
                         what="a tree with no closed loops", why=f"following parents from {link} returns to {current}",
@@ -246,9 +252,8 @@ def _registered_plugins() -> frozenset[str]:
     return frozenset(ep.name for ep in entry_points(group=HARDWARE_ENTRY_POINTS))
 
 
-def _check_ros2_control(report: ValidationReport) -> None:
-    urdf, files, found = report.urdf, report.files, report.findings
-    source = files.urdf
+def _check_ros2_control(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
+    files, found = report.files, report.findings
     if not urdf.ros2_control:
         found.error("ros2_control.missing", "No <ros2_control> tag in the URDF",
                     what="a <ros2_control> block declaring the hardware plugin and every actuated joint",
@@ -292,14 +297,14 @@ def _check_ros2_control(report: ValidationReport) -> None:
                         what="every actuated joint declared in <ros2_control> with its interfaces",
                         why=f"{joint.name} ({joint.type}) is missing", how=f'add <joint name="{joint.name}"> with '
                                                                            "command and state interfaces", file=source)
-    _check_drive_parameters(report, [joint.name for joint in urdf.actuated_joints if joint.name in declared])
-    _check_prefix(report)
+    _check_drive_parameters(report, urdf, [joint.name for joint in urdf.actuated_joints if joint.name in declared])
+    _check_prefix(report, source)
 
 
-def _check_drive_parameters(report: ValidationReport, joints: list[str]) -> None:
+def _check_drive_parameters(report: ValidationReport, urdf: UrdfModel, joints: list[str]) -> None:
     """The drive parameters of the actuated joints in <ros2_control>: well-formed and complete, or none at all
     (a warning, since only bus:=ethercat needs them)."""
-    urdf, files, found = report.urdf, report.files, report.findings
+    files, found = report.files, report.findings
     sources = ParamSources((files.ros2_control, files.urdf))
     if not declares_drive_parameters(urdf):
         found.warning("drive.none", "No drive parameters in <ros2_control>",
@@ -315,16 +320,16 @@ def _check_drive_parameters(report: ValidationReport, joints: list[str]) -> None
                file=path, line=line)
 
 
-def _check_prefix(report: ValidationReport) -> None:
+def _check_prefix(report: ValidationReport, source: Path) -> None:
     """Rendering with prefix:=PROBE must rename every link, joint and ros2_control joint."""
     files, found, prefixed = report.files, report.findings, report.prefixed
     if prefixed is None:
         found.error("ros2_control.prefix", "The URDF ignores the prefix argument",
                     what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name and passed "
                          "to the ros2_control macro, so several robots can share one namespace",
-                    why=f"rendering {files.urdf.name} with prefix:={PREFIX_SENTINEL} changes no name",
+                    why=f"rendering {source.name} with prefix:={PREFIX_SENTINEL} changes no name",
                     how='declare <xacro:arg name="prefix" default=""/>, write names as $(arg prefix)NAME and pass '
-                        'prefix="$(arg prefix)" to the ros2_control macro', file=files.urdf)
+                        'prefix="$(arg prefix)" to the ros2_control macro', file=source)
         return
     names = [*prefixed.links, *prefixed.joints]
     unchanged = [name for name in names if not name.startswith(PREFIX_SENTINEL)]
@@ -332,7 +337,7 @@ def _check_prefix(report: ValidationReport) -> None:
         found.error("urdf.prefix", "Some link or joint names ignore the prefix argument",
                     what="every link and joint name written as $(arg prefix)NAME",
                     why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
-                    how="prefix those names too, or two robots with different prefixes will clash", file=files.urdf)
+                    how="prefix those names too, or two robots with different prefixes will clash", file=source)
     hardware = [hw.name for block in prefixed.ros2_control for hw in block.joints]
     unchanged = [name for name in hardware if not name.startswith(PREFIX_SENTINEL)]
     if unchanged:
@@ -340,16 +345,16 @@ def _check_prefix(report: ValidationReport) -> None:
                     what="a macro with params=\"prefix:=''\" writing every joint as ${prefix}NAME",
                     why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
                     how="write the joint names as ${prefix}joint1 and so on, and call the macro with "
-                        'prefix="$(arg prefix)"', file=files.ros2_control or files.urdf)
-    if files.ros2_control and files.ros2_control.name not in files.urdf.read_text(encoding="utf-8", errors="replace"):
+                        'prefix="$(arg prefix)"', file=files.ros2_control or source)
+    if files.ros2_control and files.ros2_control.name not in source.read_text(encoding="utf-8", errors="replace"):
         found.error("ros2_control.not_included", f"{files.ros2_control.name} is not included by the URDF",
-                    what="the URDF includes its ros2_control xacro", why=f"{files.urdf.name} never names it",
+                    what="the URDF includes its ros2_control xacro", why=f"{source.name} never names it",
                     how=f'<xacro:include filename="$(find {files.name})/urdf/{files.ros2_control.name}"/>',
-                    file=files.urdf)
+                    file=source)
 
 
-def _check_limits_against_urdf(report: ValidationReport) -> None:
-    urdf, files, found, limits = report.urdf, report.files, report.findings, report.limits
+def _check_limits_against_urdf(report: ValidationReport, urdf: UrdfModel) -> None:
+    files, found, limits = report.files, report.findings, report.limits
     if files.joint_limits is None or not limits and found.codes().count("limits.yaml"):
         return
     path = files.joint_limits
@@ -370,7 +375,7 @@ def _check_limits_against_urdf(report: ValidationReport) -> None:
                         how=f"remove joint_limits.{name} or fix the name", file=path, line=limit.line)
 
 
-def _compare_with_urdf(limit: JointLimit, joint, path: Path, found: Findings) -> None:
+def _compare_with_urdf(limit: JointLimit, joint: Joint, path: Path, found: Findings) -> None:
     exceeded = []
     if joint.lower is not None and limit.min_position is not None and limit.min_position < joint.lower - 1e-12:
         exceeded.append(f"min_position {limit.min_position:g} < URDF lower {joint.lower:g}")
@@ -420,8 +425,8 @@ def _read_mapping(path: Path | None, area: str, found: Findings) -> YamlDocument
     return document
 
 
-def _check_controllers(report: ValidationReport) -> None:
-    path, found, urdf = report.files.controllers, report.findings, report.urdf
+def _check_controllers(report: ValidationReport, urdf: UrdfModel) -> None:
+    path, found = report.files.controllers, report.findings
     document = _read_mapping(path, "controllers", found)
     if document is None:
         return
@@ -438,8 +443,8 @@ def _check_controllers(report: ValidationReport) -> None:
                             line=document.line(controller, "ros__parameters", "joints", index))
 
 
-def _check_srdf_against_urdf(report: ValidationReport) -> None:
-    srdf, urdf, path, found = report.srdf, report.urdf, report.files.srdf, report.findings
+def _check_srdf_against_urdf(report: ValidationReport, urdf: UrdfModel, srdf: SrdfModel, path: Path) -> None:
+    found = report.findings
     lines = path.suffix == ".srdf"
 
     def at(line: int | None) -> int | None:
@@ -486,7 +491,7 @@ def _check_srdf_against_urdf(report: ValidationReport) -> None:
                             what="joints that exist in the URDF", why=f"no URDF joint {joint!r}", how="fix the name",
                             file=path, line=at(line))
                 continue
-            low, high = _position_bounds(joint, report)
+            low, high = _position_bounds(urdf.joints[joint], report.limits.get(joint))
             if value is None or not math.isfinite(value) or (low is not None and value < low) or (
                     high is not None and value > high):
                 found.error("srdf.state_out_of_limits", f"group_state {state.name}: {joint} is outside its limits",
@@ -501,10 +506,8 @@ def _check_srdf_against_urdf(report: ValidationReport) -> None:
                         how="fix or remove the entry", file=path, line=at(line))
 
 
-def _position_bounds(joint: str, report: ValidationReport) -> tuple[float | None, float | None]:
+def _position_bounds(urdf_joint: Joint, limit: JointLimit | None) -> tuple[float | None, float | None]:
     """The tighter of the YAML and URDF position limits."""
-    urdf_joint = report.urdf.joints[joint]
-    limit = report.limits.get(joint)
     lows = [v for v in (urdf_joint.lower, limit.min_position if limit else None) if v is not None]
     highs = [v for v in (urdf_joint.upper, limit.max_position if limit else None) if v is not None]
     if urdf_joint.type == "continuous" and not (limit and limit.min_position is not None):
@@ -539,7 +542,8 @@ def _check_kinematics(report: ValidationReport) -> None:
                           how="check the plugin name", file=path, line=line)
 
 
-def require_valid(package: str | os.PathLike[str], *, stage: Stage, urdf_file=None, srdf_file=None) -> ValidationReport:
+def require_valid(package: str | os.PathLike[str], *, stage: Stage, urdf_file: str | os.PathLike[str] | None = None,
+                  srdf_file: str | os.PathLike[str] | None = None) -> ValidationReport:
     """Validate and raise every error together (for launch and start-up), returning the report otherwise."""
     report = validate_package(package, stage=stage, urdf_file=urdf_file, srdf_file=srdf_file)
     report.findings.raise_errors(f"description package '{report.files.name}'")

@@ -57,6 +57,7 @@ class BusSetup:
 
     @property
     def dof(self) -> int:
+        """Number of drives on the bus, one per joint."""
         return len(self.joint_names)
 
 

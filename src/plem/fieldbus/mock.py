@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -54,8 +54,9 @@ if TYPE_CHECKING:
     from plem.control.kinematics import ArmDynamics
 
 _RUNNING = (DriveState.OPERATION_ENABLED, DriveState.QUICK_STOP_ACTIVE)
-_BOUNDS = {"finite": lambda a: True, "positive": lambda a: bool(np.all(a > 0)),
-           "non-negative": lambda a: bool(np.all(a >= 0)), "nonzero": lambda a: bool(np.all(a != 0))}
+_BOUNDS: dict[str, Callable[[np.ndarray], bool]] = {
+    "finite": lambda a: True, "positive": lambda a: bool(np.all(a > 0)),
+    "non-negative": lambda a: bool(np.all(a >= 0)), "nonzero": lambda a: bool(np.all(a != 0))}
 
 
 def _joint_array(name: str, values: float | Sequence[float], dof: int, *, bound: str = "finite",
@@ -137,10 +138,10 @@ class _Drives:
         self.settled = not changed and commands == previous and seen == self.states
         return changed
 
-    def apply(self, commands: Sequence[int]) -> bool:
+    def apply(self, commands: Sequence[int] | np.ndarray) -> bool:
         """The drives' side of one cycle: each takes its controlword; True when a state changed."""
         changed = False
-        for drive, (state, command) in enumerate(zip(self.states, commands)):
+        for drive, (state, command) in enumerate(zip(self.states, commands, strict=True)):
             previous, self.controlword[drive] = self.controlword[drive], int(command)
             new = drive_transition(state, int(command), previous)
             if state is DriveState.FAULT and new is not state:
@@ -156,6 +157,9 @@ class _Drives:
 
 class MockBus:
     """A simulated arm behind the IBus interface: CiA402 drives, encoders, and rigid-body or first-order joints."""
+
+    #: The rigid-body arm, set by open() when it builds one; only the dynamics step (chosen then) reads it.
+    _dynamics: ArmDynamics
 
     def __init__(self, dof: int, urdf: str | os.PathLike[str] | None = None, *, dynamics: bool = True,
                  raw_zero: Sequence[int] | None = None, initial_positions: Sequence[float] | None = None,
@@ -212,6 +216,8 @@ class MockBus:
             from plem.control.kinematics import ArmDynamics
             arm = ArmDynamics(urdf_xml, setup.joint_names)
         self._arm = arm
+        if arm is not None:
+            self._dynamics = arm
         self._counts = counts
         self._inv_counts = 1.0 / counts
         self._dt = dt
@@ -291,7 +297,7 @@ class MockBus:
             self._dirty = True
         self._advance()
 
-    def serve(self, controlwords: Sequence[int]) -> None:
+    def serve(self, controlwords: Sequence[int] | np.ndarray) -> None:
         """Be the drives of a real master: take its controlwords (not enable()/disable()) and advance one cycle.
 
         The virtual EtherCAT network runs its emulated drives this way; targets and modes come in `io`.
@@ -536,7 +542,7 @@ class MockBus:
     def _step_dynamics(self) -> None:
         """One cycle of the rigid-body arm under its drives' servos, brakes, jams and pushes."""
         q, v, a, work, tau = self._q, self._v, self._a, self._work, self._tau
-        arm = self._arm
+        arm = self._dynamics
         self._targets()
         friction = np.multiply(v, self._friction, out=self._friction_torque)
         clamp = self._any_torque
@@ -594,7 +600,7 @@ class MockBus:
         Torque is affine in the acceleration (τ = M·a + bias), so one scale keeps the motion's direction
         and the joints' coupling consistent; joints whose bias alone exceeds the limit are clamped later.
         """
-        bias = self._arm.inverse_dynamics(self._q, self._v, self._no_acceleration, self._bias)
+        bias = self._dynamics.inverse_dynamics(self._q, self._v, self._no_acceleration, self._bias)
         bias += self._friction_torque
         inertial = tau - bias
         fits = self._commanded & (np.abs(bias) < self._effort) & (inertial != 0)
@@ -612,7 +618,7 @@ class MockBus:
         for row, joint in enumerate(held):
             probe[:] = torque
             probe[joint] += 1.0
-            self._arm.forward_dynamics(self._q, self._v, probe, columns[row])
+            self._dynamics.forward_dynamics(self._q, self._v, probe, columns[row])
             columns[row] -= a
         a += columns.T @ np.linalg.solve(columns[:, held].T, -a[held])
         a[held] = 0.0

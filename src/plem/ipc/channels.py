@@ -23,6 +23,8 @@ _log = logging.getLogger("plem.ipc")
 
 @dataclass(frozen=True)
 class RingShape:
+    """The size of one ring: its slots and their bytes, and whether writers wait for the consumer."""
+
     slot_bytes: int
     slots: int
     bounded: bool = False
@@ -65,6 +67,7 @@ class RobotChannels:
 
     @property
     def names(self) -> dict[str, str]:
+        """The shared-memory names of this robot's channels."""
         return channel_names(self.robot_id)
 
     @classmethod
@@ -118,6 +121,7 @@ class RobotChannels:
         return cls(robot_id, state, attached, motions)
 
     def close(self) -> None:
+        """Unmap every ring, the motion slab and the state segment; the names stay for others."""
         for ring in self.rings.values():
             ring.close()
         if self.motions is not None:

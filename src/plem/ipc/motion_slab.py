@@ -102,6 +102,7 @@ class MotionSlab:
         return PolynomialMotion(knots[:segments + 1], coefficients[:segments], final)
 
     def close(self) -> None:
+        """Drop the views, then unmap."""
         del self._values
         self._segment.close()
 

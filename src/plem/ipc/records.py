@@ -8,8 +8,8 @@ block's joint rows. Events and statistics are rare and travel as JSON.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -39,15 +39,18 @@ class RawSample(JointState):
 
     @classmethod
     def from_record(cls, record: np.ndarray, dof: int) -> RawSample:
-        rows = record[len(RAW_SCALARS):].reshape(len(ROWS), dof)
+        """The sample in one rt_raw record of an arm with `dof` joints; the joint rows are views into it."""
+        position, velocity, effort, command_position, command_velocity, command_acceleration = (
+            record[len(RAW_SCALARS):].reshape(len(ROWS), dof))
         cycle, stamp, mode, faulted, enabled, latency, compute = raw_scalars(record)
-        return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), *rows, latency, compute)
+        return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), position, velocity, effort,
+                   command_position, command_velocity, command_acceleration, latency, compute)
 
 
 class RawRecorder:
     """Fills the rt_raw record from the state block the cycle just published; called by the loop."""
 
-    def __init__(self, block: StateBlock, write: Any) -> None:
+    def __init__(self, block: StateBlock, write: Callable[[np.ndarray], object]) -> None:
         self._block = block
         self._write = write
         self.record = np.zeros(raw_record_length(block.dof))
@@ -55,6 +58,7 @@ class RawRecorder:
         self._rows = self.record[len(RAW_SCALARS):].reshape(len(ROWS), block.dof)
 
     def __call__(self, latency_ns: int, compute_ns: int) -> None:
+        """Write this cycle's record, with its wake-up latency and the previous cycle's compute time."""
         header = self._block.header
         scalars = self._scalars
         scalars[0] = header[1]
@@ -77,6 +81,7 @@ def event_record(event: Event) -> bytes:
 
 
 def event_from_record(record: bytes) -> Event:
+    """The event in one JSON record written by `event_record`."""
     data = json.loads(record)
     previous = data["previous_mode"]
     return Event(EventKind(data["kind"]), data["cause"], data["reason"], Mode[data["mode"]], data["cycle"],

@@ -56,13 +56,13 @@ def number(value: Any, what: str, low: float, high: float, *, low_open: bool = F
                               why=f"got {shown(value)} ({type(value).__name__})", how=f"send {what} as a plain number")
     if isinstance(value, int) and not -1e300 < value < 1e300:
         value = math.inf if value > 0 else -math.inf
-    value = float(value)
-    below = value <= low if low_open else value < low
-    if not math.isfinite(value) or below or value > high:
+    result = float(value)
+    below = result <= low if low_open else result < low
+    if not math.isfinite(result) or below or result > high:
         interval = f"{'(' if low_open else '['}{low:g}, {high:g}]"
         raise CommandRejected(f"{what} is out of range", what=f"a finite number in {interval}",
-                              why=f"{what} = {value:g}", how=f"send {what} within {interval}")
-    return value
+                              why=f"{what} = {result:g}", how=f"send {what} within {interval}")
+    return result
 
 
 def numbers(values: Any, what: str, count: int, magnitude: float = MAX_MAGNITUDE) -> list[float]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import struct
+from typing import Literal, overload
 
 import numpy as np
 
@@ -92,6 +93,7 @@ class SlotRing:
 
     @property
     def writable(self) -> bool:
+        """True when this process mapped the ring for writing."""
         return self._segment.writable
 
     @property
@@ -143,6 +145,12 @@ class SlotRing:
         self._seq[i] = 2 * n + 2
         self._hot[HEAD] = n + 1
 
+    @overload
+    def _take(self, n: int, values: Literal[False]) -> bytes | None: ...
+    @overload
+    def _take(self, n: int, values: Literal[True]) -> np.ndarray | None: ...
+    @overload
+    def _take(self, n: int, values: bool) -> bytes | np.ndarray | None: ...
     def _take(self, n: int, values: bool) -> bytes | np.ndarray | None:
         """A copy of record n, or None when it was overwritten before or during the copy."""
         i = n % self.slots
@@ -194,6 +202,10 @@ class RingReader:
         """Records written but not yet read (at most one ring): the fill level this reader sees."""
         return min(self._ring.head - self._cursor, self._ring.slots)
 
+    @overload
+    def _next(self, values: Literal[False]) -> bytes | None: ...
+    @overload
+    def _next(self, values: Literal[True]) -> np.ndarray | None: ...
     def _next(self, values: bool) -> bytes | np.ndarray | None:
         ring = self._ring
         while (head := ring.head) > self._cursor:

@@ -46,6 +46,7 @@ def state_segment_name(robot_id: str) -> str:
 
 
 def joint_names_hash(joint_names: Sequence[str]) -> bytes:
+    """A 16-byte digest of the joint names in order, so a reader can tell it maps the arm it expects."""
     return hashlib.blake2b("\0".join(joint_names).encode(), digest_size=16).digest()
 
 
@@ -93,12 +94,15 @@ class StateSegment:
 
     @property
     def name(self) -> str:
+        """The shared-memory name, e.g. /indy_joint_actual_values."""
         return self.segment.name
 
     @property
     def poses(self) -> dict[str, list[float]]:
         """Named joint poses, e.g. {'home': [...]} from the SRDF."""
-        return json.loads(bytes(self.segment.buffer[POSES_OFFSET:LIMITS_OFFSET]).rstrip(b"\0") or b"{}")
+        text = bytes(self.segment.buffer[POSES_OFFSET:LIMITS_OFFSET]).rstrip(b"\0")
+        poses: dict[str, list[float]] = json.loads(text or b"{}")
+        return poses
 
     @property
     def limits(self) -> ArmLimits:
@@ -107,6 +111,7 @@ class StateSegment:
 
     @staticmethod
     def size(dof: int) -> int:
+        """Bytes of a state segment for `dof` joints: header, names, poses, limits and the state block."""
         return _block_offset(dof) + StateBlock.nbytes(dof)
 
     @classmethod
@@ -204,9 +209,10 @@ class StateSegment:
         return SegmentHeader(dof, cycle_ns, pid, names)
 
     def close(self) -> None:
-        """Drop the block's views, then unmap."""
-        self.block = None
-        self._limits = None
+        """Drop the block's views, then unmap; closing twice does nothing more."""
+        for view in ("block", "_limits"):
+            if hasattr(self, view):
+                delattr(self, view)
         self.segment.close()
 
     def remove(self) -> None:

@@ -12,6 +12,8 @@ from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
 
 @dataclass(frozen=True)
 class LaunchArgument:
+    """One `name:=value` argument of `plem launch`: its default ('' for none) and its help line."""
+
     name: str
     default: str
     help: str

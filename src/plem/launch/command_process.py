@@ -35,6 +35,7 @@ class CommandServiceProcess:
 
     @property
     def pid(self) -> int | None:
+        """The running service's process id, None while none is started."""
         return None if self._process is None else self._process.pid
 
     def start(self) -> None:
@@ -43,8 +44,10 @@ class CommandServiceProcess:
         process = subprocess.Popen([sys.executable, "-m", "plem.launch.command_service", self.robot_id],
                                    stdout=subprocess.PIPE, text=True, env=env)
         self._process = process
-        readable, _, _ = select.select([process.stdout], [], [], READY_TIMEOUT_S)
-        line = process.stdout.readline() if readable else ""
+        stdout = process.stdout
+        assert stdout is not None  # opened with stdout=PIPE
+        readable, _, _ = select.select([stdout], [], [], READY_TIMEOUT_S)
+        line = stdout.readline() if readable else ""
         announcement = json.loads(line) if line.startswith("{") else {}
         if not announcement.get("ready"):
             self.stop()

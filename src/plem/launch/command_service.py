@@ -62,6 +62,7 @@ MAX_PENDING_OUTPUT = 1 << 20
 POLL_S = 0.0005
 RESTART_HOW = "check the robot with `plem state`; restart it with `plem launch` if its loop stopped"
 COUNTERS_PERIOD_S = 0.1
+StartState = tuple[np.ndarray, np.ndarray, np.ndarray]  # position, velocity and acceleration
 _log = logging.getLogger("plem.command_service")
 
 
@@ -106,6 +107,8 @@ class CommandService:
         self.server = server
         self.intake = channels.rings["intake"]
         self.outcomes = channels.rings["outcomes"].reader(from_oldest=False)
+        if channels.motions is None:
+            raise ValueError("the command service needs the motion slab: channels of RobotChannels.attach_service")
         self.slab = channels.motions
         self.free_slots = list(range(self.slab.slots))
         self.counters = Counters()
@@ -120,6 +123,7 @@ class CommandService:
 
     # -- the socket --------------------------------------------------------------------------------
     def run(self, stop: threading.Event) -> None:
+        """Accept clients, serve their requests and pass the driver's answers on, until `stop` is set."""
         while not stop.is_set():
             for key, events in self._selector.select(POLL_S):
                 if key.fileobj is self.server:
@@ -263,13 +267,15 @@ class CommandService:
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop the robot first")
 
-    def _planner(self, request: CheckedRequest) -> Callable[[tuple[np.ndarray, ...]], PolynomialMotion]:
+    def _planner(self, request: CheckedRequest) -> Callable[[StartState], PolynomialMotion]:
         limits, args = self.limits, request.args
         if request.op == "move_joints":
             return lambda start: plan_point_to_point(limits, start, args["target"], args["speed_scale"]).polynomial()
 
-        def fit(start: tuple[np.ndarray, ...]) -> PolynomialMotion:
-            spline = Spline.build(args["trajectory"], limits, *start)
+        def fit(start: StartState) -> PolynomialMotion:
+            position, velocity, acceleration = start
+            spline = Spline.build(args["trajectory"], limits, position.tolist(), velocity.tolist(),
+                                  acceleration.tolist())
             spline.check_limits(limits, self.cycle_time_s)
             return spline
 
@@ -305,7 +311,8 @@ class CommandService:
     def _take_slot(self) -> int:
         self._until(lambda: bool(self.free_slots), DriverSilent(
             "no motion slot was released", what="the driver to release a finished motion",
-            why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s", how="stop the robot and retry"))
+            why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s",
+            how="stop the robot and retry"))
         return self.free_slots.pop(0)
 
     def _pump(self) -> None:

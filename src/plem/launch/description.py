@@ -31,6 +31,7 @@ class LaunchDescription:
 
     @property
     def enabled(self) -> list[str]:
+        """The components switched on, in the order of COMPONENTS."""
         return [name for name in COMPONENTS if self.components.get(name)]
 
 
@@ -69,7 +70,7 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
         description = generate()
     except PlemError:
         raise
-    except Exception as error:  # user code: report it as the user's problem, with its location
+    except Exception as error:  # noqa: BLE001 - user code may raise anything: report it as the user's problem
         raise LaunchFileError(f"Launch file {path.name} failed", what="generate_launch_description() to return "
                               "plem.launch.bringup(...)", why=f"{type(error).__name__}: {error}",
                               how=f"fix {path}") from None

@@ -72,6 +72,8 @@ class DriverService:
     def __post_init__(self) -> None:
         self._intake = self.channels.rings["intake"].consumer()
         self._outcomes = self.channels.rings["outcomes"]
+        if self.channels.motions is None:
+            raise ValueError("the driver service needs the motion slab: the driver's channels (RobotChannels.create)")
         self._slab = self.channels.motions
         self._pending: dict[int, _Pending] = {}
         self._prepared: OrderedDict[int, tuple[PlanBasis, int | None, np.ndarray]] = OrderedDict()
@@ -81,6 +83,7 @@ class DriverService:
         self.thread = threading.Thread(target=self._run, name=f"plem-service-{self.robot.robot_id}", daemon=True)
 
     def start(self) -> None:
+        """Start serving in the background thread `thread`; set `stop` to end it."""
         self.thread.start()
 
     def _run(self) -> None:

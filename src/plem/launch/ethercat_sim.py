@@ -14,14 +14,14 @@ from plem.errors import ConfigError
 from plem.fieldbus.ethercat.virtual.emulator import Arm, VirtualNetwork
 from plem.launch.component import announce, run_component
 from plem.launch.plan import RobotPlan, plan_robot
-from plem.robot.robot import arm_joint_names
+from plem.robot.robot import arm_joint_names, startup_urdf
 
 
 def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) -> Arm:
     """The arm the emulated drives move: the plan's joints, URDF, drive parameters and cycle time."""
-    report = plan.report
-    joint_names = arm_joint_names(plan.config, report)
-    drives = drive_parameters(report.urdf, joint_names)
+    urdf, urdf_xml = startup_urdf(plan.report)
+    joint_names = arm_joint_names(plan.config, urdf)
+    drives = drive_parameters(urdf, joint_names)
     if not drives:
         raise ConfigError(f"{plan.package.name} has no drive parameters for the virtual EtherCAT network",
                           what="encoder_resolution, gear_ratio and direction <param> tags for every joint",
@@ -31,7 +31,7 @@ def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) ->
         raise ConfigError("wrong number of encoder zeros for the virtual network",
                           what=f"one raw encoder reading at home per joint ({len(joint_names)})",
                           why=f"got {len(encoder_zero)}", how=f"give {len(joint_names)} whole numbers")
-    return Arm(joint_names, report.urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero)
+    return Arm(joint_names, urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero)
 
 
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:

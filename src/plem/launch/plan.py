@@ -55,10 +55,12 @@ class RobotPlan:
 
     @property
     def config(self) -> SerialArmConfig:
+        """The robot's resolved configuration (the field sources are in `resolved`)."""
         return self.resolved.config
 
     @property
     def robot_id(self) -> str:
+        """Instance id of this robot: namespace of its topics and prefix of its shared memory."""
         return self.config.robot_id
 
     def joint_state_rate(self) -> float:
@@ -118,6 +120,7 @@ def _integer(arguments: Mapping[str, str], name: str, low: int, high: int, error
 
 
 def bag_directory(arguments: Mapping[str, str]) -> Path:
+    """The directory of all robots' bags (`bag_dir`, `~` expanded); each robot records into its own subdirectory."""
     return Path(arguments.get("bag_dir") or DEFAULTS["bag_dir"]).expanduser()
 
 
@@ -212,8 +215,8 @@ def _interface_from_etherlab(resolved: ResolvedConfig) -> None:
     device = default_interface(resolved.config.master_index)
     if device:
         resolved.config.network_interface = device
-        resolved.sources["network_interface"] = Source(LayerKind.LAUNCH_DEFAULT,
-                                                       f"MASTER{resolved.config.master_index}_DEVICE in {ETHERLAB_CONF}")
+        origin = f"MASTER{resolved.config.master_index}_DEVICE in {ETHERLAB_CONF}"
+        resolved.sources["network_interface"] = Source(LayerKind.LAUNCH_DEFAULT, origin)
 
 
 def check_shared_hardware(plans: list[RobotPlan]) -> None:

@@ -58,6 +58,7 @@ def _command_thread(bridge: RobotBridge, stop: threading.Event) -> threading.Thr
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the bridge of the robot whose launch arguments (JSON) are `argv[0]`; the process's exit code."""
     return run_component("bridge", serve, argv)
 
 

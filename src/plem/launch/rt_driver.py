@@ -13,12 +13,16 @@ import logging
 import os
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from plem.control.events import Event
+from plem.control.limits import ArmLimits
 from plem.control.realtime import keep_threads_scheduled
+from plem.control.state import StateBlock
 from plem.errors import PlemError
+from plem.fieldbus.bus import IBus
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import socket_path
 from plem.ipc.records import RawRecorder, event_record
@@ -31,7 +35,7 @@ from plem.robot.robot import Robot
 _log = logging.getLogger("plem.rt_driver")
 
 
-def _bus(plan: RobotPlan) -> Any:
+def _bus(plan: RobotPlan) -> IBus | None:
     if plan.bus == "mock":
         from plem.fieldbus.mock import MockBus
 
@@ -39,11 +43,11 @@ def _bus(plan: RobotPlan) -> Any:
     return None  # the builder opens the EtherCAT master (bus:=ethercat, or the virtual network's)
 
 
-def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChannels]:
+def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[Robot, RobotChannels]:
     """The robot of `plan`, publishing into freshly created shared memory (removed again if building fails)."""
     channels: list[RobotChannels] = []
 
-    def state_block(limits: Any) -> Any:
+    def state_block(limits: ArmLimits) -> StateBlock:
         mode = 0o640 if plan.shm_group is not None else 0o600
         channels.append(RobotChannels.create(plan.robot_id, limits, plan.config.cycle_time * 1000,
                                              poses=plan.poses(limits.joint_names), mode=mode, group=plan.shm_group,
@@ -60,7 +64,11 @@ def build(plan: RobotPlan, warn: Any = _log.warning) -> tuple[Robot, RobotChanne
             created.remove()
         raise
     events = channels[0].rings["events"]
-    robot.events.subscribe(lambda event: events.write(event_record(event)))
+
+    def record_event(event: Event) -> None:
+        events.write(event_record(event))
+
+    robot.events.subscribe(record_event)
     return robot, channels[0]
 
 
@@ -92,7 +100,7 @@ def driving(plan: RobotPlan) -> Iterator[Driver]:
         channels.remove()
 
 
-def serve(plan: RobotPlan, stop: threading.Event, announce: Any) -> None:
+def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, Any]], None]) -> None:
     """Run the robot of `plan` until `stop`, after announcing readiness.
 
     The loop runs on when the command service dies (it is restarted); when the service thread dies, the
@@ -125,6 +133,7 @@ def _serve_launched(arguments: dict[str, str], stop: threading.Event) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the RT driver of the robot whose launch arguments (JSON) are `argv[0]`; the process's exit code."""
     return run_component("rt_driver", _serve_launched, argv)
 
 

@@ -17,12 +17,16 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from plem.errors import PlemError
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
 from plem.middleware.discovery import DiscoverySettings
+
+if TYPE_CHECKING:
+    from plem.bridge.client import RobotClient, Stream
+    from plem.control.events import Event
 
 READY_TIMEOUT_S = 120.0
 STOP_TIMEOUT_S = 20.0
@@ -44,15 +48,17 @@ class Child:
 
     robot_id: str
     component: str
-    process: subprocess.Popen
+    process: subprocess.Popen[str]
     critical: bool
     ready: dict[str, Any] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
+        """`[robot_id/component]`, the prefix of the child's lines in the launch's output."""
         return f"[{self.robot_id}/{self.component}]"
 
     def exit_description(self) -> str:
+        """How the child ended: its exit code, or the signal that killed it."""
         code = self.process.returncode
         if code is not None and code < 0:
             return f"killed by {signal.Signals(-code).name}"
@@ -69,10 +75,11 @@ class Supervisor:
         self.out = out
         self.children: list[Child] = []
         self.stop_requested = threading.Event()
-        self._clients: dict[str, Any] = {}
-        self._event_streams: dict[str, Any] = {}
+        self._clients: dict[str, RobotClient] = {}
+        self._event_streams: dict[str, Stream[Event]] = {}
 
     def say(self, line: str) -> None:
+        """Print one line of the launch's output."""
         self._write(line + "\n")
 
     def _write(self, text: str) -> None:
@@ -134,6 +141,7 @@ class Supervisor:
     def _await_ready(self, child: Child) -> dict[str, Any]:
         deadline = time.monotonic() + READY_TIMEOUT_S
         stream = child.process.stdout
+        assert stream is not None  # started with stdout=PIPE
         while time.monotonic() < deadline and not self.stop_requested.is_set():
             readable, _, _ = select.select([stream], [], [], 0.2)
             if not readable:
@@ -143,7 +151,7 @@ class Supervisor:
             line = stream.readline()
             if not line:
                 break
-            announcement = json.loads(line)
+            announcement: dict[str, Any] = json.loads(line)
             if announcement.get("ready"):
                 return announcement
             error = announcement.get("error", {})
@@ -278,7 +286,7 @@ class Supervisor:
         self._event_streams.clear()
 
 
-def status_line(robot_id: str, client: Any) -> str:
+def status_line(robot_id: str, client: RobotClient) -> str:
     """One compact line: mode, cycle, recent latency, overruns, fault reason when faulted."""
     state = client.state()
     stats = client.stats() or {}

@@ -50,7 +50,7 @@ def goal_uuid(node: Node, goal_id: bytes) -> Any:
 class _Goal:
     goal_id: bytes
     stamp: Any
-    execution: Execution | None
+    execution: Execution
     status: int = EXECUTING
     result: Any = None
     waiting: list[Any] = field(default_factory=list)
@@ -114,14 +114,14 @@ class ActionServer:
         if goal_id in self._goals:   # a repeated id is refused, as rcl_action does
             self.send_goal.reply(request, accepted=False, stamp=stamp)
             return False
-        goal = _Goal(goal_id, stamp, None)
-        self._goals[goal_id] = goal
         self.send_goal.reply(request, accepted=True, stamp=stamp)
+        execution: Execution
         try:
-            goal.execution = self._start(request.goal)
-        except Exception:  # an accepted goal always ends, even when starting it failed unexpectedly
+            execution = self._start(request.goal)
+        except Exception:  # noqa: BLE001 - an accepted goal always ends, even when starting it failed unexpectedly
             _log.exception("a %s goal could not be started; it is aborted", self.ros_type)
-            goal.execution = _Failed()
+            execution = _Failed()
+        self._goals[goal_id] = _Goal(goal_id, stamp, execution)
         self._trim()
         return True
 
@@ -222,5 +222,5 @@ class ActionClient:
     def cancel(self, goal_id: bytes, timeout: float = 5.0) -> int:
         """Ask the server to cancel one goal; the CancelGoal return code."""
         info = self.node.library.new("action_msgs/msg/GoalInfo", goal_id=goal_uuid(self.node, goal_id))
-        return self._cancel.call(timeout, goal_info=info).return_code
+        return int(self._cancel.call(timeout, goal_info=info).return_code)
 

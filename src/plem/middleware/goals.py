@@ -39,7 +39,7 @@ _STATUS = {TrajectoryOutcome.SUCCEEDED: SUCCEEDED, TrajectoryOutcome.CANCELED: C
 
 def seconds(duration: Any) -> float:
     """builtin_interfaces Time or Duration in seconds."""
-    return duration.sec + duration.nanosec * 1e-9
+    return float(duration.sec + duration.nanosec * 1e-9)
 
 
 def trajectory_from_message(message: Any, now_ns: int | None = None) -> JointTrajectory:
@@ -94,9 +94,11 @@ class Finished:
     result: dict[str, Any]
 
     def poll(self) -> tuple[None, tuple[int, dict[str, Any]]]:
+        """No feedback; the status and result it ended with."""
         return None, (self.status, self.result)
 
     def cancel(self) -> bool:
+        """Nothing to cancel: the goal has ended."""
         return False
 
 
@@ -117,9 +119,10 @@ class TrajectoryGoal:
         self._started = time.monotonic()
 
     def poll(self) -> tuple[Any | None, tuple[int, dict[str, Any]] | None]:
-        if not self._handle.done:
+        """Feedback while the motion runs; its status and result once the driver replied."""
+        reply = self._handle.reply if self._handle.done else None
+        if reply is None:
             return self._feedback(), None
-        reply = self._handle.reply
         result = result_from_json(reply["result"])
         if isinstance(result, TrajectoryResult):   # the runtime's own outcome, also when the motion failed
             return None, (_STATUS[result.outcome], {"error_code": int(result.error_code),
@@ -129,6 +132,7 @@ class TrajectoryGoal:
                                 "error_string": error.render() if error else "the motion ended without a result"})
 
     def cancel(self) -> bool:
+        """Ask the driver to stop this goal's motion; always accepted."""
         self._handle.cancel()  # names this goal: a goal that replaced it keeps running
         return True
 
@@ -170,23 +174,26 @@ class ModeGoal:
         self._error = error
 
     def poll(self) -> tuple[dict[str, Any] | None, tuple[int, dict[str, Any]] | None]:
+        """The current mode as feedback until the driver replied, then success or the reason it failed."""
         state = self._client.state()
         mode = state.mode.name.lower() if state is not None else ""
         error = self._error
         if self._handle is not None:
-            if not self._handle.done:
+            reply = self._handle.reply if self._handle.done else None
+            if reply is None:
                 return {"mode": mode}, None
-            reply = self._handle.reply
             error = error_from_json(reply["error"]) if reply["error"] is not None else None
         if error is not None:
             return None, (ABORTED, {"success": False, "mode": mode, "message": error.render()})
         return None, (SUCCEEDED, {"success": True, "mode": mode, "message": ""})
 
     def cancel(self) -> bool:
+        """A mode change cannot be canceled once requested."""
         return False
 
 
 def start_mode_change(client: RobotClient, goal: Any) -> ModeGoal:
+    """Request a plem_msgs/SetMode goal's mode; a refused request ends the goal with the reason."""
     try:
         return ModeGoal(client, client.request_mode(goal.mode))
     except PlemError as error:

@@ -45,13 +45,21 @@ class QueueCount:
 class MonitorSink(Protocol):
     """Where a feed's messages go (`wall_ns`: the message's stamp, ns since the epoch)."""
 
-    def rt_raw(self, cdr: bytes, wall_ns: int) -> None: ...
+    def rt_raw(self, cdr: bytes, wall_ns: int) -> None:
+        """One cycle's plem_msgs/RtRaw, already in CDR."""
+        ...
 
-    def joint_state(self, message: Any, wall_ns: int) -> None: ...
+    def joint_state(self, message: Any, wall_ns: int) -> None:
+        """A sensor_msgs/JointState at the joint_states rate."""
+        ...
 
-    def rt_event(self, message: Any, event: Event, wall_ns: int) -> None: ...
+    def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
+        """A plem_msgs/RtEvent, with the event it was made from."""
+        ...
 
-    def rt_monitor_stats(self, message: Any, wall_ns: int) -> None: ...
+    def rt_monitor_stats(self, message: Any, wall_ns: int) -> None:
+        """A plem_msgs/RtMonitorStats for one record of the driver's statistics."""
+        ...
 
     def queues(self) -> list[QueueCount]:
         """The sink's own queues, reported after the rings in rt_monitor_stats."""
@@ -94,10 +102,10 @@ class MonitorFeed:
                 if self._next_joint_state <= monotonic_ns:        # the first one, or after a gap: no burst
                     self._next_joint_state = monotonic_ns + self._joint_period_ns
             count += 1
-        for record in self.readers["events"].read_all():
-            self._event(sink, record)
-        for record in self.readers["stats"].read_all():       # the driver writes them at 10 Hz
-            self._stats(sink, json.loads(record))
+        for event_record in self.readers["events"].read_all():
+            self._event(sink, event_record)
+        for stats_record in self.readers["stats"].read_all():       # the driver writes them at 10 Hz
+            self._stats(sink, json.loads(stats_record))
         return count
 
     def _header(self, monotonic_ns: int) -> tuple[Any, int]:

@@ -32,10 +32,12 @@ def topic(name: str) -> str:
 
 
 def request_topic(service: str) -> str:
+    """DDS topic of a ROS 2 service's requests."""
     return f"rq{check_name(service)}Request"
 
 
 def reply_topic(service: str) -> str:
+    """DDS topic of a ROS 2 service's replies."""
     return f"rr{check_name(service)}Reply"
 
 
@@ -79,8 +81,10 @@ class ActionNames:
 
     @property
     def feedback(self) -> str:
+        """The ROS topic the action's feedback messages go to."""
         return f"{check_name(self.name)}/_action/feedback"
 
     @property
     def status(self) -> str:
+        """The ROS topic of the action's goal status array."""
         return f"{check_name(self.name)}/_action/status"

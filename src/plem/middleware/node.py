@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Iterable
 from typing import Any, Generic, TypeVar
+from uuid import UUID
 
 from cyclonedds._clayer import ddspy_write
 from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
@@ -39,7 +40,7 @@ PARTICIPANT_USER_DATA = b"enclave=/;"
 class Publisher(Generic[M]):
     """Writes messages of one type on one ROS 2 topic."""
 
-    def __init__(self, writer: DataWriter, message: type[M], node: Node) -> None:
+    def __init__(self, writer: DataWriter[Any], message: type[M], node: Node) -> None:
         self.node = node  # the participant must outlive its endpoints
         self.writer = writer
         self.message = message
@@ -69,13 +70,14 @@ class Publisher(Generic[M]):
     @property
     def subscribers(self) -> int:
         """Readers currently matched with this publisher."""
-        return self.writer.get_publication_matched_status().current_count
+        status = self.writer.get_publication_matched_status()  # type: ignore[no-untyped-call]  # cyclonedds: untyped
+        return int(status.current_count)
 
 
 class Subscription(Generic[M]):
     """Takes messages of one type from one ROS 2 topic."""
 
-    def __init__(self, reader: DataReader, message: type[M], node: Node) -> None:
+    def __init__(self, reader: DataReader[Any], message: type[M], node: Node) -> None:
         self.node = node  # the participant must outlive its endpoints
         self.reader = reader
         self.message = message
@@ -87,7 +89,9 @@ class Subscription(Generic[M]):
 
     @property
     def publishers(self) -> int:
-        return self.reader.get_subscription_matched_status().current_count
+        """Writers currently matched with this subscription."""
+        status = self.reader.get_subscription_matched_status()  # type: ignore[no-untyped-call]  # cyclonedds: untyped
+        return int(status.current_count)
 
 
 def _service_part(node: Node, service: str, ros_type: str, part: str) -> tuple[str, type, QosProfile, bytes]:
@@ -107,7 +111,7 @@ class ServiceServer:
     def __init__(self, node: Node, service: str, ros_type: str) -> None:
         self.requests = node.subscription_of(*_service_part(node, service, ros_type, "Request"))
         self._replies = node.publisher_of(*_service_part(node, service, ros_type, "Response"))
-        self._pending: list[tuple[float, Any, Any]] = []
+        self._pending: list[tuple[float, UUID | None, Any]] = []
 
     def take(self) -> list[Any]:
         """Waiting requests; each keeps rmw's header (`rmw_guid`, `rmw_seq`) for its reply."""
@@ -126,11 +130,12 @@ class ServiceServer:
             return
         try:
             writer = self._replies.writer
-            matched = {writer.get_matched_subscription_data(handle).participant_key
-                       for handle in writer.get_matched_subscriptions()}
+            matched = {data.participant_key for handle in writer.get_matched_subscriptions()
+                       if (data := writer.get_matched_subscription_data(handle)) is not None}
         except (IndexError, DDSException):  # a match changed while listing them: try again on the next call
             return
-        now, waiting = time.monotonic(), []
+        now = time.monotonic()
+        waiting: list[tuple[float, UUID | None, Any]] = []
         for deadline, client, message in self._pending:
             if client is None or client in matched:
                 self._replies.publish(message)
@@ -139,12 +144,13 @@ class ServiceServer:
         self._pending = waiting
 
 
-def _participant_of(reader: DataReader, publication_handle: int) -> Any:
+def _participant_of(reader: DataReader[Any], publication_handle: int) -> UUID | None:
     """The participant of the writer that sent a sample, or None when it is already gone."""
     try:
-        return reader.get_matched_publication_data(publication_handle).participant_key
+        data = reader.get_matched_publication_data(publication_handle)
     except (IndexError, DDSException):
         return None
+    return None if data is None else data.participant_key
 
 
 class ServiceClient:
@@ -167,7 +173,7 @@ class ServiceClient:
         """Send one request and wait for its reply; TimeoutError when none arrives in time."""
         sequence = next(self._sequence)
         self._requests.publish(self._requests.message(rmw_guid=self.guid, rmw_seq=sequence, **fields))
-        waitset = WaitSet(self._replies.reader.participant)
+        waitset = WaitSet(self._replies.node.participant)
         waitset.attach(self._replies.condition)
         deadline = time.monotonic() + timeout
         while True:
@@ -216,10 +222,11 @@ class Node:
         self.library = interfaces or library()
         self._domain = _domain(self.settings)
         self.participant = DomainParticipant(self.settings.domain_id, qos=Qos(Policy.Userdata(PARTICIPANT_USER_DATA)))
-        self._topics: dict[str, Topic] = {}
+        self._topics: dict[str, Topic[Any]] = {}
 
     @property
     def domain_id(self) -> int:
+        """The DDS domain (ROS_DOMAIN_ID) this participant joined."""
         return self.settings.domain_id
 
     def publisher(self, topic: str, ros_type: str, profile: QosProfile) -> Publisher[Any]:
@@ -228,6 +235,7 @@ class Node:
                                  self.type_user_data(ros_type))
 
     def subscription(self, topic: str, ros_type: str, profile: QosProfile) -> Subscription[Any]:
+        """A subscription to the ROS 2 topic `topic` (absolute, e.g. /indy/joint_states)."""
         return self.subscription_of(names.topic(topic), self.library.message(ros_type), profile,
                                     self.type_user_data(ros_type))
 
@@ -236,6 +244,7 @@ class Node:
         return ServiceServer(self, service, ros_type)
 
     def client(self, service: str, ros_type: str) -> ServiceClient:
+        """A client of `ros_type` (e.g. action_msgs/srv/CancelGoal) for the absolute name `service`."""
         return ServiceClient(self, service, ros_type)
 
     def publisher_of(self, dds_topic: str, struct: type, profile: QosProfile, user_data: bytes) -> Publisher[Any]:
@@ -245,6 +254,7 @@ class Node:
 
     def subscription_of(self, dds_topic: str, struct: type, profile: QosProfile,
                         user_data: bytes) -> Subscription[Any]:
+        """A subscription to a DDS topic given by its wire name (for the parts of services and actions)."""
         reader = DataReader(self.participant, self._topic(dds_topic, struct), profile.qos(user_data))
         return Subscription(reader, struct, self)
 
@@ -259,7 +269,7 @@ class Node:
             waitset.attach((item.requests if isinstance(item, ServiceServer) else item).condition)
         return waitset
 
-    def _topic(self, dds_topic: str, struct: type) -> Topic:
+    def _topic(self, dds_topic: str, struct: type) -> Topic[Any]:
         if dds_topic not in self._topics:
             self._topics[dds_topic] = Topic(self.participant, dds_topic, struct)
         return self._topics[dds_topic]
@@ -267,5 +277,5 @@ class Node:
     def close(self) -> None:
         """Delete the participant and everything it created (peers see the endpoints go away)."""
         self._topics.clear()
-        self.participant = None  # type: ignore[assignment]
-        self._domain = None  # type: ignore[assignment]
+        self.participant = None  # type: ignore[assignment]  # dropping the last reference deletes the participant
+        self._domain = None  # type: ignore[assignment]  # and then the domain; the node is unusable after close

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import re
 import struct
+from collections.abc import Mapping
 from functools import cache
+from types import MappingProxyType
 
 import numpy as np
 
@@ -61,8 +63,8 @@ _RAW_FIELDS = ("sec", "nanosec", "frame_id_length", "frame_id", "cycle", "monoto
 
 
 @cache
-def raw_dtype(dof: int) -> np.dtype:
-    """A whole RtRaw CDR payload (encapsulation included) as a numpy record, read off `_layout` so both agree."""
+def _raw_layout(dof: int) -> tuple[Mapping[str, tuple[np.dtype, int]], int]:
+    """Numpy type and byte offset of each RtRaw field, and the payload's size, read off `_layout` so both agree."""
     names = iter(_RAW_FIELDS)
     fields: dict[str, tuple[np.dtype, int]] = {}
     offset = len(ENCAPSULATION)
@@ -77,15 +79,27 @@ def raw_dtype(dof: int) -> np.dtype:
             field = np.dtype((_NUMPY_CODES[code], (count,))) if code == "d" else np.dtype(_NUMPY_CODES[code])
         fields[next(names)] = (field, offset)
         offset += field.itemsize
+    return MappingProxyType(fields), offset
+
+
+def raw_fields(dof: int) -> Mapping[str, tuple[np.dtype, int]]:
+    """Numpy type and byte offset of each field of a whole RtRaw CDR payload (encapsulation included)."""
+    return _raw_layout(dof)[0]
+
+
+@cache
+def raw_dtype(dof: int) -> np.dtype:
+    """A whole RtRaw CDR payload (encapsulation included) as a numpy record, read off `_layout` so both agree."""
+    fields, itemsize = _raw_layout(dof)
     return np.dtype({"names": list(fields), "formats": [field for field, _ in fields.values()],
-                     "offsets": [at for _, at in fields.values()], "itemsize": offset})
+                     "offsets": [at for _, at in fields.values()], "itemsize": itemsize})
 
 
 def raw_dof(payload: bytes) -> int:
     """The DOF of one RtRaw CDR payload: the length of its position sequence."""
-    _, offset = raw_dtype(0).fields["position_length"]
+    _, offset = raw_fields(0)["position_length"]
     (dof,) = struct.unpack_from("<I", payload, offset)
-    return dof
+    return int(dof)
 
 
 def raw_field(buffer: np.ndarray, starts: np.ndarray, name: str, dof: int = 0) -> np.ndarray:
@@ -94,6 +108,7 @@ def raw_field(buffer: np.ndarray, starts: np.ndarray, name: str, dof: int = 0) -
     Only the field's bytes are gathered, so the cycles of a million messages take milliseconds. `dof`
     matters for the joint rows only: the fields before them sit at the same offsets whatever the DOF.
     """
-    field, offset = raw_dtype(dof).fields[name][:2]
+    field, offset = raw_fields(dof)[name]
     index = np.asarray(starts, dtype=np.int64)[:, None] + (offset + np.arange(field.itemsize))
-    return buffer[index].view(field.base).reshape(len(index), *field.shape)
+    gathered: np.ndarray = buffer[index]
+    return gathered.view(field.base).reshape(len(index), *field.shape)

@@ -70,15 +70,19 @@ class RobotBridge:
         return self.feed.pump(self)
 
     def rt_raw(self, cdr: bytes, wall_ns: int) -> None:
+        """Publish one rt_raw sample as it is, in CDR."""
         self.publishers["rt_raw"].publish_cdr(cdr)
 
     def joint_state(self, message: Any, wall_ns: int) -> None:
+        """Publish on joint_states."""
         self.publishers["joint_states"].publish(message)
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
+        """Publish on rt_events."""
         self.publishers["rt_events"].publish(message)
 
     def rt_monitor_stats(self, message: Any, wall_ns: int) -> None:
+        """Publish on rt_monitor_stats."""
         self.publishers["rt_monitor_stats"].publish(message)
 
     def queues(self) -> list[QueueCount]:
@@ -99,7 +103,7 @@ class RobotBridge:
                     self._on_trajectory(message)
                 self.follow.spin_once()
                 self.set_mode.spin_once()
-            except Exception:  # one bad request must not end command service for everyone
+            except Exception:  # noqa: BLE001 - one bad request must not end command service for everyone
                 _log.exception("a ROS command could not be handled; serving goes on")
 
     def _on_trajectory(self, message: Any) -> None:

@@ -81,6 +81,11 @@ def _parse(ros_type: str, text: str) -> dict[str, Any]:
     return {ros_type: parsed[f"{package}/msg/{name}"]}
 
 
+def _idl_type(constructor: type, *parameters: Any) -> Any:
+    """`constructor[parameters]` of cyclonedds's array, sequence or bounded_str: an annotation built at run time."""
+    return constructor[parameters]  # type: ignore[index]  # cyclonedds subscripts plain classes (__class_getitem__)
+
+
 def _load_store() -> Typestore:
     store = get_typestore(Stores.ROS2_JAZZY)
     for path in sorted(INTERFACES.glob("*/*/*.*")):
@@ -96,6 +101,7 @@ class InterfaceLibrary:
         self.store = _load_store()
 
     def known(self, ros_type: str) -> bool:
+        """Whether `ros_type` (e.g. `std_msgs/msg/String`) has a definition here."""
         return ros_type in self.store.fielddefs
 
     def message(self, ros_type: str) -> type[IdlStruct]:
@@ -147,7 +153,7 @@ class InterfaceLibrary:
             base, bound = detail
             if base == "wstring":
                 raise NotImplementedError("wstring fields are not supported")
-            kind = idl.bounded_str[bound] if base == "string" and bound else _BASE[base]
+            kind = _idl_type(idl.bounded_str, bound) if base == "string" and bound else _BASE[base]
             return kind, _ZERO.get(base, 0)
         if node == Nodetype.NAME:                             # another message
             struct = self.message(detail)
@@ -155,8 +161,9 @@ class InterfaceLibrary:
         element, size = detail
         kind, default = self._field(element)
         if node == Nodetype.ARRAY:
-            return idl.array[kind, size], lambda: [default() if callable(default) else default for _ in range(size)]
-        return (idl.sequence[kind, size] if size else idl.sequence[kind]), list
+            return (_idl_type(idl.array, kind, size),
+                    lambda: [default() if callable(default) else default for _ in range(size)])
+        return (_idl_type(idl.sequence, kind, size) if size else _idl_type(idl.sequence, kind)), list
 
 
 @cache

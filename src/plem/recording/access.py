@@ -28,10 +28,12 @@ class FileAccess:
 
     @property
     def file_mode(self) -> int:
+        """Permission bits of a recorded file: 0600, or 0640 with a group."""
         return 0o600 if self.group is None else 0o640
 
     @property
     def directory_mode(self) -> int:
+        """Permission bits of a recording directory: 0700, or 0750 with a group."""
         return 0o700 if self.group is None else 0o750
 
     @classmethod
@@ -78,3 +80,7 @@ class FileAccess:
             self.apply(path)
         if directory.stat().st_uid == os.geteuid():
             self.apply(directory)
+
+
+#: The default access: owner only, no group.
+OWNER_ONLY = FileAccess()

@@ -22,7 +22,7 @@ from typing import Any
 import yaml
 
 from plem.core.files import write_atomic
-from plem.recording.access import FileAccess
+from plem.recording.access import OWNER_ONLY, FileAccess
 from plem.recording.retention import Deletion, Segment
 
 _log = logging.getLogger("plem.recorder")
@@ -37,6 +37,7 @@ def iso_time(wall_ns: int) -> str:
 
 
 def directory_size(path: Path) -> int:
+    """Bytes of all files under `path`, what deleting it frees."""
     return sum(entry.stat().st_size for entry in path.rglob("*") if entry.is_file())
 
 
@@ -45,7 +46,8 @@ def bag_metadata(path: Path) -> dict[str, Any] | None:
     metadata = path / "metadata.yaml"
     if not metadata.is_file():
         return None
-    return yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    info: dict[str, Any] = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    return info
 
 
 def extent_of(info: dict[str, Any]) -> tuple[int, int]:
@@ -63,7 +65,7 @@ def bag_extent(path: Path) -> tuple[int, int] | None:
 class Archive:
     """The bag directory of one robot."""
 
-    def __init__(self, directory: Path, robot_id: str, access: FileAccess = FileAccess()) -> None:
+    def __init__(self, directory: Path, robot_id: str, access: FileAccess = OWNER_ONLY) -> None:
         self.directory = directory
         self.robot_id = robot_id
         self.access = access
@@ -97,6 +99,7 @@ class Archive:
                      mode=self.access.file_mode, group=self.access.group)
 
     def is_kept(self, path: Path) -> bool:
+        """Whether a segment has a keep mark (it holds seconds before a fault)."""
         return path.with_name(path.name + KEEP_SUFFIX).exists()
 
     def delete(self, deletion: Deletion) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterator
+from mmap import mmap
 
 from plem.errors import PlemError
 
@@ -20,7 +21,7 @@ class McapError(PlemError):
     """An MCAP file plem cannot read."""
 
 
-def records(data: bytes, start: int = 0) -> Iterator[tuple[int, memoryview]]:
+def records(data: bytes | mmap, start: int = 0) -> Iterator[tuple[int, memoryview]]:
     """(opcode, content) of every complete record from `start`; stops at the first truncated one."""
     view, position = memoryview(data), start
     while position + 9 <= len(data):

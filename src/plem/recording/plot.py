@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -42,7 +43,8 @@ def _joint_names(segments: list[SegmentInfo], dof: int) -> list[str]:
         topic = segment.topic_of(ros_type)
         first = next(read_topic(segment.path, topic), None) if topic else None
         if first is not None:
-            names = list(library().store.deserialize_cdr(first.message(0), ros_type).name)
+            message: Any = library().store.deserialize_cdr(first.message(0), ros_type)  # a generated message
+            names = list(message.name)
             if len(names) == dof:
                 return names
             break

@@ -61,17 +61,21 @@ class Recorder:
 
     # -- MonitorSink -----------------------------------------------------------------------------------
     def rt_raw(self, cdr: bytes, wall_ns: int) -> None:
+        """Record one cycle's RtRaw, already in CDR."""
         self._write("rt_raw", wall_ns, cdr)
 
     def joint_state(self, message: Any, wall_ns: int) -> None:
+        """Record a sensor_msgs/JointState."""
         self._write("joint_states", wall_ns, message.serialize())
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
+        """Record an RtEvent; a fault also keeps the segments of the flight window before it."""
         self._write("rt_events", wall_ns, message.serialize())
         if event.kind == EventKind.FAULT:
             self._keep_fault_window(event, wall_ns)
 
     def rt_monitor_stats(self, message: Any, wall_ns: int) -> None:
+        """Record an RtMonitorStats."""
         self._write("rt_monitor_stats", wall_ns, message.serialize())
 
     def queues(self) -> list[QueueCount]:
@@ -116,7 +120,7 @@ class Recorder:
             if wall_ns - self._segment_start >= self._segment_ns:
                 self._close()
                 self._open(wall_ns)
-            self.segment.write(f"{self.namespace}/{name}", wall_ns, data)  # type: ignore[union-attr]
+            self.segment.write(f"{self.namespace}/{name}", wall_ns, data)
         except OSError as error:
             self.unrecorded += 1
             self._stop(error)

@@ -30,6 +30,8 @@ class RepairError(PlemError):
 
 @dataclass(frozen=True)
 class RepairReport:
+    """The outcome of `repair`: the segment, the messages it holds, and whether it had to be rebuilt."""
+
     directory: Path
     messages: int
     repaired: bool

@@ -24,6 +24,8 @@ class Segment:
 
 @dataclass(frozen=True)
 class Deletion:
+    """A segment the guard deletes, and why (past retention, or the disk above its threshold)."""
+
     segment: Segment
     reason: str
 

@@ -10,18 +10,22 @@ files get the recorder's `FileAccess` once created and again once metadata.yaml 
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Final
 
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys.store import Typestore
 
-from plem.recording.access import FileAccess
+from plem.recording.access import OWNER_ONLY, FileAccess
 
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (ROS 2 Jazzy writes 9).
-BAG_VERSION = 9
+BAG_VERSION: Final = 9
 
 
 def bag_file(segment: Path) -> Path | None:
@@ -33,7 +37,7 @@ class SegmentWriter:
     """Writes serialized messages of fixed topics into one bag directory."""
 
     def __init__(self, directory: Path, topics: Sequence[tuple[str, str]], store: Typestore,
-                 storage: str = "mcap", flush_period_s: float = 1.0, access: FileAccess = FileAccess()) -> None:
+                 storage: str = "mcap", flush_period_s: float = 1.0, access: FileAccess = OWNER_ONLY) -> None:
         self.directory = directory
         self.access = access
         self.messages = 0
@@ -53,6 +57,7 @@ class SegmentWriter:
 
     @property
     def name(self) -> str:
+        """The segment's directory name, which names it in the event log."""
         return self.directory.name
 
     def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
@@ -67,23 +72,18 @@ class SegmentWriter:
     def flush(self) -> None:
         """Put everything written so far into the file (the page cache survives the process)."""
         storage = self._writer.storage
-        chunk = getattr(storage, "chunk", None)              # MCAP: a pending chunk, then the file buffer
-        if chunk is not None and chunk.bio.tell():
-            storage.close_chunk()
-        bio = getattr(storage, "bio", None)
-        if bio is not None:
-            bio.flush()
-        connection = getattr(storage, "conn", None)          # sqlite3: one transaction per flush period
-        if connection is not None:
-            connection.commit()
+        if isinstance(storage, McapWriter):                  # MCAP: a pending chunk, then the file buffer
+            if storage.chunk.bio.tell():
+                storage.close_chunk()
+            storage.bio.flush()
+        elif isinstance(storage, Sqlite3Writer):             # sqlite3: one transaction per flush period
+            storage.conn.commit()
         self._next_flush = time.monotonic_ns() + self._flush_period_ns
 
     def abandon(self) -> None:
         """Close the file unfinished after a failed write or close; it stays a killed segment for `repair`."""
-        try:
+        with contextlib.suppress(OSError):                   # the descriptor is closed even when the flush fails
             self._writer.abort()
-        except OSError:
-            pass                                             # the descriptor is closed even when the flush fails
 
     def close(self) -> None:
         """Finish the file (summary, footer) and write metadata.yaml."""

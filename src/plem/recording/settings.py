@@ -24,5 +24,6 @@ class RecordingSettings:
     group: int | None = None
 
     def describe(self) -> str:
+        """One line for the launch summary: storage, segment length, retention, disk threshold, flight window."""
         return (f"{self.storage}, segments of {self.segment_s:g} s, retention {self.retention_s / 60:g} min, "
                 f"disk_threshold {self.disk_threshold:g} %, {self.flight_window_s:g} s kept before a fault")

@@ -34,6 +34,7 @@ _warned: set[Path] = set()
 
 
 def status_path(robot_id: str) -> Path:
+    """The recorder's status file of `robot_id` in /dev/shm, where the bridge reads its counters."""
     return SHM_DIRECTORY / f"plem_recorder_{robot_id}.json"
 
 

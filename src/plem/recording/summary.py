@@ -24,7 +24,7 @@ import yaml
 from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
 from plem.middleware.monitor_feed import MONITOR_TOPICS
-from plem.middleware.raw_cdr import raw_dtype, raw_field
+from plem.middleware.raw_cdr import raw_field, raw_fields
 from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, read_event_log
 from plem.recording.mcap_records import (
     CHANNEL,
@@ -43,7 +43,8 @@ from plem.recording.status import read_status
 #: Gaps listed one by one; the totals count every gap.
 LISTED_GAPS = 20
 #: RtRaw payload bytes up to the end of its cycle number.
-CYCLE_END = raw_dtype(0).fields["cycle"][1] + 8
+_CYCLE_TYPE, _CYCLE_OFFSET = raw_fields(0)["cycle"]
+CYCLE_END = _CYCLE_OFFSET + _CYCLE_TYPE.itemsize
 
 
 class BagError(PlemError):
@@ -99,6 +100,7 @@ class Payloads:
     sizes: np.ndarray
 
     def message(self, index: int) -> bytes:
+        """The payload of message `index`, copied out of the buffer."""
         start = int(self.starts[index])
         return self.buffer[start:start + int(self.sizes[index])].tobytes()
 
@@ -185,6 +187,7 @@ class SegmentInfo:
 
     @property
     def name(self) -> str:
+        """The segment's directory name, as the event log names it."""
         return self.path.name
 
     def topic_of(self, ros_type: str) -> str | None:
@@ -192,6 +195,7 @@ class SegmentInfo:
         return next((topic for topic, (msgtype, _) in sorted(self.topics.items()) if msgtype == ros_type), None)
 
     def note(self) -> str:
+        """What to tell about a segment that is not complete ('' for a complete one)."""
         return {"killed": "killed — run `plem bag repair`", "recording": "open — being recorded",
                 "unreadable": f"unreadable: {self.problem}"}.get(self.state, "")
 
@@ -313,7 +317,7 @@ def _recorder_counts(segments: list[SegmentInfo]) -> dict[str, Any] | None:
     if found is None:
         return None
     stamp, data = found
-    stats = library().store.deserialize_cdr(data, MONITOR_TOPICS["rt_monitor_stats"])
+    stats: Any = library().store.deserialize_cdr(data, MONITOR_TOPICS["rt_monitor_stats"])  # a generated message
     queues = {queue.name: int(queue.dropped) for queue in stats.queues}
     return {"time_ns": stamp, "bag_dropped": queues.get("bag"),
             "ring_dropped": {name: queues[name] for name in ("rt_raw", "events", "stats") if name in queues}}

@@ -13,6 +13,7 @@ from plem.errors import ConfigError, PlemError, raise_collected
 from plem.robot.serial import serial_problem
 
 if TYPE_CHECKING:
+    from plem.fieldbus.bus import IBus
     from plem.robot.models import ArmModel
 
 SUPPORTED_DOF = (6, 7)
@@ -63,7 +64,7 @@ class SerialArmConfig:
     robot_serial: str | None = None
     joint_offsets: list[int] = field(default_factory=list)
     robot_id: str = ""
-    custom_bus: Any = None
+    custom_bus: IBus | None = None
 
     def __post_init__(self) -> None:
         if not self.joint_offsets and isinstance(self.dof, int) and self.dof > 0:

@@ -31,6 +31,7 @@ class ArmModel:
 
     @property
     def dof(self) -> int:
+        """Number of actuated joints, one per joint name."""
         return len(self.joint_names)
 
     @property
@@ -40,7 +41,8 @@ class ArmModel:
 
     def counts_per_radian(self) -> tuple[float, ...]:
         """Encoder counts per radian at each joint's output, through the gearing."""
-        return tuple(cpr * gear / (2 * math.pi) for cpr, gear in zip(self.encoder_counts_per_rev, self.gear_ratios))
+        pairs = zip(self.encoder_counts_per_rev, self.gear_ratios, strict=True)
+        return tuple(cpr * gear / (2 * math.pi) for cpr, gear in pairs)
 
 
 def _indy(name: str, robot_type: str, large: int, wrist: int) -> ArmModel:
@@ -58,61 +60,67 @@ def _indy(name: str, robot_type: str, large: int, wrist: int) -> ArmModel:
 
 
 @dataclass
-class Indy7(SerialArmConfig):
+class ArmPreset(SerialArmConfig):
+    """A SerialArmConfig for a known model: the model fixes `dof`, so it is not a constructor argument."""
+
+    MODEL: ClassVar[ArmModel]
+    dof: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.dof = self.MODEL.dof
+        super().__post_init__()
+
+
+@dataclass
+class Indy7(ArmPreset):
     """Indy7, 6 DOF (description package indy7_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("Indy7", "indy7", 3, 3)
-    dof: int = field(default=6, init=False)
 
 
 @dataclass
-class Indy7V2(SerialArmConfig):
+class Indy7V2(ArmPreset):
     """Indy7 v2, 6 DOF (description package indy7_v2_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("Indy7V2", "indy7_v2", 3, 3)
-    dof: int = field(default=6, init=False)
 
 
 @dataclass
-class Indy12(SerialArmConfig):
+class Indy12(ArmPreset):
     """Indy12, 6 DOF (description package indy12_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("Indy12", "indy12", 3, 3)
-    dof: int = field(default=6, init=False)
 
 
 @dataclass
-class Indy12V2(SerialArmConfig):
+class Indy12V2(ArmPreset):
     """Indy12 v2, 6 DOF (description package indy12_v2_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("Indy12V2", "indy12_v2", 3, 3)
-    dof: int = field(default=6, init=False)
 
 
 @dataclass
-class IndyRP2(SerialArmConfig):
+class IndyRP2(ArmPreset):
     """Indy RP2, 7 DOF (description package indyrp2_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("IndyRP2", "indyrp2", 4, 3)
-    dof: int = field(default=7, init=False)
 
 
 @dataclass
-class IndyRP2V2(SerialArmConfig):
+class IndyRP2V2(ArmPreset):
     """Indy RP2 v2, 7 DOF (description package indyrp2_v2_description)."""
 
     MODEL: ClassVar[ArmModel] = _indy("IndyRP2V2", "indyrp2_v2", 4, 3)
-    dof: int = field(default=7, init=False)
 
 
-MODELS: dict[str, type[SerialArmConfig]] = {
+MODELS: dict[str, type[ArmPreset]] = {
     preset.MODEL.robot_type: preset
     for preset in (Indy7, Indy7V2, Indy12, Indy12V2, IndyRP2, IndyRP2V2)
 }
 DEFAULT_ROBOT_TYPE = "indy7_v2"
 
 
-def model_for(robot_type: str) -> type[SerialArmConfig]:
+def model_for(robot_type: str) -> type[ArmPreset]:
     """The preset for a `robot_type` such as 'indy7_v2'."""
     try:
         return MODELS[robot_type]

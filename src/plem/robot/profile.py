@@ -131,7 +131,8 @@ class RobotProfile(BaseModel):
                 why=f"{path}: {details}",
                 how="correct those fields in the file",
             ) from None
-        problems = [f"missing required field '{name}'" for name in missing] + (profile.problems() if not missing else [])
+        problems = ([f"missing required field '{name}'" for name in missing]
+                    + (profile.problems() if not missing else []))
         if problems:
             raise ProfileError(
                 f"Invalid profile file: {path}",

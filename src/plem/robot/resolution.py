@@ -18,7 +18,7 @@ from plem.core.config.layers import Layer, LayerKind, Source, merge_layers
 from plem.core.config.settings import Setting
 from plem.errors import ConfigError, PlemError, raise_collected
 from plem.robot.config import ARM_SETTINGS, SerialArmConfig
-from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
+from plem.robot.models import DEFAULT_ROBOT_TYPE, ArmPreset, model_for
 from plem.robot.profile import RobotProfile
 
 LAUNCH_DEFAULTS: dict[str, Any] = {"robot_id": "indy"}
@@ -55,7 +55,7 @@ def _programmatic_values(programmatic: Mapping[str, Any] | SerialArmConfig | Non
 
 
 def _fresh(config_class: type[SerialArmConfig], dof: int) -> SerialArmConfig:
-    return config_class() if config_class.MODEL else config_class(dof=dof)
+    return config_class() if issubclass(config_class, ArmPreset) else config_class(dof=dof)
 
 
 def resolve_arm_config(
@@ -91,7 +91,8 @@ def resolve_arm_config(
     for setting in ARM_SETTINGS:
         text = env.get(setting.env or "", "")
         if text.strip():
-            _set_from_text(env_layer, setting, text, f"environment variable {setting.env}", f"environment {setting.env}", errors)
+            _set_from_text(env_layer, setting, text, f"environment variable {setting.env}",
+                           f"environment {setting.env}", errors)
         if setting.launch in launch:
             text = launch[setting.launch]
             origin = f"launch argument {setting.launch}"
@@ -103,7 +104,7 @@ def resolve_arm_config(
     warnings: list[str] = []
     profile_path = _apply_profile(merged, env, warnings)
     values = {name: value for name, (value, _) in merged.items() if name != "dof"}
-    config = config_class(**values) if config_class.MODEL else config_class(dof=defaults.dof, **values)
+    config = config_class(**values) if issubclass(config_class, ArmPreset) else config_class(dof=defaults.dof, **values)
     sources = {name: source for name, (_, source) in merged.items()}
     errors.extend(config.problems({name: str(source) for name, source in sources.items()}))
     raise_collected(errors, "the arm configuration")

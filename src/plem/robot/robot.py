@@ -13,11 +13,11 @@ import sys
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from plem.control.commands import CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
+from plem.control.commands import Command, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.kinematics import ArmDynamics
@@ -35,12 +35,18 @@ from plem.ipc.request_bounds import point_count
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 
+if TYPE_CHECKING:
+    from plem.description.model import UrdfModel
+    from plem.description.validate import ValidationReport
+
 PREEMPTION_LEAD_S = 0.02
 PLAN_ATTEMPTS = 5
 ACCEPT_TIMEOUT_S = 2.0
 MAX_SWITCH_INTERVAL_S = 0.0002
 SWITCH_INTERVALS_PER_CYCLE = 5  # another thread holds the interpreter for at most a fifth of a period
 DEFAULT_COUNTS_PER_RADIAN = MOTOR_ENCODER_COUNTS * LARGE_JOINT_GEAR / (2 * math.pi)
+
+StartState = tuple[np.ndarray, np.ndarray, np.ndarray]  # position, velocity and acceleration
 
 
 _log = logging.getLogger("plem.robot")
@@ -52,10 +58,20 @@ def _warn(runtime: ArmRuntime, text: str) -> None:
     runtime.events.emit(EventKind.WARNING, "realtime_setup", text, runtime.mode, runtime.cycle_count)
 
 
-def arm_joint_names(config: SerialArmConfig, report: Any) -> tuple[str, ...]:
+def startup_urdf(report: ValidationReport) -> tuple[UrdfModel, str]:
+    """The parsed URDF and its XML from a report of start-up validation, which produces both or raises."""
+    if report.urdf is None or report.urdf_xml is None:
+        raise ConfigError(f"description package '{report.files.name}' has no parsed URDF",
+                          what="a report of start-up validation (require_valid with Stage.STARTUP or later)",
+                          why=f"it was validated at stage {report.stage.name}",
+                          how="validate the package with stage=Stage.STARTUP before building the arm")
+    return report.urdf, report.urdf_xml
+
+
+def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]:
     """The arm's joints in drive order: the preset's names, else the URDF's actuated joints."""
     model = config.MODEL
-    return tuple(model.joint_names) if model else tuple(j.name for j in report.urdf.actuated_joints)
+    return tuple(model.joint_names) if model else tuple(j.name for j in urdf.actuated_joints)
 
 
 class Robot:
@@ -81,26 +97,32 @@ class Robot:
     # -- identity --------------------------------------------------------------------------------
     @property
     def robot_id(self) -> str:
+        """Instance id: namespace of topics and prefix of shared-memory names ('' for none)."""
         return self.config.robot_id
 
     @property
     def joint_names(self) -> tuple[str, ...]:
+        """The arm's joints in drive order, the order of every joint vector."""
         return self.runtime.joint_names
 
     @property
     def limits(self) -> ArmLimits:
+        """Position, velocity, acceleration and jerk limits every motion is checked against."""
         return self.runtime.limits
 
     @property
     def events(self) -> EventLog:
+        """Faults, warnings and mode changes of the loop, for subscribers and the recorder."""
         return self.runtime.events
 
     @property
     def mode(self) -> Mode:
+        """What the loop is doing with the drives now."""
         return self.runtime.mode
 
     @property
     def fault_reason(self) -> str:
+        """Why the arm last faulted ('' when it has not)."""
         return self.runtime.fault_reason
 
     # -- running the loop ------------------------------------------------------------------------
@@ -133,6 +155,7 @@ class Robot:
 
     @property
     def running(self) -> bool:
+        """True while the loop runs in its background thread (after start(), until shutdown())."""
         return self._thread is not None and self._thread.is_alive()
 
     def _pump(self, condition: Callable[[], bool], timeout: float | None) -> None:
@@ -155,9 +178,10 @@ class Robot:
             return
         if self.mode in (Mode.TRAJECTORY, Mode.HOLD, Mode.FREE_DRIVE):
             self._settle_and_disable(timeout)
-        if self.running:
+        thread = self._thread
+        if thread is not None and thread.is_alive():
             self.loop.stop()
-            self._thread.join(timeout)
+            thread.join(timeout)
         self._thread = None
         if self._previous_switch_interval is not None:
             sys.setswitchinterval(self._previous_switch_interval)
@@ -204,13 +228,13 @@ class Robot:
         return self.loop.stats.summary()
 
     # -- commands --------------------------------------------------------------------------------
-    def _send(self, command: Any) -> CommandHandle:
+    def _send(self, command: Command) -> CommandHandle:
         self.runtime.inbox.append(command)
         return command.handle
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
-        return self.request_mode(mode).wait(timeout)
+        return Mode(self.request_mode(mode).wait(timeout))
 
     def request_mode(self, mode: str | Mode) -> CommandHandle:
         """Ask for a mode change without waiting; the handle finishes with the mode reached."""
@@ -219,7 +243,7 @@ class Robot:
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
-        return self.request_reset().wait(timeout)
+        return Mode(self.request_reset().wait(timeout))
 
     def request_reset(self) -> CommandHandle:
         """Ask for a fault reset without waiting; the handle finishes once the arm holds again."""
@@ -246,14 +270,15 @@ class Robot:
                            tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
         """Follow a JointTrajectory with ros2_control's spline semantics; rejected up front if it breaks a limit."""
         point_count(len(trajectory.points))
-        def plan(start: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Spline:
-            spline = Spline.build(trajectory, self.limits, *start)
+        def plan(start: StartState) -> Spline:
+            position, velocity, acceleration = start
+            spline = Spline.build(trajectory, self.limits, position.tolist(), velocity.tolist(), acceleration.tolist())
             spline.check_limits(self.limits, self.runtime.dt)
             return spline
 
         return self._submit(plan, tolerances, "trajectory")
 
-    def _submit(self, plan: Callable[[tuple[np.ndarray, np.ndarray, np.ndarray]], Motion],
+    def _submit(self, plan: Callable[[StartState], Motion],
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
         """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
         tolerances = tolerances or TrajectoryTolerances()
@@ -270,7 +295,7 @@ class Robot:
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop() first")
 
-    def _start_state(self, basis: PlanBasis, attempt: int) -> tuple[int | None, tuple[np.ndarray, ...]]:
+    def _start_state(self, basis: PlanBasis, attempt: int) -> tuple[int | None, StartState]:
         dof = self.limits.dof
         if basis.motion is None:
             return None, (basis.hold_position.copy(), np.zeros(dof), np.zeros(dof))
@@ -366,20 +391,21 @@ class RobotBuilder:
                               why=f"{config.model_name()} is not a preset and none was given",
                               how="call .with_description('my_robot_description') on the builder")
         report = require_valid(package, stage=Stage.STARTUP, urdf_file=self.urdf_file)
-        joint_names = arm_joint_names(config, report)
+        urdf, urdf_xml = startup_urdf(report)
+        joint_names = arm_joint_names(config, urdf)
         if len(joint_names) != config.dof:
             raise ConfigError("the URDF's DOF does not match the configuration",
                               what=f"{config.dof} actuated joints", why=f"{package} has {len(joint_names)}",
                               how="use the description package that belongs to this arm")
-        drives = drive_parameters(report.urdf, joint_names) or ()
+        drives = drive_parameters(urdf, joint_names) or ()
         counts = self.counts_per_radian or (tuple(d.signed_counts_per_radian for d in drives) if drives else
                                             model.counts_per_radian() if model else
                                             (DEFAULT_COUNTS_PER_RADIAN,) * config.dof)
         bus = self._bus(config)
-        setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, report.urdf_xml,
+        setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, urdf_xml,
                          config.network_interface, config.master_index, drives)
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
-        loop_dynamics = ArmDynamics(report.urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
+        loop_dynamics = ArmDynamics(urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
         state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)
         bus.open(setup)
         runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
@@ -387,16 +413,19 @@ class RobotBuilder:
                              state_block)
         loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
                                      **self.loop_settings)
+
+        def report_overruns(new: int, total: int, missed: int) -> None:
+            runtime.events.emit(EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
+                                f"{missed} missed periods)", runtime.mode, runtime.cycle_count)
+
         loop = CycleLoop(runtime.cycle, loop_settings,
                          on_overruns=lambda n: runtime.fault("overrun", f"{n} consecutive cycles overran their "
                                                                         f"{config.cycle_time} µs period"),
                          on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
-                         on_overrun_report=lambda new, total, missed: runtime.events.emit(
-                             EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
-                             f"{missed} missed periods)", runtime.mode, runtime.cycle_count),
+                         on_overrun_report=report_overruns,
                          on_warning=lambda text: _warn(runtime, text),
                          after_cycle=self.cycle_observer(state_block) if self.cycle_observer else None)
-        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(report.urdf_xml, joint_names))
+        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(urdf_xml, joint_names))
 
     def _bus(self, config: SerialArmConfig) -> IBus:
         bus = self.bus or config.custom_bus
@@ -431,4 +460,5 @@ class RobotFactory:
 
     @staticmethod
     def create(config: SerialArmConfig, bus: IBus | None = None) -> Robot:
+        """Build the robot `config` describes on `bus` (when None: config.custom_bus, else the EtherCAT master)."""
         return Robot.builder(config).with_bus(bus).build()

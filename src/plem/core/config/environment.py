@@ -68,7 +68,8 @@ def _check_domain(domain: int, warnings: list[str]) -> None:
     if domain in SPEC_DOMAIN_RANGE:
         return
     if domain == RESERVED_DOMAIN_ID or not 0 <= domain <= ROS_DOMAIN_MAX:
-        reason = "215 is reserved" if domain == RESERVED_DOMAIN_ID else f"ids above {ROS_DOMAIN_MAX} give UDP ports past 65535"
+        reason = ("215 is reserved" if domain == RESERVED_DOMAIN_ID
+                  else f"ids above {ROS_DOMAIN_MAX} give UDP ports past 65535")
         raise ConfigError(
             f"ROS_DOMAIN_ID {domain} cannot be used",
             what="ROS_DOMAIN_ID from 0 to 101",

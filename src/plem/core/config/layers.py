@@ -42,6 +42,7 @@ class Layer:
     values: dict[str, tuple[Any, Source]] = field(default_factory=dict)
 
     def set(self, name: str, value: Any, detail: str) -> None:
+        """Provide `value` for field `name`, with `detail` saying where in this layer it came from."""
         self.values[name] = (value, Source(self.kind, detail))
 
 

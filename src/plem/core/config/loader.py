@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 from pathlib import Path
@@ -12,7 +13,10 @@ from plem.core.paths import resolve_resource
 from plem.errors import ConfigError
 
 T = TypeVar("T")
+U = TypeVar("U")
 _MISSING: Any = object()
+#: A YAML file: absolute, relative to the working directory, or package/relative.
+ConfigPath = str | os.PathLike[str]
 
 
 def _type_name(as_type: Any) -> str:
@@ -62,26 +66,52 @@ class ConfigLoader:
             else:
                 self._cache.pop(Path(path).resolve(), None)
 
-    def load(self, path: str | os.PathLike[str], key: str = "", as_type: Any = Any) -> Any:
+    @overload
+    def load(self, path: ConfigPath, key: str = "") -> Any: ...
+    @overload
+    def load(self, path: ConfigPath, key: str = "", as_type: type[T] = ...) -> T: ...
+    @overload
+    def load(self, path: ConfigPath, key: str = "", as_type: Any = ...) -> Any: ...
+    def load(self, path: ConfigPath, key: str = "", as_type: Any = Any) -> Any:
         """The value at dotted `key` (whole document when empty), checked against `as_type`."""
         document = self.document(path)
         node, line = document.lookup(key)
         return _check_type(document, key, line, node, as_type)
 
-    def load_optional(self, path: str | os.PathLike[str], key: str, as_type: Any = Any) -> Any | None:
+    @overload
+    def load_optional(self, path: ConfigPath, key: str) -> Any | None: ...
+    @overload
+    def load_optional(self, path: ConfigPath, key: str, as_type: type[T]) -> T | None: ...
+    @overload
+    def load_optional(self, path: ConfigPath, key: str, as_type: Any) -> Any | None: ...
+    def load_optional(self, path: ConfigPath, key: str, as_type: Any = Any) -> Any | None:
         """Like `load`, but None when the key is absent. A missing file or a wrong type is still an error."""
-        return self.load_or_default(path, None, key, as_type)
+        found = self._find(path, key)
+        return None if found is None else _check_type(*found, as_type)
 
-    def load_or_default(self, path: str | os.PathLike[str], default: T, key: str = "", as_type: Any = _MISSING) -> T:
+    @overload
+    def load_or_default(self, path: ConfigPath, default: None, key: str = "") -> Any: ...
+    @overload
+    def load_or_default(self, path: ConfigPath, default: T, key: str = "") -> T: ...
+    @overload
+    def load_or_default(self, path: ConfigPath, default: T, key: str, as_type: type[U]) -> T | U: ...
+    @overload
+    def load_or_default(self, path: ConfigPath, default: Any, key: str, as_type: Any) -> Any: ...
+    def load_or_default(self, path: ConfigPath, default: Any, key: str = "", as_type: Any = _MISSING) -> Any:
         """The value at `key`, or `default` when the key is absent; the type defaults to the default's type."""
-        document = self.document(path)
         if as_type is _MISSING:
             as_type = Any if default is None else type(default)
+        found = self._find(path, key)
+        return default if found is None else _check_type(*found, as_type)
+
+    def _find(self, path: ConfigPath, key: str) -> tuple[YamlDocument, str, int, Any] | None:
+        """The document, key, line and node of `key`, or None when the file has no such key."""
+        document = self.document(path)
         try:
             node, line = document.lookup(key)
         except ConfigError:
-            return default
-        return _check_type(document, key, line, node, as_type)
+            return None
+        return document, key, line, node
 
 
 def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, as_type: Any) -> Any:
@@ -97,10 +127,8 @@ def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, 
         item_key = f"{key}.{location}" if location else key
         item_line = line
         if location:
-            try:
+            with contextlib.suppress(ConfigError):
                 item_line = document.lookup(item_key)[1]
-            except ConfigError:
-                pass
         shown = repr(first.get("input", value))
         raise ConfigError(
             f"Wrong type for '{key or '(document)'}' in {document.path.name}",
@@ -111,14 +139,22 @@ def _check_type(document: YamlDocument, key: str, line: int | None, value: Any, 
 
 
 @overload
-def load_config(path: str | os.PathLike[str], key: str = "", as_type: type[T] = ...) -> T: ...
+def load_config(path: ConfigPath, key: str = "") -> Any: ...
 @overload
-def load_config(path: str | os.PathLike[str], key: str = "", as_type: Any = ...) -> Any: ...
-def load_config(path: str | os.PathLike[str], key: str = "", as_type: Any = Any) -> Any:
+def load_config(path: ConfigPath, key: str = "", as_type: type[T] = ...) -> T: ...
+@overload
+def load_config(path: ConfigPath, key: str = "", as_type: Any = ...) -> Any: ...
+def load_config(path: ConfigPath, key: str = "", as_type: Any = Any) -> Any:
     """The value at `key` in the YAML file at `path`, e.g. `load_config("c.yaml", "rt_priority", int)`."""
     return ConfigLoader.get_instance().load(path, key, as_type)
 
 
-def load_config_optional(path: str | os.PathLike[str], key: str, as_type: Any = Any) -> Any | None:
+@overload
+def load_config_optional(path: ConfigPath, key: str) -> Any | None: ...
+@overload
+def load_config_optional(path: ConfigPath, key: str, as_type: type[T]) -> T | None: ...
+@overload
+def load_config_optional(path: ConfigPath, key: str, as_type: Any) -> Any | None: ...
+def load_config_optional(path: ConfigPath, key: str, as_type: Any = Any) -> Any | None:
     """The value at `key`, or None when the key is absent."""
     return ConfigLoader.get_instance().load_optional(path, key, as_type)

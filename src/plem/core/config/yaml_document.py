@@ -147,7 +147,8 @@ def read_yaml(path: Path) -> YamlDocument:
         raise _syntax_error(path, where, " ".join(filter(None, [exc.context, exc.problem])) or "invalid YAML",
                             mark.line + 1 if mark else None) from None
     except RecursionError:
-        raise _syntax_error(path, str(path), "an alias refers to itself (recursive anchor), or nesting is too deep") from None
+        raise _syntax_error(path, str(path),
+                            "an alias refers to itself (recursive anchor), or nesting is too deep") from None
     except (yaml.YAMLError, ValueError, TypeError) as exc:
         raise _syntax_error(path, str(path), " ".join(str(exc).split()) or type(exc).__name__) from None
     return YamlDocument(path=path, root=root, lines=lines)

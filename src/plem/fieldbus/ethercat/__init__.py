@@ -1,0 +1,1 @@
+"""EtherCAT on pysoem: bringing a segment up, the real arm's bus, host checks, scanning, the virtual network."""

@@ -120,7 +120,7 @@ def open_master(interface: str) -> Any:
 
 def find_slaves(master: Any, interface: str) -> int:
     """Enumerate the slaves on the open master; 'EtherCAT master not found' when nothing answers."""
-    found = master.config_init()
+    found: int = master.config_init()
     if found <= 0:
         raise EtherCATError(
             "EtherCAT master not found",
@@ -148,7 +148,7 @@ def check_topology(slaves: Sequence[Any], joint_names: Sequence[str], drives: Se
             why=f"found {listing}",
             how="check the cabling and the drives' power (`plem ethercat scan` lists what answers), or use "
                 "the description package of this arm")
-    for position, (slave, joint, drive) in enumerate(zip(slaves, joint_names, drives)):
+    for position, (slave, joint, drive) in enumerate(zip(slaves, joint_names, drives, strict=True)):
         wrong = [(name, expected, found) for name, expected, found in (
             ("vendor_id", drive.vendor_id, slave.man), ("product_code", drive.product_code, slave.id),
             ("revision", drive.revision, slave.rev)) if expected is not None and expected != found]
@@ -218,7 +218,7 @@ def assign_process_data(slave: Any, position: int, joint: str) -> int:
 def check_mapping(slaves: Sequence[Any], joint_names: Sequence[str]) -> None:
     """Every slave's mapped process data has exactly the size of plem's PDOs."""
     rx, tx = objects.pdo_bytes(objects.RX_ENTRIES), objects.pdo_bytes(objects.TX_ENTRIES)
-    for position, (slave, joint) in enumerate(zip(slaves, joint_names)):
+    for position, (slave, joint) in enumerate(zip(slaves, joint_names, strict=True)):
         outputs, inputs = len(slave.output), len(slave.input)
         if (outputs, inputs) != (rx, tx):
             raise EtherCATError(
@@ -254,8 +254,8 @@ def reach_state(master: Any, state: int, joint_names: Sequence[str], *, while_wa
         if master.state_check(state, 5000) == state:
             return
     pysoem = _pysoem()
-    stuck = [(i, slave, st, code) for i, (slave, (st, code)) in enumerate(zip(master.slaves, slave_states(master)))
-             if st != state]
+    states = zip(master.slaves, slave_states(master), strict=True)
+    stuck = [(i, slave, st, code) for i, (slave, (st, code)) in enumerate(states) if st != state]
     detail = "; ".join(f"slave {i} ({slave.name}, {joint_names[i] if i < len(joint_names) else '?'}) is in "
                        f"{state_name(st)}, AL status 0x{code:04X} ({pysoem.al_status_code_to_string(code)})"
                        for i, slave, st, code in stuck)
@@ -272,11 +272,12 @@ def setup_distributed_clocks(master: Any, cycle_time_ns: int) -> list[bool]:
     """SYNC0 at the cycle time on every slave that has distributed clocks; which slaves have them."""
     if not master.config_dc():
         return [False] * len(master.slaves)
+    pysoem = _pysoem()
     has_dc = []
     for slave in master.slaves:
         try:
             features = struct.unpack("<H", slave._fprd(REG_ESC_FEATURES, 2))[0]  # noqa: SLF001 — register read
-        except Exception:  # a slave that does not answer a register read has no usable clock
+        except pysoem.WkcError:  # a slave that does not answer a register read has no usable clock
             features = 0
         has_dc.append(bool(features & DC_SUPPORTED))
         if has_dc[-1]:
@@ -292,12 +293,10 @@ def close_master(master: Any) -> None:
             master.state = state
             master.write_state()
             master.state_check(state, 50000)
-        except Exception:  # the segment may already be gone; closing goes on
+        except Exception:  # noqa: BLE001 - the segment may already be gone; closing goes on
             pass
-    try:
+    with contextlib.suppress(Exception):  # closing an interface that vanished
         master.close()
-    except Exception:  # noqa: BLE001 — closing an interface that vanished
-        pass
 
 
 @dataclass(frozen=True)

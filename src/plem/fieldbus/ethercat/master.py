@@ -18,6 +18,7 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -108,7 +109,7 @@ class EtherCATBus:
                     self._decode()
                 if all(state is DriveState.SWITCH_ON_DISABLED or state is DriveState.FAULT for state in self._seen):
                     break
-        except Exception:  # the segment may be gone: the drives stop on their watchdog
+        except Exception:  # noqa: BLE001 - the segment may be gone: the drives stop on their watchdog
             pass
         finally:
             close_master(segment.master)
@@ -164,10 +165,10 @@ class EtherCATBus:
 
     # ---- internals --------------------------------------------------------------------------------
 
-    def _hold_exchange(self, master: object) -> None:
+    def _hold_exchange(self, master: Any) -> None:
         """While the segment comes up: frames with zero outputs (drives disabled) keep the watchdogs fed."""
-        master.send_processdata()  # type: ignore[attr-defined]
-        master.receive_processdata(2000)  # type: ignore[attr-defined]
+        master.send_processdata()
+        master.receive_processdata(2000)
 
     def _decode(self) -> None:
         tx, io = self._tx, self.io
@@ -187,7 +188,7 @@ class EtherCATBus:
         rx["velocity_offset"] = io.velocity_offset
         rx["torque_offset"] = np.clip(np.rint(io.torque_offset * self._units_per_newton_metre), -32768, 32767)
         rx["mode"] = io.mode
-        for slave, record in zip(self._slaves, rx):
+        for slave, record in zip(self._slaves, rx, strict=True):
             slave.output = record.tobytes()
         master = self._master
         sent = time.perf_counter_ns()
@@ -207,11 +208,13 @@ class EtherCATBus:
             head = f"no frame came back for {self._bad} cycles"
         else:
             head = f"working counter {wkc} instead of {self._expected} for {self._bad} cycles"
+        from pysoem import WkcError
+
         silent, states = [], []
         for position, slave in enumerate(self._slaves):
             try:
-                state = int.from_bytes(slave._fprd(REG_AL_STATUS, 2, 1000), "little")  # noqa: SLF001
-            except Exception:  # no answer: this slave is the one that stopped
+                state = int.from_bytes(slave._fprd(REG_AL_STATUS, 2, 1000), "little")  # noqa: SLF001 — register read
+            except WkcError:  # no answer: this slave is the one that stopped
                 silent.append(str(position))
                 continue
             if state & 0x0F != 0x08:

@@ -41,20 +41,25 @@ class SlaveInfo:
     distributed_clocks: bool
 
     def as_dict(self) -> dict[str, Any]:
+        """The fields as a JSON-ready dict, for `--format json`."""
         return asdict(self)
 
 
 def _register(slave: Any, address: int) -> int | None:
+    from pysoem import WkcError
+
     try:
         return int(struct.unpack("<H", slave._fprd(address, 2))[0])  # noqa: SLF001 — plain register read
-    except Exception:  # a slave that does not answer: unknown
+    except WkcError:  # a slave that does not answer: unknown
         return None
 
 
 def _sii_word(slave: Any, word: int) -> int | None:
+    from pysoem import NetworkInterfaceNotOpenError
+
     try:
         return int.from_bytes(slave.eeprom_read(word)[:2], "little")
-    except Exception:  # an unreadable SII: unknown
+    except NetworkInterfaceNotOpenError:  # the interface went away: unknown (a read that fails just reads 0)
         return None
 
 
@@ -68,7 +73,7 @@ def scan(interface: str) -> list[SlaveInfo]:
             find_slaves(master, interface)
             states = slave_states(master)
             found = []
-            for position, (slave, (state, code)) in enumerate(zip(master.slaves, states)):
+            for position, (slave, (state, code)) in enumerate(zip(master.slaves, states, strict=True)):
                 features = _register(slave, REG_ESC_FEATURES) or 0
                 protocols = _sii_word(slave, SII_MAILBOX_PROTOCOLS) or 0
                 found.append(SlaveInfo(position, slave.name, slave.man, slave.id, slave.rev, state_name(state), code,

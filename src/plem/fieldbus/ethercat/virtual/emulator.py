@@ -68,12 +68,14 @@ class ClockedDrives(EmulatedDrives):
         self.frames = 0
 
     def step(self, operational: np.ndarray) -> None:
+        """One frame's cycle, under the lock so the idle clock never steps the drives at the same time."""
         with self.lock:
             super().step(operational)
             self.last_step = time.monotonic()
             self.frames += 1
 
     def communication_lost(self, drive: int) -> None:
+        """A drive's quick stop on lost process data, under the lock like every step."""
         with self.lock:
             super().communication_lost(drive)
 
@@ -92,7 +94,7 @@ def identities(arm: Arm) -> list[SlaveIdentity]:
                           product_code=d.product_code if d.product_code is not None else DEFAULT_PRODUCT_CODE,
                           revision=d.revision if d.revision is not None else DEFAULT_REVISION,
                           serial=position + 1, name="plem virtual CiA402 drive")
-            for position, (joint, d) in enumerate(zip(arm.joint_names, arm.drives))]
+            for position, (joint, d) in enumerate(zip(arm.joint_names, arm.drives, strict=True))]
 
 
 class VirtualNetwork:
@@ -218,6 +220,7 @@ class Control:
         self.index = index
 
     def request(self, op: str, **values: Any) -> dict[str, Any]:
+        """Send one operation with its arguments and return the network's JSON answer."""
         connection = connect(control_name(self.index))
         try:
             connection.setblocking(True)

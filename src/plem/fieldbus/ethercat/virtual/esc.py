@@ -418,7 +418,7 @@ class Esc:
         return (at_ns + self.clock_offset_ns) & 0xFFFFFFFFFFFFFFFF
 
     def _system_time(self) -> int:
-        offset = _U64.unpack_from(self.memory, DC_SYSTEM_OFFSET)[0]
+        offset: int = _U64.unpack_from(self.memory, DC_SYSTEM_OFFSET)[0]
         return (self._local_time(self.frame_ns + self.forward_ns) + offset) & 0xFFFFFFFFFFFFFFFF
 
     def _latch_receive_times(self) -> None:

@@ -159,7 +159,7 @@ class Segment:
             stack.give_inputs()
 
     def _relink(self) -> None:
-        self._line = tuple(stack.esc for stack, present in zip(self.stacks, self._present) if present)
+        self._line = tuple(stack.esc for stack, present in zip(self.stacks, self._present, strict=True) if present)
         last = len(self._line) - 1
         for position, esc in enumerate(self._line):
             esc.set_links(downstream=position < last)

@@ -320,7 +320,7 @@ class DriveStack:
         if self.state == OP and layout.outputs.size:
             drive = self.drive
             for array, value in zip(layout.output_arrays(self.application),
-                                    layout.outputs.unpack_from(esc.memory, layout.outputs_at)):
+                                    layout.outputs.unpack_from(esc.memory, layout.outputs_at), strict=True):
                 array[drive] = value
 
     def give_inputs(self) -> None:
@@ -333,7 +333,8 @@ class DriveStack:
 
     def poll(self, now_ns: int) -> None:
         """Check the sync-manager watchdog in OP, and the wait for the first outputs of a requested OP."""
-        if self.state == OP and self.esc.watchdog_expired(now_ns) or self._op_requested_ns is not None and now_ns - self._op_requested_ns > self.esc.watchdog_ns:
+        if (self.state == OP and self.esc.watchdog_expired(now_ns)
+                or self._op_requested_ns is not None and now_ns - self._op_requested_ns > self.esc.watchdog_ns):
             self._fault(SYNC_MANAGER_WATCHDOG, SAFEOP)
 
     # ---- mailbox ---------------------------------------------------------------------------------------------
@@ -466,7 +467,7 @@ class DriveStack:
 
     def _array_reader(self, name: str) -> Callable[[], int]:
         def read() -> int:
-            return getattr(self.application, name)[self.drive]
+            return int(getattr(self.application, name)[self.drive])
         return read
 
     def _array_writer(self, name: str) -> Callable[[int], None]:
