@@ -365,3 +365,15 @@ def test_one_launch_brings_up_the_virtual_network_and_the_real_master(home: Path
         assert np.allclose(client.state().position, target, atol=2e-4)
         assert launch.stop() == 0, launch.describe()
     assert not Path("/sys/class/net/plemec42").exists()
+
+
+def test_inject_reads_the_true_state_and_refuses_what_it_cannot_do(network: Network):
+    state = run_plem("ethercat", "inject", "state", f"--index={INDEX}")
+    assert state.returncode == 0, state.stderr
+    assert len(json.loads(state.stdout)["positions"]) == 6
+    unknown = run_plem("ethercat", "inject", "meltdown", f"--index={INDEX}")
+    assert unknown.returncode == 2 and "one of drive-fault" in unknown.stderr
+    garbage = run_plem("ethercat", "inject", "drop-frames", "rate=lots", f"--index={INDEX}")
+    assert garbage.returncode == 2 and "'rate=lots' has no usable value" in garbage.stderr
+    wrong = run_plem("ethercat", "inject", "drive-fault", "drive=17", "code=0x7121", f"--index={INDEX}")
+    assert wrong.returncode == 1 and "refused drive_fault" in wrong.stderr
