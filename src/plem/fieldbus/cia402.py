@@ -278,20 +278,25 @@ class PowerSequencer:
     `request()` sets the state wanted of every drive and `request_reset()` asks for one fault-reset edge;
     `commands(seen)` then chooses, from the states the drives last reported, the controlword that moves
     each one step toward it. A drive seen in fault is wanted down (switch on disabled) until enabled again.
+    Once the controlwords stop changing for unchanged states, they are returned as they are until a state
+    or a request changes, so a settled arm costs a list comparison per cycle.
     """
 
     def __init__(self, dof: int) -> None:
         self.wanted = [DriveState.SWITCH_ON_DISABLED] * dof
         self.reset = [False] * dof
         self.sent = [int(Controlword.DISABLE_VOLTAGE)] * dof
+        self._settled_for: list[DriveState] | None = None  # the states the controlwords settled for
 
     def request(self, state: DriveState) -> None:
         """Ask every drive for `state`; it is reached over the next cycles."""
         self.wanted = [state] * len(self.wanted)
+        self._settled_for = None
 
     def request_reset(self) -> None:
         """Send one fault-reset edge to every drive that is in fault."""
         self.reset = [True] * len(self.wanted)
+        self._settled_for = None
 
     def master_lost(self) -> None:
         """The exchange failed: stop asking for operation and forget pending resets."""
@@ -300,8 +305,13 @@ class PowerSequencer:
 
     def commands(self, seen: list[DriveState]) -> list[int]:
         """This cycle's controlwords for drives last seen in the states `seen` (remembered as sent)."""
-        self.sent = [self._command(drive, state, self.sent[drive]) for drive, state in enumerate(seen)]
-        return self.sent
+        if seen == self._settled_for:
+            return self.sent
+        reset = list(self.reset)
+        commands = [self._command(drive, state, self.sent[drive]) for drive, state in enumerate(seen)]
+        self._settled_for = list(seen) if commands == self.sent and self.reset == reset else None
+        self.sent = commands
+        return commands
 
     def _command(self, drive: int, seen: DriveState, previous: int) -> int:
         if seen is DriveState.FAULT:

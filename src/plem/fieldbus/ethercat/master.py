@@ -69,7 +69,8 @@ class EtherCATBus:
         self._tx = np.zeros(n, dtype=_TX_DTYPE)
         self._power = PowerSequencer(n)
         self._bad = 0
-        self._seen = [DriveState.SWITCH_ON_DISABLED] * n
+        self._decoded = np.zeros(n, dtype=np.uint16)  # the statuswords `_seen` was decoded from
+        self._seen = [decode_statusword(0)] * n
         cycle_ns = round(setup.cycle_time_s * 1e9)
         self._receive_timeout_us = max(50, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE))
         self._recovery_cycles = max(1, round(RECOVERY_PERIOD_S / setup.cycle_time_s))
@@ -179,7 +180,9 @@ class EtherCATBus:
         io.velocity[:] = tx["velocity_actual"]
         np.multiply(tx["torque_actual"], self._newton_metres_per_unit, out=io.torque)
         io.error_code[:] = tx["error_code"]
-        self._seen = [decode_statusword(int(sw)) for sw in io.statusword]
+        if not np.array_equal(io.statusword, self._decoded):
+            self._seen = [decode_statusword(int(sw)) for sw in io.statusword]
+            self._decoded[:] = io.statusword
 
     def _send(self) -> None:
         rx, io = self._rx, self.io
