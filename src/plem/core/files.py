@@ -1,8 +1,10 @@
-"""Files written atomically, and files opened only when they are what and whose they should be.
+"""Files written atomically, files read only when they are regular and of a sane size, and files opened
+only when they are what and whose they should be.
 
-A reader or a crash sees the old file or the new one, never a torn one. A file in a directory every
-user may write into (/dev/shm) is opened without following a symbolic link or waiting on a FIFO, and
-only when it is a regular file of a user the reader trusts.
+A reader or a crash sees the old file or the new one, never a torn one. A file a user names is read only
+when it is a regular file below a size cap, so a FIFO cannot hang a command and /dev/zero cannot eat the
+memory. A file in a directory every user may write into (/dev/shm) is opened without following a symbolic
+link or waiting on a FIFO, and only when it is a regular file of a user the reader trusts.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ import stat
 import tempfile
 from collections.abc import Collection
 from pathlib import Path
+
+from plem.errors import ConfigError
 
 _KINDS = {stat.S_IFREG: "regular file", stat.S_IFDIR: "directory", stat.S_IFLNK: "symbolic link",
           stat.S_IFIFO: "FIFO", stat.S_IFSOCK: "socket", stat.S_IFCHR: "character device",
@@ -47,6 +51,57 @@ def write_atomic(path: Path, data: str | bytes, mode: int = 0o644, group: int | 
         os.fsync(directory)
     finally:
         os.close(directory)
+
+
+def size_text(size: int) -> str:
+    """A byte count as people read it: '512 bytes', '3.0 KiB', '16.0 MiB'."""
+    if size < 1024:
+        return f"{size} bytes"
+    return f"{size / 1024:.1f} KiB" if size < 1024 * 1024 else f"{size / (1024 * 1024):.1f} MiB"
+
+
+def read_regular(path: Path, max_bytes: int, role: str) -> bytes:
+    """The bytes of `path` when it is a regular file (symbolic links followed) of at most `max_bytes`.
+
+    Anything else is a ConfigError saying what the file is (a FIFO, a device, a folder, too large): such
+    a file would hang the reader or fill its memory. `role` names the file in the message ("profile").
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise ConfigError(f"File not found: {path}", what=f"a {role} at {path}", why="the file does not exist",
+                          how="check the path, or create the file") from None
+    except (OSError, ValueError) as error:
+        raise ConfigError(f"Cannot read {path}", what=f"a readable {role} at {path}",
+                          why=getattr(error, "strerror", None) or str(error),
+                          how="check the path and the file's permissions") from None
+    status = os.fstat(fd)
+    if not stat.S_ISREG(status.st_mode):
+        os.close(fd)
+        raise ConfigError(
+            f"Not a regular file: {path}", what=f"a {role} that is a regular file",
+            why=f"{path} is a {file_kind(status.st_mode)}" + (
+                "" if stat.S_ISDIR(status.st_mode) else "; reading one can block forever or never end"),
+            how=f"point to the {role} itself, not to a device, FIFO, socket or folder")
+    with os.fdopen(fd, "rb") as handle:
+        data = handle.read(max_bytes + 1) if status.st_size <= max_bytes else b""
+        if status.st_size > max_bytes or len(data) > max_bytes:
+            raise ConfigError(
+                f"File too large: {path}", what=f"a {role} of at most {size_text(max_bytes)}",
+                why=f"{path} holds {size_text(max(status.st_size, len(data)))}",
+                how=f"check that {path} is the {role} you meant; no valid one is that large")
+    return data
+
+
+def read_regular_text(path: Path, max_bytes: int, role: str) -> str:
+    """`read_regular` decoded as UTF-8; a file in another encoding is a ConfigError naming the byte offset."""
+    data = read_regular(path, max_bytes, role)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ConfigError(f"Not UTF-8: {path}", what=f"a {role} encoded as UTF-8",
+                          why=f"byte {error.start} of {path} ({data[error.start:error.start + 1]!r}) is not UTF-8",
+                          how=f"save {path} as UTF-8") from None
 
 
 def user_name(uid: int) -> str:

@@ -3,6 +3,10 @@
 Parsing uses libyaml's composer (C) and builds plain Python values plus a line index in one walk; it
 is an order of magnitude faster than a pure-Python round-trip parser, which matters because every
 launch and `plem validate` reads several of these files. Duplicate keys are an error, not "last wins".
+
+Before composing, one pass over libyaml's events checks the file's shape: nesting depth, and the number of
+values once every alias is expanded. Deep nesting would overflow the composer's C stack, and a few
+nested aliases ("billion laughs") expand to billions of values; both are refused with the limit named.
 """
 
 from __future__ import annotations
@@ -13,11 +17,17 @@ from typing import Any
 
 import yaml
 
+from plem.core.files import read_regular_text
 from plem.errors import ConfigError
 
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _constructor = yaml.constructor.SafeConstructor()
 KeyPath = tuple[str, ...]
+
+#: Limits on a YAML file plem reads: no configuration, limits or controllers file comes near them.
+MAX_YAML_BYTES = 4 * 1024 * 1024
+MAX_YAML_DEPTH = 64
+MAX_YAML_VALUES = 1_000_000
 
 
 def split_key(key: str) -> list[str]:
@@ -116,26 +126,60 @@ def _syntax_error(path: Path, where: str, problem: str, line: int | None = None)
     return error
 
 
-def read_yaml(path: Path) -> YamlDocument:
-    """Parse `path`; syntax problems and duplicate keys become a ConfigError with the line."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(
-            f"File not found: {path}",
-            what=f"a readable YAML file at {path}",
-            why="the file does not exist",
-            how="check the path, or create the file",
-        ) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(
-            f"Cannot read {path}",
-            what=f"a readable UTF-8 YAML file at {path}",
-            why=str(exc),
-            how="check the file's permissions and encoding",
-        ) from None
+def _too_big(path: Path, line: int, limit: str, found: str) -> YamlSyntaxError:
+    error = YamlSyntaxError(
+        f"YAML file too complex: {path.name}",
+        what=f"YAML in {path} within plem's limits: {limit}",
+        why=f"{path}:{line}: {found}",
+        how=f"check that {path} is the file you meant; configuration files never come near this limit",
+    )
+    error.line = line
+    return error
+
+
+def _line(event: yaml.Event) -> int:
+    return event.start_mark.line + 1 if event.start_mark else 1
+
+
+def _check_shape(text: str, path: Path) -> None:
+    """Refuse nesting deeper than MAX_YAML_DEPTH and more than MAX_YAML_VALUES values with aliases expanded.
+
+    One pass over the parser's events, which libyaml produces without recursion, so neither limit can be
+    reached before it is checked.
+    """
+    sizes: dict[str, int] = {}
+    open_values: list[tuple[int, str | None]] = [(0, None)]   # values inside each open collection, its anchor
+    for event in yaml.parse(text, Loader=_Loader):
+        if isinstance(event, yaml.CollectionStartEvent):
+            if len(open_values) > MAX_YAML_DEPTH:
+                raise _too_big(path, _line(event), f"nesting at most {MAX_YAML_DEPTH} deep",
+                               f"collections nest more than {MAX_YAML_DEPTH} deep here")
+            open_values.append((0, event.anchor))
+            continue
+        if isinstance(event, yaml.CollectionEndEvent):
+            count, anchor = open_values.pop()
+            size = count + 1
+        elif isinstance(event, yaml.ScalarEvent):
+            size, anchor = 1, event.anchor
+        elif isinstance(event, yaml.AliasEvent):
+            size, anchor = sizes.get(event.anchor or "", 1), None
+        else:
+            continue
+        if anchor is not None:
+            sizes[anchor] = size
+        count, parent_anchor = open_values[-1]
+        open_values[-1] = (count + size, parent_anchor)
+        if open_values[0][0] + sum(c for c, _ in open_values[1:]) > MAX_YAML_VALUES:
+            raise _too_big(path, _line(event),
+                           f"at most {MAX_YAML_VALUES:,} values with every alias (*name) expanded",
+                           "the aliases up to here expand to more values than that (an alias bomb?)")
+
+
+def parse_yaml(text: str, path: Path) -> YamlDocument:
+    """Parse `text` read from `path`; syntax problems, duplicate keys and exceeded limits become a ConfigError."""
     lines: dict[KeyPath, int] = {}
     try:
+        _check_shape(text, path)
         node = yaml.compose(text, Loader=_Loader)
         root = _build(node, (), lines) if node is not None else None
     except _DuplicateKey as dup:
@@ -152,3 +196,13 @@ def read_yaml(path: Path) -> YamlDocument:
     except (yaml.YAMLError, ValueError, TypeError) as exc:
         raise _syntax_error(path, str(path), " ".join(str(exc).split()) or type(exc).__name__) from None
     return YamlDocument(path=path, root=root, lines=lines)
+
+
+def read_yaml(path: Path, role: str = "YAML file") -> YamlDocument:
+    """Read and parse `path`: a regular UTF-8 file of at most MAX_YAML_BYTES, else a ConfigError saying which."""
+    return parse_yaml(read_regular_text(path, MAX_YAML_BYTES, role), path)
+
+
+def load_yaml(path: Path, role: str = "YAML file") -> Any:
+    """The plain value of the YAML file at `path`, read and checked as `read_yaml` does."""
+    return read_yaml(path, role).root
