@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from plem.bridge import connect
-from plem.bridge.client import RobotClient
+from plem.bridge.client import DriverGone, RobotClient
 from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.ipc.channels import PRIVATE_RINGS, channel_names
@@ -298,8 +298,10 @@ def test_sigkill_of_launch_alone_stops_the_driver_cleanly(tmp_path: Path):
         # The mappings outlive the unlinked names: the driver's last words are still readable.
         stopped = [e for e in events if e.kind is EventKind.MODE_CHANGED]
         assert [(e.previous_mode, e.mode) for e in stopped] == [(Mode.HOLD, Mode.IDLE)], stopped
-        last = client.state()
+        last = client.channels.state.block.read()
         assert last.mode is Mode.IDLE and not last.drives_enabled and not last.faulted
+        with pytest.raises(DriverGone):                       # the client no longer passes it off as current
+            client.state()
 
 
 # -- 5. one driver per robot_id ------------------------------------------------------------------------
@@ -496,6 +498,100 @@ def test_bad_launch_arguments_are_reported_together_and_start_nothing():
     assert "invalid launch argument disk_threshold:=150" in result.stderr
     assert "Traceback" not in result.stdout and "rt_driver" not in result.stdout
     assert shm_files(robot_id) == []
+
+
+def assert_refused_before_anything_started(result: subprocess.CompletedProcess[str], robot_ids: list[str],
+                                           home: Path) -> None:
+    """Exit 1 with WHAT/WHY/HOW, never a traceback or an internal error, and nothing started or recorded."""
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert_error_form(result.stderr)
+    assert "Internal error" not in result.stderr and "Traceback" not in result.stdout + result.stderr
+    assert "rt_driver" not in result.stdout and "Generated files" not in result.stdout, result.stdout
+    for robot_id in robot_ids:
+        assert shm_files(robot_id) == [], robot_id
+    assert not list(home.rglob("*.mcap")) and not list(home.rglob("*.db3"))
+
+
+BAD_ARGUMENTS = [
+    (["bag_dir:=/proc/nope"], ["/proc/nope: No such file or directory", "HOW: pass bag_dir:=DIR"]),
+    (["bag_dir:=/proc"], ["No such file or directory", "HOW: pass bag_dir:=DIR"]),
+    (["bag_dir:=/tmp/" + "b" * 5000], ["bag_dir cannot be created: the path is", "Linux allows 4095"]),
+    (["shm_group:=99999999999"], ["invalid launch argument shm_group:=99999999999", "your groups:"]),
+    (["shm_group:=no_such_group_xyz"], ["invalid launch argument shm_group:=no_such_group_xyz"]),
+    (["cycle_time:=²"], ["invalid launch argument cycle_time:=²", "digits 0-9"]),
+    (["retention_minutes:=²"], ["invalid launch argument retention_minutes:=²"]),
+    (["rt_priority:=٣"], ["invalid launch argument rt_priority:=٣"]),
+    (["joint_states_rate:=inf"], ["invalid launch argument joint_states_rate:=inf"]),
+    (["max_consecutive_overruns:=0"], ["invalid launch argument max_consecutive_overruns:=0"]),
+    (["robots:=~no_such_user_xyz/robots.yaml"], ["unknown home directory in robots:=~no_such_user_xyz"]),
+    (["description_package:=~no_such_user_xyz/pkg"], ["unknown home directory in description_package:="]),
+    (["bag_dir:=/proc/nope", "rt_priority:=99", "cycle_time:=5000"],
+     ["/proc/nope: No such file or directory", "rt_priority out of range", "cycle_time out of range"]),
+]
+
+
+@pytest.mark.parametrize("arguments, messages", BAD_ARGUMENTS, ids=lambda value: str(value)[:40])
+def test_bad_launch_arguments_are_explained_and_start_nothing(tmp_path: Path, arguments: list[str],
+                                                              messages: list[str]):
+    robot_id = new_robot_id()
+    result = run_plem("launch", "bus:=mock", f"robot_id:={robot_id}", *arguments,
+                      env=clean_environment(tmp_path / "home"))
+    assert_refused_before_anything_started(result, [robot_id], tmp_path / "home")
+    for message in messages:
+        assert message in result.stderr, result.stderr
+
+
+def test_a_launch_file_in_the_home_of_no_user_is_explained(tmp_path: Path):
+    robot_id = new_robot_id()
+    result = run_plem("launch", "~no_such_user_xyz/launch/bringup.launch.py", "bus:=mock", f"robot_id:={robot_id}",
+                      env=clean_environment(tmp_path / "home"))
+    assert_refused_before_anything_started(result, [robot_id], tmp_path / "home")
+    assert "there is no user 'no_such_user_xyz'" in result.stderr
+
+
+def test_a_nul_in_bag_dir_from_a_robots_file_is_explained(tmp_path: Path):
+    robot_id = new_robot_id()
+    robots = tmp_path / "robots.yaml"
+    robots.write_text(f'robots:\n  - {{robot_id: {robot_id}, bus: mock, bag_dir: "/tmp/a\\0b"}}\n')
+    result = run_plem("launch", f"robots:={robots}", env=clean_environment(tmp_path / "home"))
+    assert_refused_before_anything_started(result, [robot_id], tmp_path / "home")
+    assert "NUL byte" in result.stderr and "bag_dir:=" in result.stderr
+
+
+def test_the_two_robot_example_starts_neither_arm_when_one_cannot_run(tmp_path: Path):
+    """The example of docs/bringup.md on a machine without its interface: the simulated arm does not start either."""
+    left, right = new_robot_id(), new_robot_id()
+    robots = tmp_path / "robots.yaml"
+    robots.write_text(f"robots:\n  - {{robot_id: {left}, bus: mock, robot_type: indy7_v2}}\n"
+                      f"  - {{robot_id: {right}, bus: ethercat, eth_interface: nosuch0, master_index: 1, "
+                      "robot_type: indy12_v2}\n")
+    result = run_plem("launch", f"robots:={robots}", "cycle_time:=²", env=clean_environment(tmp_path / "home"))
+    assert_refused_before_anything_started(result, [left, right], tmp_path / "home")
+    for message in (f"robot {left}: invalid launch argument cycle_time:=²",
+                    f"robot {right}: invalid launch argument cycle_time:=²",
+                    f"robot {right}: Network interface does not exist: nosuch0"):
+        assert message in result.stderr, result.stderr
+
+
+def test_a_dds_configuration_cyclone_refuses_stops_the_launch_before_the_arm_starts(tmp_path: Path):
+    robot_id = new_robot_id()
+    result = run_plem("launch", "bus:=mock", f"robot_id:={robot_id}",
+                      env=clean_environment(tmp_path / "home", CYCLONEDDS_URI="<bogus"))
+    assert_refused_before_anything_started(result, [robot_id], tmp_path / "home")
+    assert "Cyclone DDS refused the configuration" in result.stderr
+    assert re.search(r"^HOW: fix or unset CYCLONEDDS_URI", result.stderr, re.MULTILINE), result.stderr
+
+
+def test_summary_states_the_overrun_policy_and_a_kernel_that_is_not_real_time(tmp_path: Path):
+    robot_id = new_robot_id()
+    with launched(["bus:=mock", f"robot_id:={robot_id}", "cycle_time:=500", "record:=false", "bridge:=false"],
+                  [robot_id], tmp_path, clean_environment(tmp_path / "home")) as launch:
+        output = launch.output
+    assert ("overruns      counted every 10 s; 1000 in a row fault the arm (the default on bus mock; "
+            "max_consecutive_overruns:=N sets it)") in output
+    realtime = Path("/sys/kernel/realtime").exists()
+    assert ("kernel: not PREEMPT_RT" in output) is not realtime, output
+    assert (f"[{robot_id}] warning: cycle_time 500 µs is below 1000 µs" in output) is not realtime, output
 
 
 @pytest.mark.parametrize("bus", [[], ["bus:=ethercat"]], ids=["default", "explicit"])

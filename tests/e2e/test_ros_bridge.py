@@ -372,7 +372,8 @@ def test_killing_the_bridge_mid_motion_leaves_the_arm_and_the_launch_running(rob
         assert client.state().mode is Mode.TRAJECTORY, "the bridge was not killed in the middle of the motion"
         launch.wait_for(f"[{robot_id}/bridge] killed by SIGKILL", 5)
 
-        assert wait_until(lambda: client.state().mode is Mode.HOLD, 5), client.state().mode
+        assert wait_until(lambda: client.state().mode is Mode.HOLD, 5), (client.state().mode,
+                                                                          (client.stats() or {}).get("fault_reason"))
         state = client.state()
         assert np.allclose(state.position, target, atol=ARRIVED), (state.position, target)
         assert not state.faulted and state.drives_enabled

@@ -4,6 +4,8 @@ segments rebuilt, and WHAT/WHY/HOW errors. The fast RtRaw field reader is checke
 from __future__ import annotations
 
 import json
+import random
+import re
 import shutil
 import uuid
 from pathlib import Path
@@ -40,15 +42,17 @@ def cycle_of(index: int) -> int:
     return index if index < 1500 else index + 5 if index < 3000 else index - 3000
 
 
-def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: bool = True) -> None:
+def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: bool = True, start: int = START,
+           flush_period_s: float = 1.0) -> None:
     """One robot's bags, 1 s segments of 1 kHz rt_raw with joint_states, stats and a fault at sample 1700."""
-    now = [START]
-    recorder = Recorder(RecordingSettings(robot_dir, storage=storage, segment_s=1.0), robot_dir.name, MONITOR_TOPICS,
-                        STORE, clock=lambda: now[0], disk_usage=lambda _: (100, 10, 90))
+    now = [start]
+    settings = RecordingSettings(robot_dir, storage=storage, segment_s=1.0, flush_period_s=flush_period_s)
+    recorder = Recorder(settings, robot_dir.name, MONITOR_TOPICS, STORE, clock=lambda: now[0],
+                        disk_usage=lambda _: (100, 10, 90))
     recorder.start()
     encoder, values = RawEncoder(6), np.zeros(43)
     for index in range(samples):
-        stamp = now[0] = START + index * 1_000_000
+        stamp = now[0] = start + index * 1_000_000
         values[0], values[5] = cycle_of(index), 20_000 + index % 100 * 10
         values[7:13] = np.arange(6) + index / 1000
         values[13:19] = -np.arange(6)
@@ -170,30 +174,108 @@ def test_cycles_are_not_compared_across_a_deleted_segment(tmp_path: Path, capsys
     assert raw["missing_cycles"] == 0 and raw["not_compared_across"] == [f"{SEGMENTS[1]} (deleted)"]
 
 
-def test_info_reports_killed_and_open_segments(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+def open_segment(directory: Path, cycles: int) -> SegmentWriter:
+    """A segment a live writer holds open, with `cycles` rt_raw messages flushed into it."""
+    encoder, values = RawEncoder(6), np.zeros(43)
+    writer = SegmentWriter(directory, [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], STORE)
+    for cycle in range(cycles):
+        values[0] = cycle
+        writer.append("/arm/rt_raw", START + 20 * S + cycle * 1_000_000, encoder.encode(values, START))
+    writer.flush()
+    return writer
+
+
+def test_info_tells_killed_segments_from_the_one_being_recorded(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    """A recorder of the same robot id runs (its status file is there): only the segment a writer holds open is
+    'being recorded'; the segments of killed recorders, older or newer, are unfinished and repairable."""
     robot_id = f"arm{uuid.uuid4().hex[:8]}"
     robot = tmp_path / robot_id
     record(robot, samples=1600)
     killed = f"{robot_id}_2027_01_15-08_00_00_1"          # sorts between the two complete segments
     killed_segment(robot / killed, 300)
+    (arm,) = info_json(tmp_path, capsys)["robots"]
+    assert arm["segments"][1]["note"] == "unfinished (recorder killed) — run `plem bag repair`"
     assert run(["bag", "info", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "killed — run `plem bag repair`" in out
     assert "rt_raw: 1600 samples, 5 cycles missing in 1 gap" in out
     assert f"cycles not compared across: {killed} (killed)" in out
-    newest = f"{robot_id}_2027_01_15-08_00_10"
-    killed_segment(robot / newest, 300)
+    newest_killed = f"{robot_id}_2027_01_15-08_00_30"
+    killed_segment(robot / newest_killed, 300)
+    writing = f"{robot_id}_2027_01_15-08_00_20"
+    writer = open_segment(robot / writing, 200)
     write_status(robot_id, [QueueCount("bag", 0, 0, 0, 0)])   # a recorder of this robot runs: this process
     try:
         (arm,) = info_json(tmp_path, capsys)["robots"]
-        assert [s["state"] for s in arm["segments"]] == ["complete", "killed", "complete", "recording"]
-        assert arm["segments"][-1]["note"] == "open — being recorded"
-        assert arm["drops"]["rt_raw"]["not_compared_across"] == [f"{killed} (killed)"], "nothing after the open one"
+        states = {s["name"]: (s["state"], s["note"]) for s in arm["segments"]}
+        assert states[writing] == ("recording", "being recorded")
+        for name in (killed, newest_killed):
+            assert states[name] == ("killed", "unfinished (recorder killed) — run `plem bag repair`")
         assert run(["bag", "repair", str(tmp_path)]) == 0
         out = capsys.readouterr().out
-        assert f"{newest}: left alone, a recorder is writing it" in out and f"{killed}: repaired" in out
+        assert f"{writing}: left alone, a recorder is writing it" in out
+        assert f"{killed}: repaired, 300 messages recovered" in out and f"{newest_killed}: repaired" in out
     finally:
         remove_status(robot_id)
+        writer.close()
+    (arm,) = info_json(tmp_path, capsys)["robots"]
+    assert all(segment["state"] == "complete" for segment in arm["segments"])
+    with Reader(robot / writing) as reader:
+        assert reader.message_count == 200
+
+
+def plem(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    """`plem ARGS` in this process: exit code, stdout, stderr."""
+    code = run(list(args))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_a_truncated_segment_says_how_much_reads_and_repair_rebuilds_it(tmp_path: Path,
+                                                                        capsys: pytest.CaptureFixture[str]):
+    robot = tmp_path / "arm"
+    record(robot, samples=1200, flush_period_s=0.0)         # a chunk per message: a cut keeps the ones before it
+    mcap = robot / SEGMENTS[0] / f"{SEGMENTS[0]}.mcap"
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size // 2])
+    code, out, err = plem(capsys, "bag", "info", str(tmp_path))
+    assert_plem_error(code, err, f"segment {SEGMENTS[0]} is damaged")
+    match = re.search(r"ends before its summary \(truncated\); (\d+) of 1\d{3} messages can be read", err)
+    assert match and 100 < int(match[1]) < 1000, err
+    assert f"HOW: run `plem bag repair {robot / SEGMENTS[0]}`" in err
+    assert SEGMENTS[0] in out and SEGMENTS[1] in out, "the other segment is still reported"
+    code, out, err = plem(capsys, "bag", "repair", str(robot))
+    assert code == 0, err
+    assert f"{SEGMENTS[0]}: repaired, {match[1]} messages recovered" in out
+    with Reader(robot / SEGMENTS[0]) as reader:
+        assert reader.message_count == int(match[1])
+    assert plem(capsys, "bag", "info", str(tmp_path))[0] == 0
+
+
+ALIAS_BOMB = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(            # 10**9 values once expanded
+    f"{name}: &{name} [{', '.join([f'*{previous}'] * 10)}]\n"
+    for previous, name in zip("abcdefgh", "bcdefghi", strict=True))
+
+
+def test_info_reports_each_unreadable_file_and_still_the_rest(tmp_path: Path):  # a real process: no traceback
+    """Random bytes named .mcap, a metadata.yaml nested too deep or an alias bomb, a non-UTF-8 event log: one
+    WHAT/WHY/HOW each, the readable segments and robots still reported, never an internal error."""
+    robot = tmp_path / "arm"
+    record(robot, samples=3500)
+    (robot / SEGMENTS[0] / f"{SEGMENTS[0]}.mcap").write_bytes(random.Random(0).randbytes(50_000))
+    (robot / SEGMENTS[1] / "metadata.yaml").write_text("a: " + "[" * 5000 + "]" * 5000)
+    (robot / SEGMENTS[2] / "metadata.yaml").write_text(ALIAS_BOMB)
+    other = tmp_path / "other"
+    record(other, samples=500)
+    (other / "event_log.jsonl").write_bytes(b'{"kind": "deleted"}\n\xff\xfe not utf-8\n')
+    result = run_plem("bag", "info", str(tmp_path))
+    assert_plem_error(result.returncode, result.stderr, f"4 problems in the bags under {tmp_path}")
+    assert "Internal error" not in result.stderr
+    assert f"ERROR: segment {SEGMENTS[0]} cannot be read" in result.stderr and "not an MCAP file" in result.stderr
+    assert f"ERROR: segment {SEGMENTS[1]} cannot be read" in result.stderr and "64 deep" in result.stderr
+    assert f"ERROR: segment {SEGMENTS[2]} cannot be read" in result.stderr and "alias" in result.stderr
+    assert "ERROR: Not UTF-8" in result.stderr and "event_log.jsonl" in result.stderr
+    assert result.stderr.count("\nHOW: ") == 4
+    assert "arm_2027_01_15-08_00_03" in result.stdout and "rt_raw 500" in result.stdout
+    assert "total: 5 segments (2 complete)" in result.stdout
 
 
 # -- plot ----------------------------------------------------------------------------------------------------
@@ -201,11 +283,41 @@ def test_plot_writes_a_png_of_the_expected_size(bag_dir: Path, tmp_path: Path, c
     import matplotlib.image
 
     out = tmp_path / "plots" / "arm.png"
+    out.parent.mkdir()
     assert run(["bag", "plot", str(bag_dir), "--out", str(out)]) == 0
     assert f"wrote {out}" in capsys.readouterr().out
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert matplotlib.image.imread(out).shape[:2] == (1000, 1200)
     assert [path.name for path in out.parent.iterdir()] == ["arm.png"], "no temporary file left"
+
+
+def test_plot_of_a_bag_dir_with_several_robots_plots_the_newest_and_says_so(tmp_path: Path,
+                                                                         capsys: pytest.CaptureFixture[str]):
+    record(tmp_path / "arm", samples=1200)
+    record(tmp_path / "arm2", samples=1200, start=START + 3600 * S)       # recorded an hour later
+    out = tmp_path / "run.png"
+    code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(out))
+    assert code == 0, err
+    assert (f"WARNING: {tmp_path} holds the bags of 2 robots (arm, arm2): plotting arm2, the one recorded last; "
+            "pass --robot ID for another") in err
+    assert f"wrote {out}" in stdout and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_plot_writes_only_a_regular_file_in_an_existing_directory(bag_dir: Path, tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]):
+    (tmp_path / "folder.png").mkdir()
+    (tmp_path / "link.png").symlink_to(tmp_path / "target.png")
+    cases = {"/dev/full": ("/dev/full is not a regular file", "WHY: /dev/full is a character device"),
+             str(tmp_path / "folder.png"): (f"{tmp_path / 'folder.png'} is not a regular file", "is a directory"),
+             str(tmp_path / "link.png"): (f"{tmp_path / 'link.png'} is not a regular file", "is a symbolic link"),
+             "/nonexistent/x.png": ("cannot write /nonexistent/x.png: /nonexistent is not a directory",
+                                    "HOW: create it first (mkdir -p /nonexistent)")}
+    for out, (summary, detail) in cases.items():
+        code, _, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out)
+        assert_plem_error(code, err, summary)
+        assert detail in err
+    assert not Path("/nonexistent").exists() and Path("/dev/full").is_char_device()
+    assert not (tmp_path / "target.png").exists() and (tmp_path / "folder.png").is_dir()
 
 
 def test_plot_series_decimates_lines_but_keeps_every_latency(bag_dir: Path, monkeypatch: pytest.MonkeyPatch):
@@ -227,8 +339,6 @@ def test_plot_errors(bag_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixtur
     shutil.copytree(bag_dir / "arm", two / "arm")
     record(two / "other", samples=300, raw=False)
     out = str(tmp_path / "x.png")
-    code = run(["bag", "plot", str(two), "--out", out])
-    assert_plem_error(code, capsys.readouterr().err, f"{two} holds the bags of 2 robots")
     code = run(["bag", "plot", str(two), "--out", out, "--robot", "nobody"])
     assert_plem_error(code, capsys.readouterr().err, f"no bags of robot nobody in {two}")
     code = run(["bag", "plot", str(two), "--out", out, "--robot", "other"])

@@ -132,6 +132,21 @@ def drive_params_removed(joint: int, name: str | None = None) -> Mutation:
     return sub(ROS2_CONTROL, joint_params(joint) + rf') *<param name="{name}">[^<]*</param>\n', r"\1")
 
 
+def padded(rel: str, mib: int) -> Mutation:
+    """Grow an XML file past `mib` MiB with a comment before its last line."""
+    def mutate(root: Path) -> None:
+        path = root / rel
+        head, _, tail = path.read_text(encoding="utf-8").rstrip("\n").rpartition("\n")
+        path.write_text(f"{head}\n<!-- {'x' * (mib * 2**20)} -->\n{tail}\n", encoding="utf-8")
+    return mutate
+
+
+def limit_value(attribute: str, old: str, new: str, joint: int = 0) -> Mutation:
+    """Change one `<limit>` attribute in joint N's `axis_joint` call."""
+    return sub(URDF, rf'(<xacro:axis_joint index="{joint}"[^>]*? {attribute}=")' + re.escape(old) + '"',
+               rf'\g<1>{new}"')
+
+
 def srdf_state_value(joint: str, old: str, new: str) -> Mutation:
     """Change the value of `joint` in the first group_state naming it with `old`."""
     return replace(SRDF, f'<joint name="{joint}" value="{old}"/>', f'<joint name="{joint}" value="{new}"/>')
@@ -199,6 +214,10 @@ CASES = [
     Case("xacro_include_missing", replace(URDF, RC_INCLUDE, "$(find indy7_v2_description)/urdf/gone.xacro"),
          "urdf.render", ERROR),
     Case("urdf_broken_xml", replace(URDF, '<link name="${pfx}tcp"/>', '<link name="${pfx}tcp">'), "urdf.xml", ERROR),
+    Case("urdf_too_large", padded(URDF, 17), "urdf.render", ERROR,
+         message={"summary": "indy7_v2.urdf.xacro is too large", "what": "at most 16.0 MiB", "why": "holds 17.0 MiB"}),
+    Case("urdf_include_too_large", padded(ROS2_CONTROL, 17), "urdf.render", ERROR,
+         message={"summary": "indy7_v2.ros2_control.xacro is too large", "why": "holds 17.0 MiB"}),
     # --- kinematic tree
     Case("joint_child_link_missing", replace(URDF, '<child link="${pfx}tcp"/>', '<child link="${pfx}tool0"/>'),
          "urdf.joint_link_missing", ERROR, message={"why": "'tool0'"}),
@@ -221,6 +240,36 @@ CASES = [
                                             'effort="${effort}"/>', ""), "urdf.limit_missing", ERROR),
     Case("limit_velocity_missing", replace(URDF, ' velocity="${velocity}" effort', " effort"),
          "urdf.limit_missing", ERROR, message={"why": "lacks velocity"}),
+    Case("limit_velocity_nan", limit_value("velocity", "2.617993878", "nan"), "urdf.limit_value", ERROR,
+         line="<limit lower=", message={"summary": "joint0", "why": 'velocity="nan" is not a finite number'}),
+    Case("limit_effort_infinite", limit_value("effort", "79.79", "inf", joint=4), "urdf.limit_value", ERROR,
+         line="<limit lower=", message={"summary": "joint4", "why": 'effort="inf"'}),
+    Case("limit_lower_nan", limit_value("lower", "-3.054326191", "nan", joint=1), "urdf.limit_value", ERROR,
+         message={"why": 'lower="nan"'}),
+    Case("limit_velocity_zero", limit_value("velocity", "3.141592654", "0", joint=5), "urdf.limit_value", ERROR,
+         message={"why": 'velocity="0" is not above 0'}),
+    Case("limit_lower_above_upper", limit_value("lower", "-3.054326191", "3.1", joint=2), "urdf.limit_value", ERROR,
+         message={"why": 'lower="3.1" is not below upper="3.05433"'}),
+    Case("axis_zero", replace(URDF, '<axis xyz="0 0 1"/>', '<axis xyz="${int(index != 3)} 0 ${int(index != 3)}"/>'),
+         "urdf.axis", ERROR, line="<axis xyz=", message={"summary": "joint3", "why": '<axis xyz="0 0 0">'}),
+    Case("axis_nan", replace(URDF, '<axis xyz="0 0 1"/>', '<axis xyz="0 0 nan"/>'), "urdf.axis", ERROR,
+         line="<axis xyz="),
+    Case("mass_nan", replace(URDF, 'mass="2.68211719"', 'mass="nan"'), "urdf.inertial", ERROR,
+         line='<link name="${pfx}link3">', message={"summary": "link3", "why": 'mass value="nan"'}),
+    Case("mass_negative", replace(URDF, 'mass="2.68211719"', 'mass="-2.68211719"'), "urdf.inertial", ERROR,
+         line='<link name="${pfx}link3">', message={"why": 'mass value="-2.68212"'}),
+    Case("mass_zero", replace(URDF, 'mass="2.68211719"', 'mass="0"'), "urdf.inertial", ERROR,
+         message={"why": "mass is 0 kg, yet joint joint2 moves it"}),
+    Case("inertia_nan", replace(URDF, 'izz="0.10021441"', 'izz="nan"'), "urdf.inertial", ERROR,
+         message={"summary": "link3", "why": 'izz="nan" is not a finite number'}),
+    Case("inertia_negative_diagonal", replace(URDF, 'iyy="0.01627234"', 'iyy="-0.01627234"'), "urdf.inertial", ERROR,
+         message={"why": "not positive semi-definite (negative diagonal iyy=-0.0162723)"}),
+    Case("mass_implausible", replace(URDF, 'mass="2.68211719"', 'mass="3500"'), "urdf.inertial_implausible",
+         WARNING, line='<link name="${pfx}link3">',
+         message={"summary": "Link link3 weighs 3500 kg", "why": "times the median"}),
+    Case("inertia_implausible", replace(URDF, 'ixx="0.11373278" iyy="0.01627234" izz="0.10021441"',
+                                        'ixx="113.73278" iyy="16.27234" izz="100.21441"'),
+         "urdf.inertial_implausible", WARNING, message={"summary": "link3 has an inertia too large for its mass"}),
     Case("dof_5", joint_type(5, "fixed"), "dof.unsupported", ERROR, message={"summary": "5 actuated joints"}),
     Case("dof_8", tcp_joint_type("continuous", RP2_URDF), "dof.unsupported", ERROR,
          message={"summary": "8 actuated joints"}, robot=RP2),
@@ -311,7 +360,22 @@ CASES = [
     Case("limits_flag_not_bool", replace(LIMITS, "has_velocity_limits: true", 'has_velocity_limits: "true"'),
          "limits.type", ERROR, line='has_velocity_limits: "true"'),
     Case("limits_wider_than_urdf", replace(LIMITS, "max_velocity: 2.617993878", "max_velocity: 5.0"),
-         "limits.exceeds_urdf", WARNING, line="joint0:", message={"why": "max_velocity 5 > URDF velocity"}),
+         "limits.exceeds_urdf", ERROR, line="max_velocity: 5.0",
+         message={"summary": "loosens the velocity limit of joint0",
+                  "why": 'max_velocity 5 is above the URDF\'s velocity="2.61799" (', "how": "at most 2.61799"}),
+    Case("limits_min_position_beyond_urdf", replace(LIMITS, "min_position: -3.054326191", "min_position: -3.5"),
+         "limits.exceeds_urdf", ERROR, line="min_position: -3.5",
+         message={"why": 'min_position -3.5 is below the URDF\'s lower="-3.05433"', "how": "at least -3.05433"}),
+    Case("limits_effort_beyond_urdf", replace(LIMITS, "max_effort: 79.79", "max_effort: 120"),
+         "limits.exceeds_urdf", ERROR, line="max_effort: 120", message={"summary": "effort limit of joint3"}),
+    Case("limits_velocity_switched_off", replace(LIMITS, "has_velocity_limits: true", "has_velocity_limits: false"),
+         "limits.removes_urdf", ERROR, line="has_velocity_limits: false",
+         message={"summary": "removes the velocity limit of joint0", "why": 'velocity="2.61799"'}),
+    Case("limits_position_switched_off", replace(LIMITS, "has_position_limits: true", "has_position_limits: false"),
+         "limits.removes_urdf", ERROR, line="has_position_limits: false",
+         message={"why": 'lower="-3.05433" upper="3.05433"'}),
+    Case("limits_effort_switched_off", replace(LIMITS, "has_effort_limits: true", "has_effort_limits: false"),
+         "limits.removes_urdf", ERROR, line="has_effort_limits: false", message={"why": 'effort="431.97"'}),
     Case("limits_unknown_key", replace(LIMITS, "    max_jerk: 30.0\n", "    max_jerk: 30.0\n    max_snap: 300.0\n"),
          "limits.unknown_key", WARNING, line="max_snap: 300.0"),
     Case("limits_no_jerk", replace(LIMITS, "    has_jerk_limits: true\n    max_jerk: 30.0\n", ""),
@@ -350,6 +414,8 @@ CASES = [
     Case("srdf_collision_unknown_link", replace(SRDF, 'link2="tcp"', 'link2="gripper"'),
          "srdf.collision_unknown_link", ERROR, line='link2="gripper"', message={"why": "gripper"}),
     Case("srdf_broken_xml", replace(SRDF, "</group_state>", "</group-state>"), "srdf.xml", ERROR),
+    Case("srdf_too_large", padded(SRDF, 17), "srdf.xml", ERROR,
+         message={"summary": "File too large", "what": "at most 16.0 MiB", "why": "holds 17.0 MiB"}),
     Case("srdf_robot_name_differs", replace(SRDF, '<robot name="indy7_v2">', '<robot name="indy7">'),
          "srdf.robot_name", WARNING),
     # --- kinematics.yaml

@@ -102,6 +102,16 @@ def test_urdf_path_and_effort_limits_from_the_urdf(tmp_path):
     assert np.allclose(bus.effort_limits, [431.97, 431.97, 197.23, 79.79, 79.79, 79.79])
 
 
+def test_a_urdf_path_is_read_only_when_a_regular_file_of_sane_size(tmp_path):
+    large = tmp_path / "large.urdf"
+    large.write_text(urdf().replace("</robot>", f"<!-- {'x' * 17 * 2**20} --></robot>"))
+    with pytest.raises(ConfigError, match="File too large") as caught:
+        MockBus(6, large).open(setup())
+    assert "17.0 MiB" in caught.value.why and "16.0 MiB" in caught.value.what
+    with pytest.raises(ConfigError, match="Not a regular file"):
+        MockBus(6, tmp_path).open(setup())
+
+
 # ---- drives -------------------------------------------------------------------------------------
 
 def test_enable_takes_three_cycles_and_disable_one():
@@ -298,6 +308,41 @@ def test_drive_fault_brakes_the_joint_and_needs_reset_and_enable():
     bus.enable()
     cycles(bus, 3)
     assert bus.drive_state(2) is DriveState.OPERATION_ENABLED
+
+
+def fault_every_drive(bus: MockBus) -> None:
+    for joint in range(bus.dof):
+        bus.inject_drive_fault(joint, 0x7121)
+
+
+def fault_one_and_disable_the_rest(bus: MockBus) -> None:
+    bus.inject_drive_fault(1, 0x2310)
+    bus.disable()
+
+
+def lose_communication_briefly(bus: MockBus) -> None:
+    bus.inject_communication_loss(20)  # the drives quick-stop, then switch off when the master is heard again
+
+
+@pytest.mark.parametrize("fault", [fault_every_drive, fault_one_and_disable_the_rest, lose_communication_briefly])
+@pytest.mark.parametrize("bent", [BENT, [0.4, 1.2, -0.9, 0.5, 1.1, 0.3]], ids=["shoulder", "whole_arm"])
+def test_drives_down_after_a_fault_hold_the_arm_on_their_brakes(fault, bent):
+    """However the drives end up not enabled (in fault, switched off), the brakes hold the bent arm: for three
+    simulated seconds nothing moves, velocities and torques read 0."""
+    bus = make_bus(initial_positions=bent)
+    enable(bus)
+    command(bus, bent)
+    fault(bus)
+    cycles(bus, 30)
+    assert not any(bus.drive_state(d) in (DriveState.OPERATION_ENABLED, DriveState.QUICK_STOP_ACTIVE)
+                   for d in range(6))
+    held = bus.true_positions
+    assert np.allclose(held, bent, atol=1e-4)
+    counts = bus.io.position.copy()
+    for _ in range(3000):
+        cycles(bus, 1)
+        assert np.array_equal(bus.true_positions, held) and not np.any(bus.true_velocities)
+    assert np.array_equal(bus.io.position, counts) and not np.any(bus.io.velocity) and not np.any(bus.io.torque)
 
 
 def test_persistent_fault_survives_reset_until_cleared():

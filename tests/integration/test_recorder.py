@@ -3,15 +3,20 @@ the flight recorder's keep marks and a full disk. Bags are read back with rosbag
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import json
+import os
 import subprocess
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
+from plem.cli.app import run
 from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
 from plem.middleware.monitor_feed import MONITOR_TOPICS
@@ -23,7 +28,8 @@ from plem.recording.settings import RecordingSettings
 
 S = 1_000_000_000
 START = 1_800_000_000 * S
-STORE = library().store
+LIBRARY = library()
+STORE = LIBRARY.store
 RAW = "/arm/rt_raw"
 
 
@@ -166,7 +172,7 @@ def test_the_fault_offset_counts_from_the_segments_earliest_message(tmp_path: Pa
 
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:
-    """A 2 MiB tmpfs (needs root and mount)."""
+    """A 2 MiB tmpfs (needs root and mount), unmounted after the test."""
     mount = tmp_path / f"disk_{uuid.uuid4().hex[:6]}"
     mount.mkdir()
     result = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mount)], capture_output=True,
@@ -177,22 +183,118 @@ def small_disk(tmp_path: Path) -> Iterator[Path]:
     subprocess.run(["umount", str(mount)], check=True)
 
 
-def test_a_full_disk_stops_recording_with_an_event_and_resumes_after_the_guard(small_disk: Path, caplog):
+def open_files_under(directory: Path) -> list[str]:
+    """Files under `directory` this process holds open."""
+    names = []
+    for fd in Path("/proc/self/fd").iterdir():
+        with contextlib.suppress(OSError):
+            names.append(os.readlink(fd))
+    return [name for name in names if name.startswith(str(directory))]
+
+
+class Samples:
+    """rt_raw at 1 kHz from START, with an rt_monitor_stats every 100 cycles carrying the recorder's own queues as
+    MonitorFeed builds them, and the guard run every 1000 cycles as the recorder process does once a second."""
+
+    def __init__(self, recorder: Recorder, clock: Clock) -> None:
+        self.recorder, self.clock, self.cycle = recorder, clock, 0
+        self.encoder, self.record = RawEncoder(6), np.zeros(43)
+
+    def next(self) -> None:
+        stamp = self.clock.now = START + self.cycle * 1_000_000
+        self.record[0] = self.cycle
+        self.recorder.rt_raw(self.encoder.encode(self.record, stamp), stamp)
+        if self.cycle % 100 == 0:
+            queues = [LIBRARY.new("plem_msgs/msg/QueueStats", name=q.name, written=q.written, dropped=q.dropped)
+                      for q in self.recorder.queues()]
+            self.recorder.rt_monitor_stats(LIBRARY.new(MONITOR_TOPICS["rt_monitor_stats"], queues=queues), stamp)
+        if self.cycle % 1000 == 0:
+            self.recorder.maintain()
+        self.cycle += 1
+
+    def until(self, condition: Callable[[], bool], limit: int = 100_000) -> None:
+        """Feed cycles until `condition` holds (at most `limit` cycles)."""
+        for _ in range(limit):
+            if condition():
+                return
+            self.next()
+        raise AssertionError("the condition never held")
+
+
+def test_a_full_disk_keeps_the_segment_counts_the_loss_and_recording_resumes(small_disk: Path, caplog,
+                                                                            capsys: pytest.CaptureFixture[str]):
+    """The only segment is being written when the disk fills: it is finished readable, never deleted by the guard,
+    no file stays open, what could not be recorded is counted and reported once, and recording resumes in a new
+    segment once the space is back."""
+    filler = small_disk / "filler"
+    filler.write_bytes(bytes(800 * 1024))                   # about 1.2 MiB left for the recorder
     clock = Clock()
-    recorder = Recorder(RecordingSettings(small_disk / "arm", segment_s=0.5, disk_threshold=50.0), "arm",
+    robot = small_disk / "arm"
+    recorder = Recorder(RecordingSettings(robot, segment_s=3600.0, disk_threshold=90.0), "arm", MONITOR_TOPICS,
+                        STORE, clock=clock)
+    recorder.start()
+    first = recorder.segment.directory
+    samples = Samples(recorder, clock)
+    samples.until(lambda: recorder.stopped is not None)
+    assert recorder.stopped.errno == errno.ENOSPC and recorder.stopped.interrupted == str(first)
+    assert open_files_under(small_disk) == [], "every file of the stopped segment is closed"
+    written = recorder.written
+    samples.until(lambda: recorder.unrecorded >= 5000)      # five guard passes with the disk still full
+    assert recorder.stopped is not None and recorder.segment is None
+    assert first.is_dir() and (first / "metadata.yaml").is_file(), "the guard left the interrupted segment alone"
+    cycles = [cycle for segment, _, cycle in recorded(robot)]
+    assert cycles == list(range(len(cycles))) and len(cycles) > 1000, "the first segment reads back whole"
+    with Reader(first) as reader:
+        assert reader.message_count == written
+    filler.unlink()                                          # the space comes back
+    samples.until(lambda: recorder.stopped is None)
+    lost = recorder.unrecorded
+    assert lost >= 5000 and recorder.written + lost == samples.cycle + samples.cycle // 100 + 1
+    resumed_at = samples.cycle
+    samples.until(lambda: samples.cycle >= resumed_at + 500)
+    recorder.close()
+
+    entries = list(read_event_log(robot))
+    kinds = [entry["kind"] for entry in entries]
+    assert kinds.count("recording_stopped") == 1 and kinds.count("recording_resumed") == 1 and "deleted" not in kinds
+    [resumed] = [entry for entry in entries if entry["kind"] == "recording_resumed"]
+    assert resumed["not_recorded"] == lost and resumed["not_recorded_topics"]["rt_raw"] > 0
+    stop_lines = [r.getMessage() for r in caplog.records if "recording stopped" in r.getMessage()]
+    assert len(stop_lines) == 1 and "No space left on device" in stop_lines[0]
+    assert f"finished with its {written} messages" in stop_lines[0] and "\nHOW: free space there" in stop_lines[0]
+    assert any(f"{lost} messages not recorded" in r.getMessage() for r in caplog.records)
+    after = [cycle for segment, _, cycle in recorded(robot) if segment != first.name]
+    assert after[-1] == samples.cycle - 1 and after == list(range(after[0], samples.cycle)), "recorded again"
+
+    assert run(["bag", "info", str(robot), "--format", "json"]) == 0
+    (arm,) = json.loads(capsys.readouterr().out)["robots"]
+    assert [s["state"] for s in arm["segments"]] == ["complete", "complete"]
+    assert arm["stops"]["not_recorded"] == lost
+    assert arm["drops"]["recorder"]["bag_dropped"] == lost, "the recorded rt_monitor_stats count it too"
+    assert run(["bag", "info", str(robot)]) == 0
+    assert f"recording stopped 1 time: {lost} messages not recorded" in capsys.readouterr().out
+
+
+def test_a_full_disk_under_sqlite3_stops_recording_with_honest_counts(small_disk: Path):
+    """sqlite3 reports a full disk as SQLITE_FULL: the same single stop, every message counted once, no file left
+    open, and what its committed transactions hold is rebuilt into a readable bag once there is room."""
+    filler = small_disk / "filler"
+    filler.write_bytes(bytes(800 * 1024))
+    clock = Clock()
+    robot = small_disk / "arm"
+    recorder = Recorder(RecordingSettings(robot, storage="sqlite3", segment_s=3600.0, disk_threshold=90.0), "arm",
                         MONITOR_TOPICS, STORE, clock=clock)
     recorder.start()
-    feed(recorder, clock, range(12_000))           # about 5 MB of rt_raw into 2 MiB: the disk fills
-    assert recorder.segment is None and recorder.stopped_because and "No space left" in recorder.stopped_because
-    assert recorder.unrecorded > 0 and recorder.written + recorder.unrecorded == 12_000
-    assert [q.dropped for q in recorder.queues() if q.name == "bag"] == [recorder.unrecorded]
-    recorder.maintain()                            # the guard frees the oldest closed segments, then resumes
-    assert recorder.segment is not None and recorder.stopped_because is None
-    feed(recorder, clock, range(12_000, 12_100))
+    first = recorder.segment.directory
+    samples = Samples(recorder, clock)
+    samples.until(lambda: recorder.stopped is not None)
+    assert recorder.stopped.errno == errno.ENOSPC and open_files_under(small_disk) == []
+    samples.until(lambda: samples.cycle % 1000 == 999)
     recorder.close()
-    kinds = log_kinds(small_disk / "arm")
-    assert "recording_resumed" in kinds and "deleted" in kinds
-    assert any("recording stopped: No space left" in r.getMessage() for r in caplog.records)
-    cycles = [cycle for _, _, cycle in recorded(small_disk / "arm")]
-    assert cycles[-100:] == list(range(12_000, 12_100))
-
+    fed = samples.cycle + (samples.cycle + 99) // 100
+    assert recorder.written + recorder.unrecorded == fed and recorder.unrecorded > 0
+    assert [entry["kind"] for entry in read_event_log(robot)].count("recording_stopped") == 1
+    filler.unlink()
+    assert run(["bag", "repair", str(robot)]) == 0
+    with Reader(first) as reader:
+        assert 0 < reader.message_count <= recorder.written

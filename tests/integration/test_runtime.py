@@ -17,6 +17,7 @@ from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
 from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryPoint, TrajectoryTolerances
 from plem.errors import CommandRejected, ConfigError, RobotFault
+from plem.fieldbus.bus import DriveState
 from plem.fieldbus.mock import MockBus
 from plem.ipc.request_bounds import MAX_POINTS
 from plem.robot import Indy7V2, IndyRP2V2, Robot, RobotFactory
@@ -288,6 +289,25 @@ def test_communication_loss_faults_and_reset_waits_for_the_bus(holding):
     holding.bus.restore_communication()
     holding.step(1000)
     assert holding.reset_fault() is Mode.HOLD
+
+
+def test_in_fault_with_the_drives_down_the_brakes_hold_the_bent_arm(holding):
+    """A fault the drives cannot be reset from leaves them switched off in FAULT: the arm, bent so that gravity
+    pulls on it, stays where it stopped, encoder for encoder, and reads no velocity."""
+    holding.move_joints([0.0, 0.9, -0.6, 0.4, 1.0, 0.2]).wait()
+    holding.bus.inject_drive_fault(1, 0x7121, persistent=True)
+    holding.step(100)
+    assert holding.mode is Mode.FAULT
+    with pytest.raises(RobotFault, match="did not enable"):
+        holding.reset_fault()
+    holding.step(2)
+    assert [holding.bus.drive_state(i) for i in range(6)] == [DriveState.SWITCH_ON_DISABLED] + [DriveState.FAULT] + [
+        DriveState.SWITCH_ON_DISABLED] * 4
+    before = holding.state()
+    trace = step_recording(holding, 3000)
+    assert holding.mode is Mode.FAULT
+    assert np.array_equal(np.array(trace.position), np.tile(before.position, (3000, 1)))
+    assert not np.any(np.array(trace.velocity)) and not np.any(holding.bus.true_velocities)
 
 
 def test_internal_error_in_a_cycle_faults_instead_of_crashing(holding):

@@ -68,3 +68,9 @@ def test_invalid_bridge_commands_is_reported_with_the_other_problems():
     rendered = caught.value.render()
     assert "invalid launch argument bridge_commands:=readonly" in rendered
     assert "true or false" in rendered and "bridge_commands:=false" in rendered
+
+
+def test_words_in_messages_are_escaped_and_cut():
+    with pytest.raises(UsageError) as caught:
+        parse_launch_arguments(["x\x00" * 100], KNOWN)
+    assert "\x00" not in caught.value.render() and "(200 characters)" in caught.value.summary

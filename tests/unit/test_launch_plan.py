@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import stat
+from pathlib import Path
+
 import pytest
 
+from plem.core.config.launch_args import decimal_number, whole_number
 from plem.errors import ConfigError, MultipleErrors, UsageError
 from plem.launch.arguments import DEFAULTS, NAMES, help_text, parse
-from plem.launch.plan import plan_robot
+from plem.launch.plan import MAX_CONSECUTIVE_OVERRUNS, plan_launch, plan_robot, prepare_bag_directory
 from plem.launch.robots_file import load_robots
+from plem.robot.config import RT_KERNEL_FLAG
+from tests.conftest import fresh_domain
 
 SPEC_ARGUMENTS = ("eth_interface", "robot_type", "description_package", "urdf_file", "srdf_file", "robot_name",
                   "record", "bag_dir", "retention_minutes", "disk_threshold", "robot_id")
@@ -95,3 +101,119 @@ def test_joint_state_rate_argument_wins_and_is_checked():
     assert plan_robot({"bus": "mock", "joint_states_rate": "25"}, generate=False).joint_state_rate() == 25.0
     with pytest.raises((ConfigError, MultipleErrors), match="joint_states_rate"):
         plan_robot({"bus": "mock", "joint_states_rate": "0"}, generate=False)
+
+
+# -- numbers, groups, bag directories ----------------------------------------------------------------
+@pytest.mark.parametrize("text, whole, decimal", [
+    ("80", 80, 80.0), ("0", 0, 0.0), ("2.5", None, 2.5), (".5", None, 0.5),
+    ("²", None, None), ("٣", None, None), ("７０", None, None), ("1_000", None, None), ("1e3", None, None),
+    ("nan", None, None), ("inf", None, None), ("-3", None, None), (" 8", None, None), ("8\n", None, None),
+    ("9" * 19, None, None), ("", None, None), (".", None, None),
+])
+def test_launch_numbers_are_plain_ascii_decimals(text, whole, decimal):
+    assert whole_number(text) == whole and decimal_number(text) == decimal
+
+
+@pytest.mark.parametrize("name, value", [
+    ("cycle_time", "²"), ("rt_priority", "٣"), ("master_index", "1e3"), ("retention_minutes", "²"),
+    ("disk_threshold", "７０"), ("bag_segment_seconds", "9" * 40), ("flight_recorder_seconds", "-1"),
+    ("joint_states_rate", "nan"), ("joint_states_rate", "inf"), ("joint_states_rate", "1e3"),
+    ("max_consecutive_overruns", "0"), ("max_consecutive_overruns", "2000000"),
+    ("shm_group", "99999999999"), ("shm_group", "no_such_group_xyz"), ("shm_group", "a\0b"), ("shm_group", "²"),
+])
+def test_a_bad_number_or_group_is_a_plem_error_naming_the_argument(name, value):
+    with pytest.raises(ConfigError) as caught:
+        plan_robot({"bus": "mock", "record": "false", name: value})
+    error = caught.value
+    assert error.summary.startswith(f"invalid launch argument {name}:=") and f"{name}:=" in error.how
+    assert "digits 0-9" in error.what or name == "shm_group"
+
+
+@pytest.mark.parametrize("name", ["description_package", "urdf_file", "srdf_file"])
+def test_a_path_with_the_home_of_no_user_is_a_plem_error_naming_the_argument(name):
+    with pytest.raises(ConfigError) as caught:
+        plan_robot({"bus": "mock", "record": "false", name: "~no_such_user_xyz/pkg"})
+    assert caught.value.summary == f"unknown home directory in {name}:=~no_such_user_xyz/pkg"
+    assert "no user 'no_such_user_xyz'" in caught.value.why
+
+
+def test_shm_group_problem_names_the_groups_of_the_user():
+    with pytest.raises(ConfigError) as caught:
+        plan_robot({"bus": "mock", "record": "false", "shm_group": "no_such_group_xyz"})
+    assert "your groups:" in caught.value.why and "groupadd" in caught.value.how
+
+
+def test_overrun_fault_threshold_defaults_by_bus_and_follows_its_argument():
+    assert plan_robot({"bus": "mock"}).max_consecutive_overruns == MAX_CONSECUTIVE_OVERRUNS["mock"]
+    assert plan_robot({"bus": "mock", "max_consecutive_overruns": "25"}).max_consecutive_overruns == 25
+    assert MAX_CONSECUTIVE_OVERRUNS["ethercat"] < MAX_CONSECUTIVE_OVERRUNS["mock"]
+
+
+@pytest.mark.parametrize("text, why", [
+    ("/proc/nope", "/proc/nope: No such file or directory"),
+    ("/proc", "/proc/arm: No such file or directory"),
+    ("/tmp/a\0b", "NUL byte"),
+    ("/tmp/" + "a" * 5000, "Linux allows 4095"),
+    ("/tmp/" + "a" * 300, "a file name may have 255"),
+    ("/tmp/" + "a/" * 2500, "Linux allows 4095"),
+    ("/etc/passwd", "/etc/passwd: Not a directory"),
+    ("/etc/passwd/bags", "/etc/passwd: Not a directory"),
+    ("~no_such_user_xyz/bags", "no user 'no_such_user_xyz'"),
+])
+def test_a_bag_directory_that_cannot_hold_bags_is_explained(text: str, why: str):
+    problem = prepare_bag_directory({"bag_dir": text}, "arm", None)
+    assert problem is not None and why in problem.why, problem
+    assert "bag_dir:=" in problem.summary + problem.how
+
+
+def test_a_missing_bag_directory_is_created_owner_only(tmp_path: Path):
+    assert prepare_bag_directory({"bag_dir": str(tmp_path / "bags" / "deep")}, "arm", None) is None
+    for path in (tmp_path / "bags", tmp_path / "bags" / "deep", tmp_path / "bags" / "deep" / "arm"):
+        assert path.is_dir() and stat.S_IMODE(path.stat().st_mode) == 0o700
+
+
+# -- the launch as a whole ---------------------------------------------------------------------------
+def test_every_problem_of_every_robot_is_reported_before_anything_is_generated(tmp_path: Path):
+    robots = [{"robot_id": "left", "bus": "mock", "bag_dir": "/proc/nope", "rt_priority": "99"},
+              {"robot_id": "right", "bus": "mock", "cycle_time": "²", "retention_minutes": "²"}]
+    with pytest.raises(MultipleErrors) as caught:
+        plan_launch(robots, temp_root=tmp_path / "generated")
+    text = caught.value.render()
+    for words in ("robot left: cannot write into /proc/nope", "robot left: rt_priority out of range",
+                  "robot right: invalid launch argument cycle_time:=²",
+                  "robot right: invalid launch argument retention_minutes:=²"):
+        assert words in text, text
+    assert not (tmp_path / "generated").exists()
+
+
+def test_an_ethercat_interface_that_does_not_exist_stops_the_other_robots_too(tmp_path: Path):
+    robots = [{"robot_id": "arm_left", "bus": "mock", "record": "false"},
+              {"robot_id": "arm_right", "bus": "ethercat", "eth_interface": "nosuch0", "master_index": "1",
+               "record": "false"}]
+    with pytest.raises(ConfigError, match="robot arm_right: Network interface does not exist: nosuch0"):
+        plan_launch(robots, bridge=False, temp_root=tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("uri", ["<bogus", "file:///no/such/cyclonedds.xml", "<CycloneDDS>é</CycloneDDS>"])
+def test_a_configuration_cyclone_refuses_stops_the_launch_and_names_cyclonedds_uri(uri, monkeypatch, tmp_path):
+    monkeypatch.setenv("CYCLONEDDS_URI", uri)
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(fresh_domain()))  # a domain this test process has not joined
+    robot = {"bus": "mock", "record": "false"}
+    with pytest.raises(ConfigError) as caught:
+        plan_launch([robot], temp_root=tmp_path)
+    assert "CYCLONEDDS_URI" in caught.value.why and "CYCLONEDDS_URI" in caught.value.how
+    assert plan_launch([robot], bridge=False, temp_root=tmp_path)            # no bridge: DDS is not needed
+    assert plan_launch([{**robot, "bridge": "false"}], temp_root=tmp_path)
+
+
+def test_a_good_launch_generates_the_missing_files_once_checked(tmp_path: Path):
+    (plan,) = plan_launch([{"bus": "mock", "record": "false"}], temp_root=tmp_path)
+    assert plan.description is not None and plan.description.generated_dir.parent == tmp_path
+
+
+def test_a_fast_cycle_without_an_rt_kernel_carries_the_config_warning():
+    plan = plan_robot({"bus": "mock", "cycle_time": "500"})
+    expected = plan.config.warnings()
+    assert plan.resolved.warnings == expected
+    assert bool(expected) == (not RT_KERNEL_FLAG.exists())

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from plem.control.loop import CycleLoop, LoopSettings
+from plem.control.loop import CycleLoop, LoopSettings, OverrunWindow
 from plem.control.realtime import AbsoluteSleeper, RealtimeContext
 from plem.control.timing import TimingStats
 
@@ -58,23 +58,41 @@ def test_absolute_sleeper_never_returns_before_the_deadline():
         assert time.monotonic_ns() >= deadline
 
 
+def slow_cycle() -> None:
+    """2.5 periods of work: every cycle misses the next two deadlines, however idle the machine is."""
+    time.sleep(2.5 * PERIOD_NS / 1e9)
+
+
 def test_overruns_skip_missed_periods_and_k_in_a_row_are_reported():
     reported: list[int] = []
-
-    def slow_cycle() -> None:  # 2.5 periods of work: every cycle misses the next two deadlines
-        time.sleep(2.5 * PERIOD_NS / 1e9)
-
-    reports: list[tuple[int, int, int]] = []
     loop = CycleLoop(slow_cycle, LoopSettings(cycle_time_ns=PERIOD_NS, max_consecutive_overruns=4, realtime=False),
-                     on_overruns=reported.append, on_overrun_report=lambda *report: reports.append(report))
+                     on_overruns=reported.append)
     loop.run(duration_s=0.1)
     stats = loop.stats
     assert reported == [4]
-    assert reports == [(1, 1, reports[0][2])]  # throttled: one report in the first second
     assert stats.overruns == stats.cycles
     assert stats.missed_periods >= 2 * stats.cycles
     # skipping instead of bursting: about one cycle per three periods, never one per period
     assert stats.cycles <= 0.1 / (PERIOD_NS / 1e9) / 2
+
+
+def test_overruns_are_summarised_once_per_window_with_the_longest_run():
+    windows: list[OverrunWindow] = []
+    settings = LoopSettings(cycle_time_ns=PERIOD_NS, realtime=False, overrun_window_s=0.0)  # every cycle ends one
+    loop = CycleLoop(slow_cycle, settings, on_overrun_report=windows.append)
+    loop.run(duration_s=0.05)
+    assert [window.total_overruns for window in windows] == list(range(1, loop.stats.overruns + 1))
+    assert all(window.overruns == 1 and window.missed_periods >= 2 for window in windows)
+    assert [window.longest_run for window in windows] == list(range(1, len(windows) + 1))  # one run, growing
+    assert sum(window.missed_periods for window in windows) == loop.stats.missed_periods
+
+
+def test_no_summary_before_a_window_ends():
+    windows: list[OverrunWindow] = []
+    loop = CycleLoop(slow_cycle, LoopSettings(cycle_time_ns=PERIOD_NS, realtime=False, overrun_window_s=3600.0),
+                     on_overrun_report=windows.append)
+    loop.run(duration_s=0.05)
+    assert loop.stats.overruns > 0 and windows == []
 
 
 def test_a_cycle_that_raises_is_reported_and_the_loop_goes_on():

@@ -15,12 +15,12 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
 from plem.control.commands import CommandTimeout
-from plem.control.events import Event
+from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.state import JointState
@@ -33,17 +33,28 @@ from plem.ipc.records import RawSample, event_from_record
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
 from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json, tolerances_json
 from plem.ipc.ring import RingReader
-from plem.ipc.state_segment import STALE_AFTER_NS
 
 DEFAULT_ROBOT_ID = "indy"
 POLL_S = 0.0005
+LIVENESS_PERIOD_NS = 50_000_000  # how often a waiting stream checks that the driver still runs
 ACCEPT_TIMEOUT_S = 5.0
 SEND_TIMEOUT_S = 5.0
-T = TypeVar("T")
 
 
 class DriverGone(PlemError):
-    """The robot's RT driver stopped answering (its heartbeat in shared memory stopped)."""
+    """The robot's RT driver is gone: its process ended or its heartbeat in shared memory stopped."""
+
+
+class Stamped(Protocol):
+    """A record with the CLOCK_MONOTONIC time it was made at (samples and events)."""
+
+    @property
+    def monotonic_ns(self) -> int:
+        """When the record was made (CLOCK_MONOTONIC, ns)."""
+        ...
+
+
+T = TypeVar("T", bound=Stamped)
 
 
 def default_robot_id() -> str:
@@ -57,14 +68,22 @@ def connect(robot_id: str | None = None, expected_dof: int | None = None) -> Rob
 
 
 class Stream(Generic[T]):
-    """Records of one ring as they arrive; iteration ends after `timeout` s without a record (None: never)."""
+    """Records of one ring as they arrive, oldest first.
+
+    Iteration ends after `timeout` s without a record (0: once nothing is left to read; None: never), and
+    with `duration` at the first record made more than `duration` s after the stream was opened, or once
+    that time has passed without one. While it waits for a record it raises DriverGone if the driver is gone.
+    """
 
     def __init__(self, reader: RingReader, read: Callable[[], Any], convert: Callable[[Any], T],
-                 timeout: float | None) -> None:
+                 timeout: float | None, duration: float | None, check_driver: Callable[[], object]) -> None:
         self._reader = reader
         self._read = read
         self._convert = convert
-        self._timeout = timeout
+        self._timeout_ns = None if timeout is None else timeout * 1e9
+        self._end_ns = None if duration is None else time.monotonic_ns() + duration * 1e9
+        self._check_driver = check_driver
+        self._next_check = 0
 
     @property
     def dropped(self) -> int:
@@ -75,12 +94,22 @@ class Stream(Generic[T]):
         return self
 
     def __next__(self) -> T:
-        last = time.monotonic()
+        waiting_since = time.monotonic_ns()
         while (record := self._read()) is None:
-            if self._timeout is not None and time.monotonic() - last > self._timeout:
+            now = time.monotonic_ns()
+            if self._ended(now) or (self._timeout_ns is not None and now - waiting_since >= self._timeout_ns):
                 raise StopIteration
+            if now >= self._next_check:
+                self._check_driver()
+                self._next_check = now + LIVENESS_PERIOD_NS
             time.sleep(POLL_S)
-        return self._convert(record)
+        item = self._convert(record)
+        if self._ended(item.monotonic_ns):
+            raise StopIteration
+        return item
+
+    def _ended(self, monotonic_ns: float) -> bool:
+        return self._end_ns is not None and monotonic_ns > self._end_ns
 
 
 class RemoteHandle:
@@ -110,7 +139,11 @@ class RemoteHandle:
         return self._client._send("stop", {"goal": self.id})
 
     def wait(self, timeout: float | None = None) -> Any:
-        """Block until the command finished; returns its result, raises on rejection, abort or fault."""
+        """Block until the command finished; returns its result, raises on rejection, abort or fault.
+
+        The result has the types the in-process robot's handles return: a TrajectoryResult whose
+        error_code is an ErrorCode, or the Mode reached.
+        """
         self._client._wait(self, lambda: self.reply is not None, timeout, "finished")
         reply = self.reply
         assert reply is not None  # _wait returned, so the condition holds; a reply is never taken back
@@ -149,11 +182,28 @@ class RobotClient:
 
     # -- state -------------------------------------------------------------------------------------
     def state(self) -> JointState | None:
-        """The latest cycle's state (None before the first cycle)."""
-        return self.channels.state.block.read()
+        """The latest cycle's state (None before the first cycle); DriverGone once the driver is gone."""
+        segment = self.channels.state
+        state = segment.block.read()
+        reason = segment.driver_gone(state)
+        if reason is not None:
+            raise self._gone(reason)
+        return state
+
+    def live_state(self) -> JointState:
+        """The latest cycle's state; DriverGone also before the first cycle."""
+        state = self.state()
+        if state is None:
+            raise self._gone("it has not published a cycle yet")
+        return state
+
+    def _gone(self, why: str) -> DriverGone:
+        return DriverGone(f"the RT driver of robot '{self.robot_id}' is not running",
+                          what="a running driver: its process alive and a heartbeat in shared memory every cycle",
+                          why=why, how="start the robot with `plem launch` (bus:=mock for the simulated arm)")
 
     def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
-        """Block until a state newer than `after_cycle` is published; None on timeout."""
+        """Block until a state newer than `after_cycle` is published; None on timeout; DriverGone as state()."""
         deadline = time.monotonic() + timeout
         while True:
             state = self.state()
@@ -163,21 +213,41 @@ class RobotClient:
                 return None
             time.sleep(POLL_S)
 
-    def stream(self, timeout: float | None = None) -> Stream[RawSample]:
-        """Every cycle's rt_raw sample from now on, in order; ends after `timeout` s without a sample.
+    def stream(self, timeout: float | None = None, duration: float | None = None) -> Stream[RawSample]:
+        """Every cycle's rt_raw sample from now on, in order.
 
+        `duration`: the samples of the cycles of the next `duration` seconds, then the stream ends.
+        `timeout`: the stream ends after that long without a sample (0: once it read what is there).
         A consumer slower than the loop loses the oldest samples; the stream's `dropped` counts them.
         """
         reader = self.channels.rings["rt_raw"].reader()
-        return Stream(reader, reader.read_values, lambda record: RawSample.from_record(record, self.dof), timeout)
+        return Stream(reader, reader.read_values, lambda record: RawSample.from_record(record, self.dof), timeout,
+                      duration, self.state)
 
-    def events(self, timeout: float | None = None, *, from_oldest: bool = False) -> Stream[Event]:
-        """Events (mode changes, faults, motions) as they happen; ends after `timeout` s without one."""
+    def events(self, timeout: float | None = None, duration: float | None = None, *,
+               from_oldest: bool = False) -> Stream[Event]:
+        """Events (mode changes, faults, motions) as they happen; `timeout` and `duration` as for `stream`."""
         reader = self.channels.rings["events"].reader(from_oldest=from_oldest)
-        return Stream(reader, reader.read, event_from_record, timeout)
+        return Stream(reader, reader.read, event_from_record, timeout, duration, self.state)
+
+    def faults(self) -> list[Event]:
+        """The driver's fault history, oldest first: faults and their clearing, which no other event pushes out.
+
+        It stays readable after the driver is gone.
+        """
+        return [event_from_record(record)
+                for record in self.channels.rings["faults"].reader(from_oldest=True).read_all()]
+
+    def last_fault(self) -> Event | None:
+        """The newest fault, also when it was cleared since (None when the arm never faulted)."""
+        return newest_fault(self.faults())
 
     def stats(self) -> dict[str, Any] | None:
-        """The newest loop statistics record (timing, overruns, command counters), or None."""
+        """The newest loop statistics record (timing, overruns, command counters), or None before the first.
+
+        Raises DriverGone once the driver is gone, as `state()` does.
+        """
+        self.state()  # the liveness check
         record = self.channels.rings["stats"].newest()
         return None if record is None else json.loads(record)
 
@@ -337,17 +407,6 @@ class RobotClient:
                 select.select([connection] if connection is not None else [], [], [], POLL_S)
             except (OSError, ValueError):  # closed meanwhile by another thread: the next _collect() says why
                 time.sleep(POLL_S)
-
-    def live_state(self) -> JointState:
-        """The current state, or DriverGone when the heartbeat is older than the stale limit."""
-        state = self.state()
-        age = None if state is None else time.monotonic_ns() - state.monotonic_ns
-        if state is None or age is None or age > STALE_AFTER_NS:
-            raise DriverGone(f"the RT driver of robot '{self.robot_id}' is not running",
-                             what="a heartbeat in shared memory every cycle",
-                             why="no cycle published yet" if age is None else f"last cycle {age / 1e9:.1f} s ago",
-                             how="start the robot with `plem launch` (bus:=mock for the simulated arm)")
-        return state
 
 
 def _floats(values: Sequence[float]) -> list[float]:

@@ -6,6 +6,7 @@ import os
 import sys
 import traceback
 from collections.abc import Sequence
+from typing import Annotated
 
 import typer
 from typer._click import exceptions as click_exceptions
@@ -29,6 +30,25 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _print_version(requested: bool) -> None:
+    """`plem --version`: the installed version, then exit."""
+    if requested:
+        from importlib.metadata import version  # deferred: costs 0.1 s, only --version needs it
+
+        typer.echo(f"plem {version('plem')}")
+        raise typer.Exit
+
+
+@app.callback()
+def _root(
+    _version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
+                                           help="Print plem's version and exit.")] = False,
+) -> None:
+    """Bring up, configure and run 6- and 7-axis robot arms."""
+
+
 app.add_typer(config_commands.app, name="config")
 app.add_typer(profile_commands.app, name="profile")
 app.add_typer(topic_commands.app, name="topic")
@@ -63,6 +83,9 @@ def run(argv: Sequence[str] | None = None) -> int:
     except PlemError as error:
         print_error(error)
         return error.exit_code
+    except click_exceptions.NoArgsIsHelpError as error:   # a group given no command: its help is the answer
+        error.show()
+        return 2
     except click_exceptions.UsageError as error:
         print_error(_usage_error(error))
         return 2

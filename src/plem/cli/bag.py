@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plem.cli.output import OutputFormat, new_table, print_json, print_warnings, stdout
-from plem.errors import PlemError
+from plem.errors import PlemError, raise_collected
 
 if TYPE_CHECKING:
-    from plem.recording.summary import RobotSummary, SegmentInfo
+    from plem.recording.summary import RobotBags, RobotSummary, SegmentInfo
 
 app = typer.Typer(help="Inspect, plot and repair the flight recorder's bags.", no_args_is_help=True)
 
@@ -89,7 +89,15 @@ def _robot_json(summary: RobotSummary) -> dict[str, Any]:
         "faults": summary.faults,
         "deletions": {"count": sum(count for _, count in summary.deletions),
                       "reasons": [{"reason": reason, "count": count} for reason, count in summary.deletions]},
+        "stops": {"count": len(summary.stops), "not_recorded": _not_recorded(summary),
+                  "entries": summary.stops},
+        "problems": [problem.to_dict() for problem in summary.problems],
     }
+
+
+def _not_recorded(summary: RobotSummary) -> int:
+    """Messages the recorder could not record while stopped, as its event log counts them."""
+    return sum(int(entry.get("not_recorded", 0)) for entry in summary.stops)
 
 
 def _fault_line(entry: dict[str, Any]) -> str:
@@ -131,6 +139,11 @@ def _print_robot(summary: RobotSummary) -> None:
     deleted = sum(count for _, count in summary.deletions)
     reasons = "; ".join(f"{count} × {reason}" for reason, count in summary.deletions)
     lines.append(f"deletions: {deleted}" + (f" — {reasons} (latest reason of each kind)" if deleted else ""))
+    if summary.stops:
+        lines.append(f"recording stopped {_count(len(summary.stops), 'time')}: {_not_recorded(summary)} messages "
+                     "not recorded")
+        lines += [f"  {entry.get('time')}: {entry.get('reason')} — {entry.get('not_recorded')} not recorded in "
+                  f"{entry.get('stopped_s')} s" for entry in summary.stops]
     typer.echo("\n".join(lines) + "\n")
 
 
@@ -147,32 +160,71 @@ def info(
     if output_format is OutputFormat.json:
         print_json({"directory": str(directory), "robots": [_robot_json(summary) for summary in summaries],
                     "totals": totals})
-        return
-    for summary in summaries:
-        _print_robot(summary)
-    messages = ", ".join(f"{topic} {count}" for topic, count in totals["messages"].items())
-    typer.echo(f"total: {_count(totals['segments'], 'segment')} ({totals['complete']} complete), "
-               f"{_duration(totals['covered_s'])} covered, {_size(totals['bytes'])}; messages: {messages or 'none'}")
+    else:
+        for summary in summaries:
+            _print_robot(summary)
+        messages = ", ".join(f"{topic} {count}" for topic, count in totals["messages"].items())
+        typer.echo(f"total: {_count(totals['segments'], 'segment')} ({totals['complete']} complete), "
+                   f"{_duration(totals['covered_s'])} covered, {_size(totals['bytes'])}; messages: "
+                   f"{messages or 'none'}")
+    raise_collected([problem for summary in summaries for problem in summary.problems], f"the bags under {directory}")
+
+
+def _refuse_output(out: Path) -> None:
+    """--out must name a regular file (or none yet) in an existing directory: never a device, never a new folder."""
+    import os
+    import stat
+
+    from plem.core.files import file_kind
+    from plem.recording.summary import BagError
+
+    what = "a PNG file path in an existing directory"
+    try:
+        mode = os.lstat(out).st_mode
+    except FileNotFoundError:
+        mode = None
+    except (OSError, ValueError) as error:
+        raise BagError(f"cannot write {out}", what=what, why=getattr(error, "strerror", None) or str(error),
+                       how="pass --out with a path in a writable directory") from None
+    if mode is not None and not stat.S_ISREG(mode):
+        raise BagError(f"{out} is not a regular file", what=f"{what}; an existing file there is replaced",
+                       why=f"{out} is a {file_kind(mode)}, which plem does not replace",
+                       how="pass --out with the path of a new or regular .png file")
+    parent = out.parent
+    if not parent.is_dir():
+        raise BagError(f"cannot write {out}: {parent} is not a directory", what=what,
+                       why=f"{parent} does not exist" if not parent.exists() else f"{parent} is not a directory",
+                       how=f"create it first (mkdir -p {parent}), or pass --out in an existing directory")
+
+
+def _newest(robots: list[RobotBags]) -> RobotBags:
+    """The robot recorded last: its newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time."""
+    return max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
 
 
 @app.command("plot")
 def plot(
     directory: Directory,
     out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write.", show_default=False)],
-    robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several.",
-                                              show_default=False)] = None,
+    robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several (default: the "
+                                              "one recorded last).", show_default=False)] = None,
 ) -> None:
     """Plot joint positions and velocities over time and a histogram of the loop's wake-up latency."""
     from plem.core.files import write_atomic
     from plem.recording.plot import read_raw, render
     from plem.recording.summary import BagError, find_bags, robot_segments
 
-    robots = {found.robot_id: found for found in find_bags(directory)}
-    if robot is None and len(robots) > 1:
-        raise BagError(f"{directory} holds the bags of {len(robots)} robots", what="one robot to plot",
-                       why=f"robots found: {', '.join(robots)}", how=f"add --robot {next(iter(robots))}")
-    chosen = robots.get(robot) if robot is not None else next(iter(robots.values()))
-    if chosen is None:
+    _refuse_output(out)
+    found = find_bags(directory)
+    robots = {bags.robot_id: bags for bags in found}
+    if robot is None:
+        chosen = _newest(found)
+        if len(robots) > 1:
+            print_warnings([f"{directory} holds the bags of {len(robots)} robots ({', '.join(robots)}): plotting "
+                            f"{chosen.robot_id}, the one recorded last; pass --robot ID for another"])
+    elif robot in robots:
+        chosen = robots[robot]
+    else:
         raise BagError(f"no bags of robot {robot} in {directory}", what=f"bags of {robot}",
                        why=f"robots found: {', '.join(robots)}", how="pass one of them with --robot")
     segments = robot_segments(chosen)
@@ -190,9 +242,7 @@ def plot(
 
 @app.command("repair")
 def repair(directory: Directory) -> None:
-    """Rebuild every killed segment under DIR (no metadata.yaml) into a readable bag; others are left alone."""
-    from rosbags.rosbag2.errors import ReaderError, WriterError
-
+    """Rebuild every unfinished (killed) or damaged segment under DIR into a readable bag; others are left alone."""
     from plem.recording.repair import repair as repair_segment
     from plem.recording.summary import BagError, find_bags, robot_segments
 
@@ -205,20 +255,16 @@ def repair(directory: Directory) -> None:
                 typer.echo(f"{segment.name}: left alone, a recorder is writing it")
             elif segment.state == "unreadable":
                 failures.append((segment.name, BagError(
-                    f"{segment.name} is not a killed segment", what="a segment without metadata.yaml",
-                    why=segment.problem, how="restore its metadata.yaml, or delete the segment")))
+                    f"{segment.name} cannot be rebuilt", what="a segment whose bag file or metadata.yaml reads",
+                    why=segment.problem, how="restore its files, or delete the segment")))
             else:
                 try:
                     report = repair_segment(segment.path)
                 except PlemError as error:
                     failures.append((segment.name, error))
                     continue
-                except (OSError, ReaderError, WriterError) as error:
-                    failures.append((segment.name, BagError(
-                        f"{segment.name} could not be rebuilt", what="a readable bag rebuilt from the segment",
-                        why=str(error), how="check the disk and the segment's files")))
-                    continue
-                typer.echo(f"{segment.name}: repaired, {report.messages} messages recovered")
+                typer.echo(f"{segment.name}: repaired, {report.messages} messages recovered" if report.repaired
+                           else f"{segment.name}: reads back whole ({report.messages} messages), left alone")
     for name, failure in failures:
         typer.echo(f"{name}: not repaired: {failure.summary}")
     if failures:

@@ -1,4 +1,7 @@
-"""`plem validate` and `plem create-description`: check and scaffold description packages."""
+"""`plem validate` and `plem create-description`: check and scaffold description packages.
+
+The description machinery (numpy, xacro) is imported inside the commands so other commands start fast.
+"""
 
 from __future__ import annotations
 
@@ -9,13 +12,18 @@ from typing import Annotated
 import typer
 
 from plem.cli.output import OutputFormat, print_json, stderr, stdout
-from plem.description.scaffold import create_package
-from plem.description.validate import validate_package
+from plem.core.config.launch_args import parse_launch_arguments
 from plem.errors import UsageError
+
+#: Overrides `plem validate` also takes as `name:=value`, the form `plem launch` and validation hints use.
+VALIDATE_ARGUMENTS = ("urdf_file", "srdf_file")
 
 
 def validate(
     package: Annotated[str, typer.Argument(help="Package directory, or package name on the search path.")],
+    overrides: Annotated[list[str] | None, typer.Argument(
+        help="urdf_file:=PATH or srdf_file:=PATH, as `plem launch` takes them (same as --urdf-file, --srdf-file).",
+        metavar="NAME:=VALUE", show_default=False)] = None,
     output_format: Annotated[OutputFormat, typer.Option("--format", help="Output format.")] = OutputFormat.text,
     strict: Annotated[bool, typer.Option("--strict", help="Fail on warnings too.")] = False,
     urdf_file: Annotated[str | None, typer.Option(
@@ -24,7 +32,12 @@ def validate(
         "--srdf-file", help="SRDF override (absolute or package-relative).")] = None,
 ) -> None:
     """Check a description package against every rule of the protocol; all problems are listed at once."""
-    report = validate_package(package, urdf_file=urdf_file, srdf_file=srdf_file)
+    options = [f"{name}:={value}" for name, value in zip(VALIDATE_ARGUMENTS, (urdf_file, srdf_file), strict=True)
+               if value is not None]
+    given = parse_launch_arguments([*(overrides or []), *options], VALIDATE_ARGUMENTS)
+    from plem.description.validate import validate_package
+
+    report = validate_package(package, urdf_file=given.get("urdf_file"), srdf_file=given.get("srdf_file"))
     errors, warnings = report.findings.errors, report.findings.warnings
     passed = report.passed(strict)
     if output_format is OutputFormat.json:
@@ -53,6 +66,8 @@ def create_description(
     output: Annotated[Path, typer.Option("--output", help="Folder to create the package in.")] = Path("."),
 ) -> None:
     """Create a description package for a generic 6- or 7-axis arm (asks for missing options on a terminal)."""
+    from plem.description.scaffold import create_package
+
     if name is None or dof is None:
         if not sys.stdin.isatty():
             missing = [flag for flag, value in (("--name", name), ("--dof", dof)) if value is None]

@@ -34,8 +34,11 @@ def _split_positional(tokens: list[str]) -> tuple[list[str], list[str]]:
 
 
 def _launch_file(positional: list[str]) -> Path:
+    from plem.core.config.launch_args import check_home
     from plem.description.discover import locate_package
 
+    for word in positional:
+        check_home(word, word)
     if len(positional) == 1 and positional[0].endswith(".py"):
         return Path(positional[0]).expanduser()
     if len(positional) in (1, 2):
@@ -53,9 +56,10 @@ def launch(ctx: typer.Context) -> int:
 
         typer.echo(USAGE + help_text())
         return 0
+    from plem.core.config.launch_args import check_home
     from plem.launch.arguments import parse
     from plem.launch.description import COMPONENTS, load_launch_file
-    from plem.launch.plan import check_shared_hardware, plan_robot
+    from plem.launch.plan import plan_launch
     from plem.launch.robots_file import load_robots
     from plem.launch.supervisor import Supervisor
 
@@ -70,7 +74,8 @@ def launch(ctx: typer.Context) -> int:
         if path.resolve().parent.parent.name == package:  # the package the bring-up file lives in
             package = str(path.resolve().parent.parent)
         arguments = {**described.arguments, "description_package": package, **arguments}
+    if arguments.get("robots"):
+        check_home(arguments["robots"], f"robots:={arguments['robots']}")
     robots = load_robots(arguments["robots"], arguments) if arguments.get("robots") else [arguments]
-    plans = [plan_robot(robot) for robot in robots]
-    check_shared_hardware(plans)
+    plans = plan_launch(robots, bridge=components.get("bridge", True))
     return Supervisor(plans, components).run()

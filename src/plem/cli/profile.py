@@ -43,7 +43,7 @@ def create(
     force: Annotated[bool, typer.Option("--force", help="Replace an existing, different profile.")] = False,
 ) -> None:
     """Create (atomically) the profile of one robot unit."""
-    from plem.robot.profile import RobotProfile
+    from plem.robot.profile import ProfileExists, RobotProfile
 
     values = _parse_offsets(offsets)
     if dof is not None and dof not in SUPPORTED_DOF:
@@ -62,16 +62,23 @@ def create(
         )
     profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=date or _now())
     path = RobotProfile.default_path(serial)
-    if path.exists() and not force:
-        existing = _load_or_none(path)
-        if existing is None or existing.joint_offsets != profile.joint_offsets:
-            raise ProfileError(
-                f"Profile {serial} already exists with different offsets",
-                what="a new profile, or --force to replace a calibration",
-                why=f"{path} exists" + (f" with offsets {existing.joint_offsets}" if existing else " (unreadable)"),
-                how=f"rerun with --force to replace it, or inspect it with `plem profile show {serial}`",
-            )
-    profile.save(path)
+    if force:
+        profile.save(path)
+    else:
+        try:
+            profile.save(path, exclusive=True)
+        except ProfileExists as exists:
+            existing = _load_or_none(path)
+            if existing is None or existing.joint_offsets != profile.joint_offsets:
+                raise ProfileError(
+                    f"Profile {serial} already exists with different offsets",
+                    what="a new profile, or --force to replace a calibration",
+                    why=exists.why + (f"; its offsets are {existing.joint_offsets}" if existing
+                                      else "; it cannot be read"),
+                    how=f"rerun with --force to replace it, or inspect it with `plem profile show {serial}`",
+                ) from None
+            stdout.print(f"Profile {serial} already holds these offsets: {path} (unchanged)", markup=False)
+            return
     stdout.print(f"Saved profile {serial} ({len(values)} joints) to {path}", markup=False)
 
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plem.cli.output import print_warnings
-from plem.errors import PlemError
+from plem.errors import PlemError, UsageError
 
 if TYPE_CHECKING:
     from plem.middleware.node import Node, Subscription
@@ -32,8 +32,23 @@ HZ_DEPTH = 1000
 #: Reader history for `echo`, as ros2 topic echo uses.
 ECHO_DEPTH = 10
 
+#: Longest `--timeout` or `--duration` (30 days): DDS waits are counted in int64 nanoseconds.
+MAX_SECONDS = 30 * 24 * 3600
+
+
+def _seconds(value: float | None, param: typer.CallbackParam) -> float | None:
+    """A `--timeout`/`--duration` as given; NaN, infinite, negative or huge seconds are a usage error naming it."""
+    if value is not None and not 0 <= value <= MAX_SECONDS:   # false for NaN too
+        flag = param.opts[0]
+        raise UsageError(f"{flag} must be a number of seconds from 0 to {MAX_SECONDS}",
+                         what=f"{flag} SECONDS: a finite number from 0 to {MAX_SECONDS} (30 days)",
+                         why=f"{flag} is {value}", how=f"give {flag} a number of seconds, e.g. {flag} 5")
+    return value
+
+
 Topic = Annotated[str, typer.Argument(help="ROS 2 topic, e.g. /indy/joint_states.")]
-Timeout = Annotated[float, typer.Option("--timeout", help="Seconds to wait for a publisher of the topic.")]
+Timeout = Annotated[float, typer.Option("--timeout", callback=_seconds,
+                                        help="Seconds to wait for a publisher of the topic.")]
 
 
 class Reliability(StrEnum):
@@ -46,7 +61,7 @@ class Reliability(StrEnum):
 @app.command("list")
 def list_topics(
     show_types: Annotated[bool, typer.Option("--show-types", "-t", help="Print each topic's type.")] = False,
-    timeout: Annotated[float, typer.Option("--timeout", help="Seconds of discovery.")] = 1.5,
+    timeout: Annotated[float, typer.Option("--timeout", callback=_seconds, help="Seconds of discovery.")] = 1.5,
     include_hidden: Annotated[bool, typer.Option("--include-hidden-topics", help="Also list topics with a "
                                                  "token starting with '_' (e.g. actions' status).")] = False,
 ) -> None:
@@ -172,7 +187,8 @@ def hz(
     topic: Topic,
     window: Annotated[int, typer.Option("--window", "-w", min=2, help="Messages the statistics cover.")] = 10000,
     duration: Annotated[float | None, typer.Option(
-        "--duration", help="Stop after S seconds (default: run until Ctrl-C).", show_default=False)] = None,
+        "--duration", callback=_seconds, help="Stop after S seconds (default: run until Ctrl-C).",
+        show_default=False)] = None,
     timeout: Timeout = 5.0,
 ) -> None:
     """Print the topic's publishing rate every second (like `ros2 topic hz`).

@@ -1,7 +1,8 @@
 """The scheduler: runs a cycle function on absolute deadlines and accounts its timing.
 
 Deadlines advance by exactly one period; after an overrun the missed periods are skipped (never
-burst to catch up), and K consecutive overruns are reported to the runtime as a fault.
+burst to catch up), and K consecutive overruns are reported to the runtime as a fault. Overruns are
+summarised once per window (`OverrunWindow`), not reported one by one.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ from plem.control.realtime import AbsoluteSleeper, RealtimeContext, RealtimeRepo
 from plem.control.timing import TimingStats
 
 MAX_CONSECUTIVE_ERRORS = 3
-OVERRUN_REPORT_INTERVAL_NS = 1_000_000_000
+#: Seconds of one overrun summary.
+OVERRUN_WINDOW_S = 10.0
 _log = logging.getLogger("plem.control")
 
 
@@ -29,13 +31,25 @@ class LoopSettings:
     cpus: tuple[int, ...] | None = None
     max_consecutive_overruns: int = 10
     realtime: bool = True
+    overrun_window_s: float = OVERRUN_WINDOW_S
+
+
+@dataclass(frozen=True)
+class OverrunWindow:
+    """The overruns of one summary window: how many, the periods they skipped, the longest run in a row."""
+
+    overruns: int
+    missed_periods: int
+    longest_run: int
+    total_overruns: int
+    seconds: float
 
 
 class CycleLoop:
     """Calls `cycle()` once per period until `stop()`; timing goes to `stats`.
 
     `on_overruns(count)` is called once when `max_consecutive_overruns` overruns happen in a row;
-    `on_overrun_report(new, total, missed)` at most once a second while overruns keep happening;
+    `on_overrun_report(window)` at the end of each `overrun_window_s` window that had overruns;
     `on_warning(text)` once per real-time set-up step the machine refused (default: a log warning);
     `on_error(exc)` when the cycle raises (the loop keeps running, so the robot can still be stopped,
     unless it raises MAX_CONSECUTIVE_ERRORS times in a row); `after_cycle(latency_ns, previous_compute_ns)`
@@ -45,7 +59,7 @@ class CycleLoop:
     def __init__(self, cycle: Callable[[], None], settings: LoopSettings,
                  on_overruns: Callable[[int], None] | None = None,
                  on_error: Callable[[BaseException], None] | None = None,
-                 on_overrun_report: Callable[[int, int, int], None] | None = None,
+                 on_overrun_report: Callable[[OverrunWindow], None] | None = None,
                  on_warning: Callable[[str], None] = _log.warning,
                  after_cycle: Callable[[int, int], None] | None = None) -> None:
         self.cycle = cycle
@@ -98,8 +112,10 @@ class CycleLoop:
         deadline = clock() + period
         end = deadline + int(duration_s * 1e9) if duration_s is not None else None
         errors = 0
-        reported_overruns = 0
-        next_report = 0
+        window_ns = int(self.settings.overrun_window_s * 1e9)
+        window_start = clock()
+        window_end = window_start + window_ns
+        reported_overruns = reported_missed = longest_run = 0
         while not stop.is_set():
             sleeper.sleep_until(deadline)
             woke = clock()
@@ -123,13 +139,17 @@ class CycleLoop:
                 missed = (done - deadline) // period + 1
                 deadline += missed * period
                 stats.record_overrun(int(missed))
+                longest_run = max(longest_run, stats.consecutive_overruns)
                 if stats.consecutive_overruns == limit and self.on_overruns is not None:
                     self.on_overruns(stats.consecutive_overruns)
-                if done >= next_report and self.on_overrun_report is not None:
-                    self.on_overrun_report(stats.overruns - reported_overruns, stats.overruns, stats.missed_periods)
-                    reported_overruns = stats.overruns
-                    next_report = done + OVERRUN_REPORT_INTERVAL_NS
             else:
                 stats.record_on_time()
+            if done >= window_end:
+                if stats.overruns > reported_overruns and self.on_overrun_report is not None:
+                    self.on_overrun_report(OverrunWindow(stats.overruns - reported_overruns,
+                                                         stats.missed_periods - reported_missed, longest_run,
+                                                         stats.overruns, (done - window_start) / 1e9))
+                reported_overruns, reported_missed, longest_run = stats.overruns, stats.missed_periods, 0
+                window_start, window_end = done, done + window_ns
             if end is not None and deadline > end:
                 break

@@ -16,6 +16,10 @@ class Mode(IntEnum):
     FREE_DRIVE = 3    # gravity-compensated, the arm can be moved by hand
     FAULT = 4         # stopped smoothly after a fault; needs reset_fault()
 
+    def __str__(self) -> str:
+        """The lower-case name, as commands take it: 'hold', 'free_drive'."""
+        return self.name.lower()
+
     @classmethod
     def parse(cls, value: str | int | Mode) -> Mode:
         """A Mode from its name (any case, '-' or '_') or number, else CommandRejected."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import errno
 import os
 import pwd
+import secrets
 import stat
 import tempfile
 from collections.abc import Collection
@@ -46,7 +47,28 @@ def write_atomic(path: Path, data: str | bytes, mode: int = 0o644, group: int | 
     except BaseException:
         Path(temp_name).unlink(missing_ok=True)
         raise
-    directory = os.open(path.parent, os.O_RDONLY)
+    _sync_folder(path.parent)
+
+
+def write_new(path: Path, data: str | bytes, mode: int = 0o644) -> None:
+    """Create `path` holding `data`, complete or not at all; FileExistsError when `path` is already there.
+
+    The file is written and synced under a temporary name, then hard-linked to `path`: the link fails when
+    `path` exists, so of several processes creating the same file exactly one succeeds.
+    """
+    path = Path(path)
+    temp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.new")
+    write_atomic(temp, data, mode=mode)
+    try:
+        os.link(temp, path)
+    finally:
+        temp.unlink()
+    _sync_folder(path.parent)
+
+
+def _sync_folder(folder: Path) -> None:
+    """Make a rename or link in `folder` durable."""
+    directory = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     try:
         os.fsync(directory)
     finally:

@@ -5,10 +5,19 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from plem.core.files import read_regular_text
 from plem.description.problems import Findings
+from plem.errors import ConfigError
 
 PROTOCOL_VERSION = "1.0.0"
-_SEMVER = re.compile(r"(0|[1-9]\d*)\.(0|[1-9]\d*)\.(0|[1-9]\d*)(?:-[0-9A-Za-z.-]+)?(?:\+[0-9A-Za-z.-]+)?")
+#: Digits of one version part: no protocol will number past this, and longer parts are refused, not converted.
+MAX_PART_DIGITS = 9
+_PART = rf"(0|[1-9]\d{{0,{MAX_PART_DIGITS - 1}}})"
+_SEMVER = re.compile(rf"{_PART}\.{_PART}\.{_PART}(?:-[0-9A-Za-z.-]+)?(?:\+[0-9A-Za-z.-]+)?")
+#: The file holds one version; a larger file is refused unread.
+MAX_COMPAT_BYTES = 64 * 1024
+#: Characters of a malformed version quoted in the error.
+MAX_SHOWN = 40
 
 
 def check_compat_version(path: Path | None, root: Path, found: Findings) -> None:
@@ -19,12 +28,17 @@ def check_compat_version(path: Path | None, root: Path, found: Findings) -> None
                     why=f"{root / 'PLEM_COMPAT_VERSION'} does not exist",
                     how=f"echo {PROTOCOL_VERSION} > {root / 'PLEM_COMPAT_VERSION'}", file=root)
         return
-    text = path.read_text(encoding="utf-8", errors="replace").strip()
+    try:
+        text = read_regular_text(path, MAX_COMPAT_BYTES, "PLEM_COMPAT_VERSION file").strip()
+    except ConfigError as error:
+        found.add("compat.unreadable", error, file=path)
+        return
     match = _SEMVER.fullmatch(text)
     if not match:
+        shown = repr(text) if len(text) <= MAX_SHOWN else f"{text[:MAX_SHOWN]!r}... ({len(text)} characters)"
         found.error("compat.semver", "PLEM_COMPAT_VERSION is not a SemVer version",
-                    what="MAJOR.MINOR.PATCH, e.g. 1.0.0", why=f"found {text!r}",
-                    how=f"write {PROTOCOL_VERSION} into the file", file=path, line=1)
+                    what=f"MAJOR.MINOR.PATCH, e.g. 1.0.0, each part at most {MAX_PART_DIGITS} digits",
+                    why=f"found {shown}", how=f"write {PROTOCOL_VERSION} into the file", file=path, line=1)
         return
     major, minor, _ = (int(part) for part in match.groups())
     ours_major, ours_minor, _ = (int(part) for part in PROTOCOL_VERSION.split("."))

@@ -142,7 +142,8 @@ def _discover_urdf(files: DescriptionFiles, urdf_file: str | os.PathLike[str] | 
                     why="Found 0 matching files" + (f" (urdf/ holds: {', '.join(others)})" if others
                                                    else " (urdf/ is empty)" if urdf_dir.is_dir()
                                                    else " (no urdf/ directory)"),
-                    how=f"Create urdf/{_base_name(root)}{URDF_SUFFIX} or use urdf_file:=/path launch argument",
+                    how=f"Create urdf/{_base_name(root)}{URDF_SUFFIX}, or name the URDF with urdf_file:=PATH "
+                        "(plem launch or plem validate)",
                     file=urdf_dir)
     else:
         found.error("urdf.multiple", f"Several URDF files found in package '{root.name}'",

@@ -19,24 +19,20 @@ from __future__ import annotations
 
 import math
 import re
-import stat
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 from lxml import etree
 
-from plem.description.model import HardwareJoint, UrdfModel, parse_xml, source_line
-from plem.errors import ConfigError, PlemError
+from plem.description.model import HardwareJoint, UrdfModel, XacroSources, rendered_line_note, source_line
+from plem.errors import ConfigError
 
 U32_MAX = 0xFFFF_FFFF
 _DECIMAL = re.compile(r"[+-]?[0-9]{1,32}")
 _HEX = re.compile(r"0[xX][0-9a-fA-F]{1,32}")
-_SUBSTITUTION = re.compile(r"\$\{[^}]*\}|\$\([^)]*\)")
 _HARDWARE_TAGS = ("param", "command_interface", "state_interface")
-MAX_SOURCE_BYTES = 16 * 2**20  # a package's own xacro file is far smaller; larger ones are not searched
 
 
 def _positive_int(text: str) -> int | None:
@@ -141,9 +137,7 @@ class ParamProblem:
 
     def why_at(self, source_line: int | None) -> str:
         """`why`, pointing at the rendered URDF's line when the line in the package's files is not known."""
-        if source_line is not None or self.line is None:
-            return self.why
-        return f"{self.why} (line {self.line} of the rendered URDF)"
+        return self.why + rendered_line_note(source_line, self.line)
 
     def as_config_error(self, sources: ParamSources) -> ConfigError:
         """The problem as the error a user sees, placed in the package's files where `sources` can tell."""
@@ -239,65 +233,25 @@ def drive_parameters(urdf: UrdfModel, joint_names: Sequence[str], *,
     return tuple(DriveParameters(**joint) for joint in values)
 
 
-def _parse_source(path: Path) -> etree._Element | None:
-    """The XML of a package file, or None when it is no regular file, is too large, unreadable or broken (the
-    render reports the last two)."""
-    try:
-        status = path.stat()
-        if not stat.S_ISREG(status.st_mode) or status.st_size > MAX_SOURCE_BYTES:
-            return None
-        return parse_xml(path.read_bytes(), path)
-    except (OSError, ValueError, PlemError):
-        return None
+def _is_hardware_joint(element: etree._Element) -> bool:
+    """A `<joint>` of a ros2_control block: it has parameters or interfaces (a URDF joint of the same name has
+    neither)."""
+    return any(child.tag in _HARDWARE_TAGS for child in element)
 
 
-def _wildcard_match(pieces: list[str], name: str) -> bool:
-    """Whether `name` is pieces[0], anything, pieces[1], ..., anything, pieces[-1] (a glob with `*` only)."""
-    if len(pieces) == 1:
-        return name == pieces[0]
-    first, *middle, last = pieces
-    end = len(name) - len(last)
-    if end < len(first) or not name.startswith(first) or not name.endswith(last):
-        return False
-    position = len(first)
-    for piece in middle:
-        position = name.find(piece, position, end)
-        if position < 0:
-            return False
-        position += len(piece)
-    return True
-
-
-class ParamSources:
+class ParamSources(XacroSources):
     """Where the ros2_control joints are written in a package's xacro files, to point problems at a line.
 
-    A rendered joint is matched back by name: a source `<joint>` with parameters or interfaces whose name, with
-    `${...}` and `$(...)` read as wildcards, is the only one to match gives the file and line. Otherwise (a
-    name built by a macro from its arguments, say) the first file is named without a line.
+    A rendered joint is matched back by name among the source `<joint>` elements with parameters or interfaces
+    (see XacroSources); otherwise the first file is named without a line.
     """
-
-    def __init__(self, paths: Sequence[Path | None]) -> None:
-        self.paths = [path for path in paths if path is not None]
-        self.default = self.paths[0] if self.paths else None
-
-    @cached_property
-    def _joints(self) -> list[tuple[Path, list[str], etree._Element]]:
-        """(file, name split at its substitutions, element) of every ros2_control-like `<joint>` in the files."""
-        joints = []
-        for path in self.paths:
-            root = _parse_source(path)
-            if root is not None:
-                joints += [(path, _SUBSTITUTION.split(element.get("name") or ""), element)
-                           for element in root.iter("joint") if any(child.tag in _HARDWARE_TAGS for child in element)]
-        return joints
 
     def locate(self, joint: str, param: str | None) -> tuple[Path | None, int | None]:
         """The file and line of `param` in the joint named `joint` after rendering (the joint's own line when it
         has no such parameter), or the first file and no line when the joint cannot be told apart."""
-        matches = [(path, element) for path, pieces, element in self._joints if _wildcard_match(pieces, joint)]
-        if len(matches) != 1:
-            return self.default, None
-        path, element = matches[0]
+        path, element = self.find("joint", joint, _is_hardware_joint)
+        if element is None:
+            return path, None
         tags = [tag for tag in element.iter("param") if tag.get("name") == param] if param else []
         return path, source_line(tags[-1] if tags else element)
 

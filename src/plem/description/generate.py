@@ -1,15 +1,25 @@
-"""Auto-generation of missing config files, into a fresh temp directory (never into the package).
+"""Auto-generation of missing config files, into a temp directory `wim_launch_<time>` (never into the package).
 
 `controllers.yaml` is generated from joint_limits.yaml; `kinematics.yaml` only when an SRDF exists.
 The same text builders serve `plem create-description`, so generated and scaffolded files agree.
+
+The directories stay after the launch, for the user to copy the files from, but do not pile up: a launch
+whose files are exactly those of an earlier directory reuses it, and only the newest KEPT_GENERATED_DIRS
+of the user's directories are kept. A launch holds a shared lock (flock) on the directory it uses for as
+long as it runs, and a directory is removed only under an exclusive lock, so never while a launch uses it.
 """
 
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
+import shutil
+import stat
 import tempfile
 import time
+import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +28,7 @@ import yaml
 
 from plem.core.files import write_atomic
 from plem.description.validate import Stage, ValidationReport, require_valid
+from plem.errors import ConfigError
 
 log = logging.getLogger("plem.launch")
 
@@ -27,6 +38,8 @@ SOLVER_DEFAULTS = {"kinematics_solver_search_resolution": 0.005, "kinematics_sol
 STOPPED_VELOCITY_TOLERANCE = 0.01
 GOAL_TOLERANCE = 0.01
 GENERATED_DIR_PREFIX = "wim_launch_"
+#: The user's generated directories kept in the temp directory; older ones no running launch uses are removed.
+KEPT_GENERATED_DIRS = 8
 
 
 def _dump(data: dict[str, Any], header: str) -> str:
@@ -84,8 +97,7 @@ class ResolvedDescription:
         return self.srdf is not None
 
 
-def _fresh_directory(temp_root: Path | None) -> Path:
-    root = Path(temp_root or tempfile.gettempdir())
+def _fresh_directory(root: Path) -> Path:
     base = root / f"{GENERATED_DIR_PREFIX}{time.strftime('%Y%m%d_%H%M%S')}"
     path, attempt = base, 0
     while True:
@@ -97,14 +109,95 @@ def _fresh_directory(temp_root: Path | None) -> Path:
             path = base.with_name(f"{base.name}_{attempt}")
 
 
+def _lock(path: Path, operation: int) -> int | None:
+    """An open descriptor of the directory `path` holding the flock `operation` (LOCK_SH or LOCK_EX); None when
+    the directory is gone, is not a directory, or another process holds a conflicting lock."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, operation | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def generated_directories(root: Path) -> list[Path]:
+    """This user's generated directories in `root` (real directories, never links), newest first."""
+    found: list[tuple[int, Path]] = []
+    for path in root.glob(f"{GENERATED_DIR_PREFIX}*"):
+        try:
+            status = path.lstat()
+        except OSError:
+            continue
+        if stat.S_ISDIR(status.st_mode) and status.st_uid == os.geteuid():
+            found.append((status.st_mtime_ns, path))
+    return [path for _, path in sorted(found, reverse=True)]
+
+
+def _holds(directory: Path, files: Mapping[str, str]) -> bool:
+    """Whether `directory` holds exactly `files` (name → text) as regular files, and nothing else."""
+    try:
+        entries = {path.name: path for path in directory.iterdir()}
+        return entries.keys() == files.keys() and all(
+            stat.S_ISREG(entries[name].lstat().st_mode) and entries[name].read_text(encoding="utf-8") == text
+            for name, text in files.items())
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
+def _directory_for(files: Mapping[str, str], root: Path) -> tuple[Path, int]:
+    """The directory holding `files`, reused or newly written, and the descriptor holding its shared lock."""
+    for path in generated_directories(root):
+        fd = _lock(path, fcntl.LOCK_SH)
+        if fd is None:
+            continue
+        if _holds(path, files):
+            os.utime(path)  # now the newest: kept the longest
+            return path, fd
+        os.close(fd)
+    while True:
+        path = _fresh_directory(root)
+        fd = _lock(path, fcntl.LOCK_SH)
+        if fd is not None:  # None: another launch removed it as the oldest before the lock (a flood of launches)
+            break
+    for name, text in files.items():
+        write_atomic(path / name, text, mode=0o600)
+    return path, fd
+
+
+def _prune(root: Path) -> None:
+    """Remove the user's generated directories beyond the newest KEPT_GENERATED_DIRS that no launch uses."""
+    for path in generated_directories(root)[KEPT_GENERATED_DIRS:]:
+        fd = _lock(path, fcntl.LOCK_EX)
+        if fd is None:
+            continue  # a running launch holds it
+        try:
+            shutil.rmtree(path, ignore_errors=True)
+        finally:
+            os.close(fd)
+
+
 def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.PathLike[str] | None = None,
                         srdf_file: str | os.PathLike[str] | None = None, cycle_time_us: int = 1000,
                         stage: Stage = Stage.STARTUP, temp_root: Path | None = None) -> ResolvedDescription:
     """Validate for `stage`, then generate the missing optional files; the package is never written."""
     report = require_valid(package, stage=stage, urdf_file=urdf_file, srdf_file=srdf_file)
+    return complete_description(report, cycle_time_us=cycle_time_us, temp_root=temp_root)
+
+
+def complete_description(report: ValidationReport, *, cycle_time_us: int = 1000,
+                         temp_root: Path | None = None) -> ResolvedDescription:
+    """The files a launch uses for a package that passed start-up validation: its own, and the optional files it
+    lacks generated into a `wim_launch_*` directory under `temp_root` (the system's temp directory by default).
+
+    The directory stays locked as in use until the returned description is garbage-collected or the process ends.
+    """
     files, urdf, srdf = report.files, report.urdf, report.srdf
-    # require_valid raised unless the URDF rendered and joint_limits.yaml exists; an SRDF that exists has parsed
-    assert urdf is not None and files.urdf is not None and files.joint_limits is not None
+    if urdf is None or files.urdf is None or files.joint_limits is None:
+        raise ValueError("complete_description needs a report of start-up validation (require_valid)")
     log_lines: list[str] = []
     pending: dict[str, str] = {}
     if srdf is None:
@@ -117,17 +210,28 @@ def resolve_description(package: str | os.PathLike[str], *, urdf_file: str | os.
         actuated = [j.name for j in urdf.actuated_joints]
         pending["controllers.yaml"] = controllers_yaml([j for j in actuated if j in report.limits] or actuated,
                                                        cycle_time_us)
-    generated_dir = _fresh_directory(temp_root) if pending else None
-    written: dict[str, Path] = {}
-    if generated_dir is not None:
-        for name, text in pending.items():
-            written[name] = generated_dir / name
-            write_atomic(written[name], text, mode=0o600)
+    generated_dir, fd = None, None
+    if pending:
+        root = Path(temp_root or tempfile.gettempdir())
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+            generated_dir, fd = _directory_for(pending, root)
+        except OSError as error:
+            raise ConfigError(f"cannot write the generated {' and '.join(pending)} into {root}",
+                              what="a temp directory plem may create directories in",
+                              why=f"{error.filename or root}: {error.strerror or error}",
+                              how=f"set TMPDIR to a writable directory, or add {' and '.join(pending)} to "
+                                  f"{files.root / 'config'} (see `plem create-description`)") from None
+        _prune(root)
         _say(log_lines, f"Generated files are in {generated_dir}; copy them into config/ to keep them")
-    return ResolvedDescription(report=report, urdf=files.urdf, srdf=files.srdf, joint_limits=files.joint_limits,
-                               controllers=files.controllers or written["controllers.yaml"],
-                               kinematics=files.kinematics or written.get("kinematics.yaml"),
-                               generated_dir=generated_dir, generated=list(written.values()), log_lines=log_lines)
+    written = {name: generated_dir / name for name in pending} if generated_dir is not None else {}
+    resolved = ResolvedDescription(report=report, urdf=files.urdf, srdf=files.srdf, joint_limits=files.joint_limits,
+                                   controllers=files.controllers or written["controllers.yaml"],
+                                   kinematics=files.kinematics or written.get("kinematics.yaml"),
+                                   generated_dir=generated_dir, generated=list(written.values()), log_lines=log_lines)
+    if fd is not None:
+        weakref.finalize(resolved, os.close, fd)  # the lock that keeps other launches from removing the directory
+    return resolved
 
 
 def _say(log_lines: list[str], line: str) -> None:

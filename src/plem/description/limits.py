@@ -1,14 +1,21 @@
-"""joint_limits.yaml: per-joint position, velocity, acceleration, jerk and effort limits (SI units)."""
+"""joint_limits.yaml: per-joint position, velocity, acceleration, jerk and effort limits (SI units).
+
+The URDF's `<limit>` values are hard limits: joint_limits.yaml may tighten them, never loosen or remove them.
+`tighten` gives the limits the driver enforces (the tighter of the two, whatever the file says);
+`loosened` lists where the file tries to go beyond the URDF, which validation reports as errors.
+"""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from plem.core.config.loader import ConfigLoader
 from plem.core.config.yaml_document import YamlDocument
+from plem.description.model import Joint
 from plem.description.problems import Findings
 from plem.errors import ConfigError
 
@@ -31,6 +38,78 @@ class JointLimit:
     max_jerk: float | None = None
     max_effort: float | None = None
     line: int | None = None
+    lines: Mapping[str, int] = field(default_factory=dict, compare=False)  # line of each key in the file
+    disabled: frozenset[str] = frozenset()  # the has_*_limits keys the file sets to false
+
+    def line_of(self, key: str) -> int | None:
+        """The line of `key` in the joint's entry, or the entry's own line when the key is not written."""
+        return self.lines.get(key, self.line)
+
+
+@dataclass(frozen=True)
+class HardLimit:
+    """A limit the URDF `<limit>` sets: the JointLimit field holding it, the URDF attribute, the has_*_limits key
+    that would turn it off, and whether it bounds from below (a larger value is then the tighter one)."""
+
+    key: str
+    attribute: str
+    flag: str
+    from_below: bool = False
+
+    def urdf_value(self, joint: Joint) -> float | None:
+        """The joint's URDF value of this limit, or None when the URDF sets none that can be enforced (absent,
+        not finite, a velocity or effort that is not positive, or a position bound of a continuous joint)."""
+        value: float | None = getattr(joint, self.attribute)
+        if value is None or not math.isfinite(value):
+            return None
+        if self.flag == "has_position_limits":
+            return None if joint.type == "continuous" else value
+        return value if value > 0 else None
+
+    def tighter(self, own: float, hard: float) -> float:
+        """The stricter of a joint_limits.yaml value and the URDF's."""
+        return max(own, hard) if self.from_below else min(own, hard)
+
+    def looser(self, own: float, hard: float) -> bool:
+        """Whether a joint_limits.yaml value goes beyond the URDF's (by more than rounding)."""
+        slack = 1e-9 * max(1.0, abs(hard))
+        return own < hard - slack if self.from_below else own > hard + slack
+
+
+HARD_LIMITS = (HardLimit("min_position", "lower", "has_position_limits", from_below=True),
+               HardLimit("max_position", "upper", "has_position_limits"),
+               HardLimit("max_velocity", "velocity", "has_velocity_limits"),
+               HardLimit("max_effort", "effort", "has_effort_limits"))
+
+
+def tighten(limit: JointLimit | None, joint: Joint) -> JointLimit:
+    """The limits the driver enforces on `joint`: each URDF `<limit>` value, or the joint_limits.yaml value where
+    that is stricter; limits the URDF does not set (acceleration, jerk) as the file gives them."""
+    base = limit if limit is not None else JointLimit(joint.name)
+    values: dict[str, Any] = {}
+    for hard in HARD_LIMITS:
+        urdf = hard.urdf_value(joint)
+        if urdf is not None:
+            own: float | None = getattr(base, hard.key)
+            values[hard.key] = urdf if own is None else hard.tighter(own, urdf)
+    return replace(base, **values)
+
+
+def loosened(limit: JointLimit, joint: Joint) -> list[tuple[HardLimit, float | None, float]]:
+    """Where joint_limits.yaml goes beyond the URDF's `<limit>` of `joint`: (limit, the file's value or None when
+    its has_*_limits: false removes the limit, the URDF's value); a removed position range is listed once."""
+    found: list[tuple[HardLimit, float | None, float]] = []
+    for hard in HARD_LIMITS:
+        urdf = hard.urdf_value(joint)
+        if urdf is None:
+            continue
+        own: float | None = getattr(limit, hard.key)
+        if hard.flag in limit.disabled:
+            if all(other.flag != hard.flag for other, _, _ in found):
+                found.append((hard, None, urdf))
+        elif own is not None and hard.looser(own, urdf):
+            found.append((hard, own, urdf))
+    return found
 
 
 def _number(value: Any) -> float | None:
@@ -117,4 +196,7 @@ def _read_joint(name: str, entry: dict[Any, Any], document: YamlDocument, path: 
     if position_on is not True:
         lower = upper = None
     return JointLimit(name, lower, upper, values.get("max_velocity"), values.get("max_acceleration"),
-                      values.get("max_jerk"), values.get("max_effort"), line)
+                      values.get("max_jerk"), values.get("max_effort"), line,
+                      lines={str(key): line_of(key) for key in entry},
+                      disabled=frozenset(str(key) for key, raw in entry.items()
+                                         if str(key).startswith("has_") and raw is False))

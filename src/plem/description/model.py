@@ -2,24 +2,44 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import cast
 
 from lxml import etree
 
+from plem.core.files import read_regular, size_text
 from plem.description.problems import DescriptionError
+from plem.errors import PlemError
 
 ACTUATED_TYPES = ("revolute", "prismatic", "continuous")
 LESS_TESTED_TYPES = ("prismatic", "continuous")
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+#: The largest XML plem parses or lets xacro read from a package, per file and per rendered document. Real
+#: descriptions are far smaller (meshes live in their own files); a larger one would take minutes to process.
+MAX_XML_BYTES = 16 * 2**20
+_SUBSTITUTION = re.compile(r"\$\{[^}]*\}|\$\([^)]*\)")
+_JACOBI_SWEEPS = 50
+_JACOBI_NEGLIGIBLE = 1e-20  # an off-diagonal entry of the scaled matrix this small moves no eigenvalue
 
 
 def _float(value: str | None) -> float | None:
-    try:
-        return float(value) if value is not None else None
-    except ValueError:
+    """The number an attribute holds: None when the attribute is absent, NaN when it is not a number."""
+    if value is None:
         return None
+    try:
+        return float(value)
+    except ValueError:
+        return math.nan
+
+
+def _floats(value: str | None) -> tuple[float, ...] | None:
+    """A space-separated vector attribute (`xyz="0 0 1"`): None when absent, NaN for each part that is no number."""
+    return None if value is None else tuple(cast("float", _float(part)) for part in value.split())
 
 
 def source_line(element: etree._Element) -> int | None:
@@ -34,9 +54,34 @@ def _params(element: etree._Element | None) -> tuple[dict[str, str], dict[str, i
             {tag.get("name") or "": source_line(tag) for tag in tags})
 
 
+def too_large(path: Path, size: int, *, rendered: bool) -> DescriptionError:
+    """The error for description XML above MAX_XML_BYTES: the file at `path` holds `size` bytes, or (`rendered`)
+    rendering it gives that much XML."""
+    limit = size_text(MAX_XML_BYTES)
+    if rendered:
+        return DescriptionError(
+            f"{path.name} renders to too much XML",
+            what=f"a rendered description of at most {limit} (plem's limit for description XML)",
+            why=f"rendering {path} gives {size_text(size)} of XML",
+            how="look for a macro or expression that repeats text; meshes belong in their own files, not in the XML")
+    return DescriptionError(
+        f"{path.name} is too large",
+        what=f"description files of at most {limit} each (plem's limit for description XML)",
+        why=f"{path} holds {size_text(size)}",
+        how="check that it is the file you meant; meshes belong in their own files, not in the XML")
+
+
+def read_xml_file(path: Path, what: str) -> bytes:
+    """The bytes of a description's XML file (`what`: "URDF", "SRDF", ...), when it is a regular file of at most
+    MAX_XML_BYTES; a ConfigError saying what the file is or how large otherwise."""
+    return read_regular(path, MAX_XML_BYTES, what)
+
+
 def parse_xml(text: str | bytes, source: Path) -> etree._Element:
-    """Parse XML keeping line numbers; syntax errors name the file and line."""
+    """Parse XML keeping line numbers; syntax errors name the file and line, XML above MAX_XML_BYTES is refused."""
     data = text.encode("utf-8") if isinstance(text, str) else text
+    if len(data) > MAX_XML_BYTES:
+        raise too_large(source, len(data), rendered=True)
     try:
         return etree.fromstring(data, parser=etree.XMLParser(remove_comments=True, resolve_entities=False,
                                                               no_network=True))
@@ -63,11 +108,59 @@ class Joint:
     velocity: float | None = None
     effort: float | None = None
     mimic: str | None = None
+    limit_line: int | None = None
+    axis: tuple[float, ...] | None = None
+    axis_line: int | None = None
 
     @property
     def actuated(self) -> bool:
         """Whether the driver commands it: revolute, prismatic or continuous, and not a mimic."""
         return self.type in ACTUATED_TYPES and self.mimic is None
+
+
+@dataclass
+class Inertial:
+    """A link's `<inertial>`: mass (kg) and the six inertia values about the centre of mass (kg·m², by
+    INERTIA_KEYS), each None where absent and NaN where not a number, with the line of `<inertial>`."""
+
+    mass: float | None
+    inertia: dict[str, float | None]
+    line: int | None
+
+    def principal_moments(self) -> list[float] | None:
+        """The eigenvalues of the inertia matrix, smallest first; None unless all six values are finite numbers."""
+        values = [self.inertia.get(key) for key in INERTIA_KEYS]
+        if not all(value is not None and math.isfinite(value) for value in values):
+            return None
+        ixx, ixy, ixz, iyy, iyz, izz = cast("list[float]", values)
+        return symmetric_eigenvalues([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+
+def symmetric_eigenvalues(matrix: list[list[float]]) -> list[float]:
+    """The eigenvalues of a symmetric 3×3 matrix of finite numbers, smallest first, by cyclic Jacobi rotations
+    (accurate to rounding, as LAPACK's; numpy would cost more to import than the whole check)."""
+    scale = max(abs(value) for row in matrix for value in row)
+    if scale == 0.0:
+        return [0.0, 0.0, 0.0]
+    a = [[value / scale for value in row] for row in matrix]  # largest entry 1: no square overflows or vanishes
+    for _ in range(_JACOBI_SWEEPS):
+        rotated = False
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            if abs(a[p][q]) <= _JACOBI_NEGLIGIBLE:
+                continue
+            rotated = True
+            theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q])
+            tangent = math.copysign(1.0, theta) / (abs(theta) + math.hypot(theta, 1.0))
+            cosine = 1.0 / math.hypot(tangent, 1.0)
+            sine = tangent * cosine
+            for row in a:
+                row[p], row[q] = cosine * row[p] - sine * row[q], sine * row[p] + cosine * row[q]
+            a[p], a[q] = ([cosine * x - sine * y for x, y in zip(a[p], a[q], strict=True)],
+                          [sine * x + cosine * y for x, y in zip(a[p], a[q], strict=True)])
+            a[p][q] = a[q][p] = 0.0  # what the rotation is chosen to give, without the rounding
+        if not rotated:
+            break
+    return sorted(a[index][index] * scale for index in range(3))
 
 
 @dataclass
@@ -97,13 +190,14 @@ class Ros2ControlBlock:
 
 @dataclass
 class UrdfModel:
-    """A rendered URDF: links, joints in document order, and its ros2_control blocks."""
+    """A rendered URDF: links, joints in document order, the links' inertial data and its ros2_control blocks."""
 
     name: str
     links: dict[str, int | None]
     joints: dict[str, Joint]
     ros2_control: list[Ros2ControlBlock]
     meshes: list[tuple[str, int | None]] = field(default_factory=list)
+    inertials: dict[str, Inertial] = field(default_factory=dict)
 
     @property
     def actuated_joints(self) -> list[Joint]:
@@ -147,7 +241,7 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
     links = {el.get("name") or "": source_line(el) for el in root.findall("link")}
     joints: dict[str, Joint] = {}
     for el in root.findall("joint"):
-        limit = el.find("limit")
+        limit, axis = el.find("limit"), el.find("axis")
         parent, child, mimic = el.find("parent"), el.find("child"), el.find("mimic")
         joints[el.get("name") or ""] = Joint(
             name=el.get("name") or "", type=el.get("type") or "", line=source_line(el),
@@ -158,10 +252,24 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
             velocity=_float(limit.get("velocity")) if limit is not None else None,
             effort=_float(limit.get("effort")) if limit is not None else None,
             mimic=mimic.get("joint") if mimic is not None else None,
+            limit_line=source_line(limit) if limit is not None else None,
+            axis=_floats(axis.get("xyz")) if axis is not None else None,
+            axis_line=source_line(axis) if axis is not None else None,
         )
+    inertials = {link.get("name") or "": _inertial(inertial) for link in root.findall("link")
+                 if (inertial := link.find("inertial")) is not None}
     blocks = [_ros2_control(block) for block in root.findall("ros2_control")]
     meshes = [(mesh.get("filename") or "", source_line(mesh)) for mesh in root.iter("mesh")]
-    return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes)
+    return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes,
+                     inertials=inertials)
+
+
+def _inertial(element: etree._Element) -> Inertial:
+    """One `<inertial>`: its `<mass value>` and `<inertia ixx=... izz=...>`."""
+    mass, inertia = element.find("mass"), element.find("inertia")
+    return Inertial(mass=_float(mass.get("value")) if mass is not None else None,
+                    inertia={key: _float(inertia.get(key)) for key in INERTIA_KEYS} if inertia is not None else {},
+                    line=source_line(element))
 
 
 def _ros2_control(block: etree._Element) -> Ros2ControlBlock:
@@ -175,6 +283,82 @@ def _ros2_control(block: etree._Element) -> Ros2ControlBlock:
                 for j in block.findall("joint")],
         params=params, param_lines=param_lines,
     )
+
+
+def rendered_line_note(source_line: int | None, rendered_line: int | None) -> str:
+    """' (line N of the rendered URDF)' when only the rendered line of a problem is known, else ''."""
+    return f" (line {rendered_line} of the rendered URDF)" if source_line is None and rendered_line else ""
+
+
+def _parse_source(path: Path) -> etree._Element | None:
+    """The XML of a package file, or None when it is no regular file, is too large, unreadable or broken (the
+    render reports the last three)."""
+    try:
+        return parse_xml(read_xml_file(path, "xacro file"), path)
+    except (OSError, ValueError, PlemError):
+        return None
+
+
+def _wildcard_match(pieces: list[str], name: str) -> bool:
+    """Whether `name` is pieces[0], anything, pieces[1], ..., anything, pieces[-1] (a glob with `*` only)."""
+    if len(pieces) == 1:
+        return name == pieces[0]
+    first, *middle, last = pieces
+    end = len(name) - len(last)
+    if end < len(first) or not name.startswith(first) or not name.endswith(last):
+        return False
+    position = len(first)
+    for piece in middle:
+        position = name.find(piece, position, end)
+        if position < 0:
+            return False
+        position += len(piece)
+    return True
+
+
+class XacroSources:
+    """Where elements of a rendered URDF are written in a package's xacro files, to point problems at a line.
+
+    xacro drops line numbers, so a rendered element is matched back by tag and name: the source element whose
+    name, with `${...}` and `$(...)` read as wildcards, is the only one to match gives the file and line.
+    Otherwise (a name built by a macro from its arguments, say) the first file is named without a line.
+    """
+
+    def __init__(self, paths: Sequence[Path | None]) -> None:
+        self.paths = [path for path in paths if path is not None]
+        self.default = self.paths[0] if self.paths else None
+
+    @cached_property
+    def _roots(self) -> list[tuple[Path, etree._Element]]:
+        """Each file that parses, with its root element."""
+        return [(path, root) for path in self.paths if (root := _parse_source(path)) is not None]
+
+    def find(self, tag: str, name: str, accept: Callable[[etree._Element], bool]
+             ) -> tuple[Path | None, etree._Element | None]:
+        """The file and source element of the rendered `<tag name="name">` among the elements `accept` lets
+        through, or (the first file, None) when no single one matches."""
+        matches = [(path, element) for path, root in self._roots for element in root.iter(tag)
+                   if accept(element) and _wildcard_match(_SUBSTITUTION.split(element.get("name") or ""), name)]
+        return matches[0] if len(matches) == 1 else (self.default, None)
+
+    def place(self, tag: str, name: str, child: str) -> tuple[Path | None, int | None]:
+        """File and line of the first `<child>` inside the source of the rendered `<tag name="name">` (the
+        element's own line when the source has no such child, as when a macro writes it)."""
+        path, element = self.find(tag, name, _is_kinematic if tag == "joint" else _any_element)
+        if element is None:
+            return path, None
+        found = element.find(f".//{child}")
+        return path, source_line(found if found is not None else element)
+
+
+def _is_kinematic(element: etree._Element) -> bool:
+    """A URDF `<joint type=...>`, not a `<joint>` of a ros2_control block (which has no type)."""
+    return element.get("type") is not None
+
+
+def _any_element(element: etree._Element) -> bool:
+    """Every element qualifies."""
+    return True
 
 
 @dataclass

@@ -26,6 +26,7 @@ import xacro
 from xacro import substitution_args
 
 from plem.core.paths import PACKAGE_MARKER, PackageAccessError, PackageReader, find_package, is_file, pinned_packages
+from plem.description.model import MAX_XML_BYTES, too_large
 from plem.description.problems import DescriptionError
 from plem.description.sandbox import run_sandboxed
 from plem.errors import PlemError
@@ -149,9 +150,17 @@ def _find_share(package: str) -> str:
 
 
 def _open(file: str | os.PathLike[str], mode: str = "r") -> IO[Any]:
-    """The `open` xacro uses for includes and xacro.load_yaml: through the package reader while rendering."""
+    """The `open` xacro uses for the file it renders, includes and xacro.load_yaml: while plem renders, through
+    the package reader and refused for a file above MAX_XML_BYTES (xacro would take minutes over it)."""
     reader = _reader.get()
-    return reader.open(file, mode) if reader is not None else builtins.open(file, mode)
+    if reader is None:
+        return builtins.open(file, mode)
+    handle = reader.open(file, mode)
+    size = os.fstat(handle.fileno()).st_size
+    if size > MAX_XML_BYTES:
+        handle.close()
+        raise too_large(Path(file), size, rendered=False)
+    return handle
 
 
 @lru_cache(maxsize=4096)

@@ -7,19 +7,26 @@ cylinder inertias, and the limits are those of a mid-size cobot, so kinematics a
 from __future__ import annotations
 
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from plem.core.files import write_atomic
+from plem.core.files import file_kind, read_regular, write_atomic
 from plem.description.compat import PROTOCOL_VERSION
 from plem.description.discover import COMPAT_FILE
 from plem.description.drives import param_line
 from plem.description.generate import controllers_yaml, kinematics_yaml
 from plem.description.problems import DescriptionError
+from plem.errors import ConfigError
 from plem.robot.config import SUPPORTED_DOF
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS, WRIST_GEAR
 
 PACKAGE_NAME = re.compile(r"[a-z][a-z0-9_]*")
+#: A file name has at most 255 bytes on Linux file systems. The longest one a package needs is the temporary
+#: file NAME.ros2_control.xacro is written through, so a longer robot name cannot be created.
+FILE_NAME_MAX = 255
+LONGEST_FILE_NAME = ".{name}.ros2_control.xacro.XXXXXXXX.tmp"
+MAX_NAME_LENGTH = FILE_NAME_MAX - len(LONGEST_FILE_NAME.format(name=""))
 SEGMENT_RADIUS = 0.05
 
 
@@ -292,15 +299,19 @@ def plan_package(name: str, dof: int, *, with_moveit: bool = False, launch: bool
 
 def _check_arguments(name: str, dof: int) -> None:
     problems = []
-    if not PACKAGE_NAME.fullmatch(name or "") or "__" in name:
+    if len(name or "") > MAX_NAME_LENGTH:
+        longest = LONGEST_FILE_NAME.format(name="NAME")
+        problems.append(f"name has {len(name)} characters; at most {MAX_NAME_LENGTH} fit: writing the package "
+                        f"needs the file {longest}, and a file name has at most {FILE_NAME_MAX} characters")
+    elif not PACKAGE_NAME.fullmatch(name or "") or "__" in name:
         problems.append(f"name {name!r} is not a ROS package name (lowercase letters, digits, single '_', "
                         "starting with a letter)")
     if dof not in SUPPORTED_DOF:
         problems.append(f"dof {dof} is not 6 or 7")
     if problems:
-        raise DescriptionError("Cannot create the description package", what="--name NAME (e.g. my_robot) and "
-                               "--dof 6 or 7", why="; ".join(problems), how="e.g. plem create-description "
-                               "--name my_robot --dof 6")
+        raise DescriptionError("Cannot create the description package", what=f"--name NAME (e.g. my_robot, at most "
+                               f"{MAX_NAME_LENGTH} characters) and --dof 6 or 7", why="; ".join(problems),
+                               how="e.g. plem create-description --name my_robot --dof 6")
 
 
 @dataclass
@@ -316,15 +327,45 @@ class ScaffoldResult:
 def create_package(output: Path, name: str, dof: int, *, with_moveit: bool = False, launch: bool = True,
                    force: bool = False) -> ScaffoldResult:
     """Write the package under `output/NAME_description`; differing files need `force`, or nothing is written."""
-    root = output / f"{name}_description"
     planned = plan_package(name, dof, with_moveit=with_moveit, launch=launch)
+    root = output / f"{name}_description"
+    try:
+        _check_folder(output, "--output")
+        _check_folder(root, "the package's folder")
+        return _write_package(root, planned, force)
+    except OSError as error:
+        raise DescriptionError(
+            f"Cannot write the package to {root}",
+            what="--output naming a folder that exists or can be created, and that you can write to",
+            why=f"creating {error.filename or root} failed: {error.strerror or error}",
+            how="choose a folder you can write to with --output (e.g. --output ~/ws/src)",
+        ) from None
+
+
+def _check_folder(path: Path, role: str) -> None:
+    """Refuse a `path` that exists and is not a folder: the package cannot be created in or as it."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISDIR(mode):
+        raise DescriptionError(
+            f"Not a folder: {path}",
+            what=f"a folder at {path} ({role}), or nothing there yet",
+            why=f"{path} is a {file_kind(mode)}",
+            how="choose a folder with --output (e.g. --output ~/ws/src), or move the file out of the way",
+        )
+
+
+def _write_package(root: Path, planned: dict[str, str], force: bool) -> ScaffoldResult:
+    """Compare every planned file with what is on disk, then write the new and (with `force`) the changed ones."""
     result = ScaffoldResult(root=root)
     changed = []
     for relative, text in planned.items():
         path = root / relative
         if not path.exists():
             result.created.append(relative)
-        elif path.read_bytes() == text.encode("utf-8"):
+        elif _holds(path, text.encode("utf-8")):
             result.identical.append(relative)
         else:
             changed.append(relative)
@@ -339,3 +380,11 @@ def create_package(output: Path, name: str, dof: int, *, with_moveit: bool = Fal
     for relative in result.created + changed:
         write_atomic(root / relative, planned[relative])
     return result
+
+
+def _holds(path: Path, data: bytes) -> bool:
+    """Whether `path` is a regular file holding exactly `data`; a folder, FIFO, device or larger file never does."""
+    try:
+        return read_regular(path, len(data), "generated file") == data
+    except ConfigError:
+        return False

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import math
 import os
+import statistics
 from dataclasses import dataclass, field
 from enum import IntEnum
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 from lxml import etree
@@ -28,8 +29,21 @@ from plem.description.drives import (
     declares_drive_parameters,
     param_line,
 )
-from plem.description.limits import JointLimit, read_joint_limits
-from plem.description.model import LESS_TESTED_TYPES, Joint, SrdfModel, UrdfModel, parse_srdf, parse_urdf, parse_xml
+from plem.description.limits import HardLimit, JointLimit, loosened, read_joint_limits, tighten
+from plem.description.model import (
+    ACTUATED_TYPES,
+    LESS_TESTED_TYPES,
+    Inertial,
+    Joint,
+    SrdfModel,
+    UrdfModel,
+    XacroSources,
+    parse_srdf,
+    parse_urdf,
+    parse_xml,
+    read_xml_file,
+    rendered_line_note,
+)
 from plem.description.problems import DescriptionError, Findings
 from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
@@ -43,6 +57,17 @@ KNOWN_SOLVERS = ("kdl_kinematics_plugin/KDLKinematicsPlugin", "trac_ik_kinematic
                  "cached_ik_kinematics_plugin/CachedKDLKinematicsPlugin")
 JOINT_TYPES = ("revolute", "prismatic", "continuous", "fixed", "floating", "planar")
 PREFIX_SENTINEL = "plemprefix_"
+#: A link heavier than this many times the median of the other links' masses is warned as implausible.
+MASS_RATIO_WARNING = 50.0
+#: An arm heavier than this (kg) in all is warned as implausible.
+TOTAL_MASS_WARNING = 1000.0
+#: A link whose radius of gyration (sqrt of its largest principal moment over its mass) exceeds this (m) is warned.
+GYRATION_WARNING = 2.0
+#: Least length of a joint axis before it counts as zero.
+MIN_AXIS_NORM = 1e-9
+#: How messages name the limits the URDF's <limit> sets.
+LIMIT_NAMES = {"min_position": "lower position", "max_position": "upper position", "max_velocity": "velocity",
+               "max_effort": "effort"}
 
 
 class Stage(IntEnum):
@@ -64,8 +89,16 @@ class ValidationReport:
     urdf: UrdfModel | None = None
     prefixed: UrdfModel | None = None
     srdf: SrdfModel | None = None
+    #: The limits the driver enforces: joint_limits.yaml tightened by the URDF's <limit> (see limits.tighten).
     limits: dict[str, JointLimit] = field(default_factory=dict)
+    #: joint_limits.yaml as written.
+    file_limits: dict[str, JointLimit] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+
+    @cached_property
+    def urdf_sources(self) -> XacroSources:
+        """Where the URDF's links and joints are written in the package's URDF xacro file."""
+        return XacroSources([self.files.urdf])
 
     @property
     def dof(self) -> int | None:
@@ -99,6 +132,7 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
     if stage >= Stage.STARTUP:
         _check_tree(urdf, source, found)
         _check_joint_types(urdf, source, found)
+        _check_urdf_values(report, urdf, source)
         _check_ros2_control(report, urdf, source)
     if stage >= Stage.FULL:
         _check_limits_against_urdf(report, urdf)
@@ -137,7 +171,7 @@ def _render_urdf(report: ValidationReport) -> None:
 def _declared_prefix_default(urdf: Path) -> str | None:
     """The default of `<xacro:arg name="prefix">` in the top-level file, or None when it is not declared there."""
     try:
-        root = parse_xml(urdf.read_bytes(), urdf)
+        root = parse_xml(_source_bytes(urdf), urdf)
     except PlemError:
         return None  # the render reports the XML problem
     for element in root.iter():
@@ -145,6 +179,15 @@ def _declared_prefix_default(urdf: Path) -> str | None:
                 and etree.QName(element).localname == "arg" and element.get("name") == "prefix"):
             return element.get("default")
     return None
+
+
+def _source_bytes(path: Path) -> bytes:
+    """A package file as plem reads XML (regular, at most MAX_XML_BYTES); empty when that fails, which the render
+    of the same file has reported."""
+    try:
+        return read_xml_file(path, "xacro file")
+    except PlemError:
+        return b""
 
 
 def _check_limits_file(report: ValidationReport) -> None:
@@ -156,7 +199,10 @@ def _check_limits_file(report: ValidationReport) -> None:
             why=f"{files.root / 'config' / 'joint_limits.yaml'} does not exist",
             how="create it (see `plem create-description` for the format)", file=files.root / "config")
         return
-    report.limits = read_joint_limits(files.joint_limits, report.findings)
+    report.file_limits = read_joint_limits(files.joint_limits, report.findings)
+    joints = report.urdf.joints if report.urdf is not None else {}
+    report.limits = {name: tighten(limit, joints[name]) if name in joints else limit
+                     for name, limit in report.file_limits.items()}
 
 
 def _check_srdf(report: ValidationReport) -> None:
@@ -165,7 +211,7 @@ def _check_srdf(report: ValidationReport) -> None:
         report.notes.append("SRDF not found - MoveIt will not be started")
         return
     try:
-        text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else files.srdf.read_bytes()
+        text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else read_xml_file(files.srdf, "SRDF")
         report.srdf = parse_srdf(text, files.srdf)
     except PlemError as error:
         report.findings.add("srdf.xml", error, files.srdf)
@@ -242,6 +288,135 @@ def _check_joint_types(urdf: UrdfModel, source: Path, found: Findings) -> None:
                     why=f"counted {dof}: {', '.join(j.name for j in urdf.actuated_joints) or 'none'}",
                     how="describe a 6- or 7-axis arm; other joint counts are outside plem's supported set",
                     file=source)
+
+
+def _urdf_place(report: ValidationReport, tag: str, name: str, child: str,
+                rendered_line: int | None) -> tuple[Path | None, int | None, str]:
+    """Where `<child>` of the URDF's `<tag name>` is written: file, line (None when a macro hides it) and the note
+    naming the rendered URDF's line in that case."""
+    path, line = report.urdf_sources.place(tag, name, child)
+    return path, line, rendered_line_note(line, rendered_line)
+
+
+def _check_urdf_values(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
+    """The numbers the driver and the dynamics rely on: joint limits finite (velocity and effort positive, lower
+    below upper), axes not zero, masses and inertias physical; masses far out of proportion are warned."""
+    found = report.findings
+    for joint in urdf.joints.values():
+        if joint.type not in ACTUATED_TYPES:
+            continue
+        bad = _bad_limit_values(joint)
+        if bad:
+            path, line, note = _urdf_place(report, "joint", joint.name, "limit", joint.limit_line)
+            found.error("urdf.limit_value", f"Joint {joint.name} has an invalid <limit>",
+                        what="finite <limit> values, lower below upper and velocity and effort above 0: the driver "
+                             "enforces them as hard limits",
+                        why="; ".join(bad) + note,
+                        how="write the joint's real limits into its <limit> (rad or m, rad/s or m/s, N·m or N)",
+                        file=path or source, line=line)
+        axis = joint.axis
+        if axis is not None and (len(axis) != 3 or not all(map(math.isfinite, axis))
+                                 or not math.hypot(*axis) > MIN_AXIS_NORM):
+            path, line, note = _urdf_place(report, "joint", joint.name, "axis", joint.axis_line)
+            found.error("urdf.axis", f"Joint {joint.name} has no usable axis",
+                        what="<axis xyz> with three finite numbers, not all zero: the direction the joint turns "
+                             "about or slides along",
+                        why=f'<axis xyz="{" ".join(f"{v:g}" for v in axis)}"> of {joint.name}' + note,
+                        how='give the direction in the joint frame, e.g. <axis xyz="0 0 1"/>',
+                        file=path or source, line=line)
+    for link, inertial in urdf.inertials.items():
+        bad = _bad_inertial(urdf, link, inertial)
+        if bad:
+            path, line, note = _urdf_place(report, "link", link, "inertial", inertial.line)
+            found.error("urdf.inertial", f"Link {link} has invalid inertial data",
+                        what="a finite mass above 0 kg (0 only for a massless frame fixed to another link, with zero "
+                             "inertia) and a finite, positive semi-definite inertia: the dynamics run on them",
+                        why="; ".join(bad) + note,
+                        how="enter the link's mass (kg) and inertia about its centre of mass (kg·m²) from its CAD "
+                            "model or data sheet", file=path or source, line=line)
+    _check_masses_plausible(report, urdf, source)
+
+
+def _bad_limit_values(joint: Joint) -> list[str]:
+    """What is wrong with the numbers of a joint's `<limit>` (position bounds are ignored on continuous joints)."""
+    names = ("velocity", "effort") if joint.type == "continuous" else ("lower", "upper", "velocity", "effort")
+    bad = []
+    for name in names:
+        value: float | None = getattr(joint, name)
+        if value is None:
+            continue
+        if not math.isfinite(value):
+            bad.append(f'{name}="{value:g}" is not a finite number')
+        elif name in ("velocity", "effort") and value <= 0:
+            bad.append(f'{name}="{value:g}" is not above 0')
+    lower, upper = joint.lower, joint.upper
+    if "lower" in names and lower is not None and upper is not None and lower >= upper:
+        bad.append(f'lower="{lower:g}" is not below upper="{upper:g}"')
+    return bad
+
+
+def _bad_inertial(urdf: UrdfModel, link: str, inertial: Inertial) -> list[str]:
+    """What is wrong with a link's mass and inertia."""
+    bad = []
+    mass, inertia = inertial.mass, inertial.inertia
+    bad += [f"<inertia> lacks {key}" for key, value in inertia.items() if value is None]
+    bad += [f'{key}="{value:g}" is not a finite number' for key, value in inertia.items()
+            if value is not None and not math.isfinite(value)]
+    moments = inertial.principal_moments()
+    if moments is not None and moments[0] < -1e-9 * max(1.0, sum(moments)):
+        negative = [f"{key}={inertia[key]:g}" for key in ("ixx", "iyy", "izz") if (inertia[key] or 0.0) < 0]
+        bad.append("the inertia is not positive semi-definite (" + (
+            f"negative diagonal {', '.join(negative)}" if negative else f"smallest principal moment {moments[0]:.3g}")
+            + ")")
+    parent = urdf.parent_of(link)
+    if mass is None:
+        bad.append("its <inertial> has no <mass value>")
+    elif not math.isfinite(mass) or mass < 0:
+        bad.append(f'mass value="{mass:g}" is not a finite number of 0 kg or more')
+    elif mass == 0 and parent is not None and parent.type in ACTUATED_TYPES:
+        bad.append(f"mass is 0 kg, yet joint {parent.name} moves it")
+    elif mass == 0 and any(inertia.values()):
+        bad.append("mass is 0 kg with a non-zero inertia")
+    return bad
+
+
+def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
+    """Warn about a total mass or a link mass far beyond what an arm weighs, and an inertia too large for its
+    mass: usually a unit slip (g for kg) or a typo."""
+    found = report.findings
+    masses = {link: inertial.mass for link, inertial in urdf.inertials.items()
+              if inertial.mass is not None and math.isfinite(inertial.mass) and inertial.mass > 0}
+    total = sum(masses.values())
+    if total > TOTAL_MASS_WARNING:
+        heaviest = sorted(masses, key=lambda link: -masses[link])[:3]
+        found.warning("urdf.inertial_implausible", f"The arm weighs {total:g} kg",
+                      what=f"link masses that add up to what an arm weighs (warned above {TOTAL_MASS_WARNING:g} kg)",
+                      why=f"the masses add up to {total:g} kg; heaviest: "
+                          + ", ".join(f"{link} {masses[link]:g} kg" for link in heaviest),
+                      how="check the values and their unit (kg)", file=source)
+    for link, mass in masses.items():
+        others = [other for name, other in masses.items() if name != link]
+        typical = statistics.median(others) if len(others) >= 2 else None
+        if typical is not None and mass > MASS_RATIO_WARNING * typical:
+            path, line, note = _urdf_place(report, "link", link, "inertial", urdf.inertials[link].line)
+            found.warning("urdf.inertial_implausible", f"Link {link} weighs {mass:g} kg",
+                          what=f"link masses in proportion (warned above {MASS_RATIO_WARNING:g} times the median of "
+                               "the other links)",
+                          why=f"{link} has {mass:g} kg, {mass / typical:.0f} times the median {typical:g} kg of the "
+                              "other links" + note,
+                          how="check the value and its unit (kg)", file=path or source, line=line)
+        moments = urdf.inertials[link].principal_moments()
+        if moments is not None:
+            gyration = math.sqrt(max(moments[-1], 0.0) / mass)
+            if gyration > GYRATION_WARNING:
+                path, line, note = _urdf_place(report, "link", link, "inertial", urdf.inertials[link].line)
+                found.warning("urdf.inertial_implausible", f"Link {link} has an inertia too large for its mass",
+                              what=f"an inertia that fits the link's size (radius of gyration, √(I/m), up to "
+                                   f"{GYRATION_WARNING:g} m)",
+                              why=f"{link}: {mass:g} kg with a largest principal moment of "
+                                  f"{gyration ** 2 * mass:g} kg·m², a radius of gyration of {gyration:.3g} m" + note,
+                              how="check the inertia values and their unit (kg·m², about the centre of mass)",
+                              file=path or source, line=line)
 
 
 @cache
@@ -346,7 +521,7 @@ def _check_prefix(report: ValidationReport, source: Path) -> None:
                     why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
                     how="write the joint names as ${prefix}joint1 and so on, and call the macro with "
                         'prefix="$(arg prefix)"', file=files.ros2_control or source)
-    if files.ros2_control and files.ros2_control.name not in source.read_text(encoding="utf-8", errors="replace"):
+    if files.ros2_control and files.ros2_control.name.encode() not in _source_bytes(source):
         found.error("ros2_control.not_included", f"{files.ros2_control.name} is not included by the URDF",
                     what="the URDF includes its ros2_control xacro", why=f"{source.name} never names it",
                     how=f'<xacro:include filename="$(find {files.name})/urdf/{files.ros2_control.name}"/>',
@@ -354,7 +529,7 @@ def _check_prefix(report: ValidationReport, source: Path) -> None:
 
 
 def _check_limits_against_urdf(report: ValidationReport, urdf: UrdfModel) -> None:
-    files, found, limits = report.files, report.findings, report.limits
+    files, found, limits = report.files, report.findings, report.file_limits
     if files.joint_limits is None or not limits and found.codes().count("limits.yaml"):
         return
     path = files.joint_limits
@@ -366,7 +541,7 @@ def _check_limits_against_urdf(report: ValidationReport, urdf: UrdfModel) -> Non
                         how=f"add joint_limits.{name} with min/max_position, max_velocity, max_acceleration",
                         file=path, line=ConfigLoader.get_instance().document(path).line("joint_limits"))
             continue
-        _compare_with_urdf(limits[name], joint, path, found)
+        _compare_with_urdf(report, limits[name], joint, path)
     for name, limit in limits.items():
         if name not in actuated:
             found.error("limits.extra_joint", f"joint_limits.yaml names {name}, which is not an actuated joint",
@@ -375,29 +550,48 @@ def _check_limits_against_urdf(report: ValidationReport, urdf: UrdfModel) -> Non
                         how=f"remove joint_limits.{name} or fix the name", file=path, line=limit.line)
 
 
-def _compare_with_urdf(limit: JointLimit, joint: Joint, path: Path, found: Findings) -> None:
-    exceeded = []
-    if joint.lower is not None and limit.min_position is not None and limit.min_position < joint.lower - 1e-12:
-        exceeded.append(f"min_position {limit.min_position:g} < URDF lower {joint.lower:g}")
-    if joint.upper is not None and limit.max_position is not None and limit.max_position > joint.upper + 1e-12:
-        exceeded.append(f"max_position {limit.max_position:g} > URDF upper {joint.upper:g}")
-    if joint.velocity is not None and limit.max_velocity is not None and limit.max_velocity > joint.velocity + 1e-12:
-        exceeded.append(f"max_velocity {limit.max_velocity:g} > URDF velocity {joint.velocity:g}")
-    if joint.effort is not None and limit.max_effort is not None and limit.max_effort > joint.effort + 1e-12:
-        exceeded.append(f"max_effort {limit.max_effort:g} > URDF effort {joint.effort:g}")
-    if exceeded:
-        found.warning("limits.exceeds_urdf", f"Limits of {joint.name} exceed the URDF",
-                      what="joint_limits.yaml within the URDF <limit> (the YAML narrows, never widens)",
-                      why="; ".join(exceeded), how="lower the YAML values or correct the URDF", file=path,
-                      line=limit.line)
-    missing = [k for k in ("max_velocity", "max_acceleration", "max_jerk") if getattr(limit, k) is None]
-    if limit.max_velocity is None and joint.velocity is not None:
-        missing.remove("max_velocity")
+def _compare_with_urdf(report: ValidationReport, limit: JointLimit, joint: Joint, path: Path) -> None:
+    """joint_limits.yaml may tighten the URDF's <limit>, never loosen or remove it (an error, although the driver
+    enforces the URDF's value anyway); missing velocity, acceleration or jerk limits are warned."""
+    found = report.findings
+    changes = loosened(limit, joint)
+    at = _limit_at(report, joint) if changes else ""
+    for hard, own, urdf_value in changes:
+        if own is None:
+            _report_removed(found, joint, hard, at, path, limit.line_of(hard.flag))
+            continue
+        beyond, bound = ("below", "at least") if hard.from_below else ("above", "at most")
+        found.error("limits.exceeds_urdf", f"joint_limits.yaml loosens the {LIMIT_NAMES[hard.key]} limit of "
+                                           f"{joint.name}",
+                    what="joint_limits.yaml within the URDF's <limit>: it may tighten a limit, never loosen it",
+                    why=f"{hard.key} {own:g} is {beyond} the URDF's {hard.attribute}=\"{urdf_value:g}\" ({at})",
+                    how=f"set joint_limits.{joint.name}.{hard.key} to {bound} {urdf_value:g}, or correct the URDF "
+                        f"<limit> if the joint really allows more; the driver enforces {urdf_value:g} either way",
+                    file=path, line=limit.line_of(hard.key))
+    missing = [k for k in ("max_velocity", "max_acceleration", "max_jerk") if getattr(tighten(limit, joint), k) is None]
     if missing:
         found.warning("limits.incomplete", f"{joint.name} has no {', '.join(missing)}",
                       what="velocity, acceleration and jerk limits for jerk-limited motion",
                       why=f"joint_limits.{joint.name} lacks {', '.join(missing)}",
                       how="add them; until then plem plans with conservative defaults", file=path, line=limit.line)
+
+
+def _limit_at(report: ValidationReport, joint: Joint) -> str:
+    """Where the joint's URDF <limit> is written, as `file:line` (or the file and the rendered URDF's line)."""
+    path, line, note = _urdf_place(report, "joint", joint.name, "limit", joint.limit_line)
+    return f"{path}:{line}" if line else f"{path}{note}"
+
+
+def _report_removed(found: Findings, joint: Joint, hard: HardLimit, at: str, path: Path, line: int | None) -> None:
+    """A has_*_limits: false that would switch off a limit the URDF sets."""
+    kind = "position" if hard.flag == "has_position_limits" else LIMIT_NAMES[hard.key]
+    urdf = (f'lower="{joint.lower:g}" upper="{joint.upper:g}"' if kind == "position"
+            else f'{hard.attribute}="{getattr(joint, hard.attribute):g}"')
+    found.error("limits.removes_urdf", f"joint_limits.yaml removes the {kind} limit of {joint.name}",
+                what="joint_limits.yaml within the URDF's <limit>: it may tighten a limit, never remove it",
+                why=f"{hard.flag}: false, while the URDF's <limit> sets {urdf} ({at})",
+                how=f"set {hard.flag}: true with values within the URDF's (or leave them out to use the URDF's); the "
+                    "driver enforces the URDF's limit either way", file=path, line=line)
 
 
 def _check_meshes(urdf: UrdfModel, source: Path, found: Findings) -> None:
@@ -491,7 +685,8 @@ def _check_srdf_against_urdf(report: ValidationReport, urdf: UrdfModel, srdf: Sr
                             what="joints that exist in the URDF", why=f"no URDF joint {joint!r}", how="fix the name",
                             file=path, line=at(line))
                 continue
-            low, high = _position_bounds(urdf.joints[joint], report.limits.get(joint))
+            bounds = tighten(report.file_limits.get(joint), urdf.joints[joint])
+            low, high = bounds.min_position, bounds.max_position
             if value is None or not math.isfinite(value) or (low is not None and value < low) or (
                     high is not None and value > high):
                 found.error("srdf.state_out_of_limits", f"group_state {state.name}: {joint} is outside its limits",
@@ -504,15 +699,6 @@ def _check_srdf_against_urdf(report: ValidationReport, urdf: UrdfModel, srdf: Sr
             found.error("srdf.collision_unknown_link", "disable_collisions names unknown links",
                         what="link1 and link2 that exist in the URDF", why=f"missing: {', '.join(missing)}",
                         how="fix or remove the entry", file=path, line=at(line))
-
-
-def _position_bounds(urdf_joint: Joint, limit: JointLimit | None) -> tuple[float | None, float | None]:
-    """The tighter of the YAML and URDF position limits."""
-    lows = [v for v in (urdf_joint.lower, limit.min_position if limit else None) if v is not None]
-    highs = [v for v in (urdf_joint.upper, limit.max_position if limit else None) if v is not None]
-    if urdf_joint.type == "continuous" and not (limit and limit.min_position is not None):
-        return None, None
-    return (max(lows) if lows else None), (min(highs) if highs else None)
 
 
 def _check_kinematics(report: ValidationReport) -> None:

@@ -46,6 +46,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from plem.core.files import read_regular_text
+from plem.description.model import MAX_XML_BYTES
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus.bus import BusIO, BusSetup, BusStatus, DriveState, OperationMode
 from plem.fieldbus.cia402 import STATUSWORD, Controlword, PowerSequencer, decode_statusword, drive_transition
@@ -450,17 +452,12 @@ class MockBus:
             raise self._not_open(operation)
 
     def _urdf_xml(self, setup: BusSetup) -> str | None:
+        """The URDF as text: given as XML, or read from the path given (a regular UTF-8 file of at most
+        MAX_XML_BYTES, else a ConfigError saying what it is)."""
         source = self._urdf if self._urdf is not None else setup.urdf_xml
         if source is None or isinstance(source, str) and source.lstrip().startswith("<"):
             return source
-        try:
-            return Path(source).read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as error:
-            raise ConfigError("the simulated arm's URDF cannot be read",
-                              what="a URDF as XML text or the path of a readable URDF file",
-                              why=f"{source}: {error}",
-                              how="pass the URDF XML (e.g. from validate_package(...).urdf_xml) or an existing path"
-                              ) from error
+        return read_regular_text(Path(source), MAX_XML_BYTES, "URDF")
 
     def _set_limits(self, arm: ArmDynamics | None, joint_names: Sequence[str]) -> None:
         """Effort and position limits in joint order, from the URDF (or the effort_limits argument)."""

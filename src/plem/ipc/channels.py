@@ -11,9 +11,10 @@ import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
+from plem.control.events import FAULT_HISTORY, FAULT_KINDS, Event, EventLog
 from plem.control.limits import ArmLimits
 from plem.ipc.motion_slab import MotionSlab
-from plem.ipc.records import raw_record_length
+from plem.ipc.records import event_record, raw_record_length
 from plem.ipc.ring import SlotRing
 from plem.ipc.segment import SharedSegment
 from plem.ipc.state_segment import StateSegment, state_segment_name
@@ -31,11 +32,13 @@ class RingShape:
 
 
 #: The rings of a robot. rt_raw holds about four seconds at 1 kHz; events and stats drop their oldest records
-#: when a reader falls behind. intake (command service → driver) is bounded, so nothing is dropped;
+#: when a reader falls behind. faults holds the faults and their clearing from the events, which other
+#: events never push out. intake (command service → driver) is bounded, so nothing is dropped;
 #: outcomes (driver → command service) holds far more answers than can be pending.
 RINGS: dict[str, RingShape | None] = {
     "rt_raw": None,                                # one float64 record per cycle; sized by the DOF
     "events": RingShape(2048, 1024),
+    "faults": RingShape(2048, FAULT_HISTORY),
     "stats": RingShape(8192, 64),
     "intake": RingShape(4096, 64, bounded=True),
     "outcomes": RingShape(4096, 1024),
@@ -93,6 +96,18 @@ class RobotChannels:
             state.remove()
             raise
         return cls(robot_id, state, rings, motions)
+
+    def publish_events(self, log: EventLog) -> None:
+        """The driver's side: write every later event of `log` into the events ring, faults also into faults."""
+        events, faults = self.rings["events"], self.rings["faults"]
+
+        def publish(event: Event) -> None:
+            record = event_record(event)
+            events.write(record)
+            if event.kind in FAULT_KINDS:
+                faults.write(record)
+
+        log.subscribe(publish)
 
     @classmethod
     def attach(cls, robot_id: str, expected_dof: int | None = None) -> RobotChannels:

@@ -21,7 +21,13 @@ import numpy as np
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
-from plem.control.trajectory import JointTrajectory, TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
+from plem.control.trajectory import (
+    ErrorCode,
+    JointTrajectory,
+    TrajectoryOutcome,
+    TrajectoryResult,
+    TrajectoryTolerances,
+)
 from plem.errors import CommandRejected, PlemError, RobotFault
 from plem.ipc import request_bounds as bounds
 from plem.ipc.request_bounds import shown
@@ -231,7 +237,7 @@ def result_json(result: Any, limit: int = bounds.MAX_TEXT_CHARS) -> Any:
 def result_from_json(value: Any) -> Any:
     """Turn a reply's result back into the type the in-process robot API returns."""
     if isinstance(value, dict) and "outcome" in value:
-        return TrajectoryResult(TrajectoryOutcome(value["outcome"]), value["message"], value["error_code"])
+        return TrajectoryResult(TrajectoryOutcome(value["outcome"]), value["message"], ErrorCode(value["error_code"]))
     if isinstance(value, str):
         return Mode.parse(value)
     return value

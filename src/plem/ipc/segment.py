@@ -14,6 +14,7 @@ when a segment goes away.
 
 from __future__ import annotations
 
+import contextlib
 import mmap
 import os
 import re
@@ -66,6 +67,18 @@ def _not_trusted(name: str, found: UntrustedFile) -> SegmentError:
                             f"{found.owner} or root (`rm {found.path}`) and start the robot with `plem launch`")
 
 
+def _give_to_group(fd: int, name: str, group: int) -> None:
+    """Make the segment's group `group` (shm_group:=); a group plem may not give it to is a SegmentError."""
+    try:
+        os.fchown(fd, -1, group)
+    except (OSError, OverflowError) as error:
+        raise SegmentError(f"shared memory {name} cannot be given to group {group}",
+                           what="shm_group:= naming an existing group you are a member of (root: any group)",
+                           why=str(error) if isinstance(error, OverflowError) else error.strerror or str(error),
+                           how="pass shm_group:= one of the groups `id -Gn` lists, or leave it out for owner-only "
+                               "shared memory") from None
+
+
 class SharedSegment:
     """One mapped segment; `buffer` is a memoryview over the whole mapping."""
 
@@ -88,13 +101,14 @@ class SharedSegment:
         try:
             os.fchmod(fd, mode)  # not narrowed by the umask
             if group is not None:
-                os.fchown(fd, -1, group)
+                _give_to_group(fd, name, group)
             os.ftruncate(fd, size)
-        except OSError:
-            os.close(fd)
+            return cls(name, fd, size, writable=True)
+        except BaseException:  # nothing of a segment that could not be made stays behind
+            with contextlib.suppress(OSError):
+                os.close(fd)
             path.unlink(missing_ok=True)
             raise
-        return cls(name, fd, size, writable=True)
 
     @classmethod
     def open(cls, name: str, writable: bool = False) -> SharedSegment:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from plem.control.limits import ArmLimits
-from plem.control.state import StateBlock
+from plem.control.state import JointState, StateBlock
 from plem.errors import ConfigError
 from plem.ipc.segment import SegmentError, SharedSegment
 
@@ -109,6 +109,20 @@ class StateSegment:
         """The joint limits the driver enforces (a copy)."""
         return ArmLimits(self.header.joint_names, *self._limits.copy())
 
+    def driver_gone(self, state: JointState | None) -> str | None:
+        """Why the driver writing this segment is gone, or None while it runs.
+
+        `state` is the newest state read from the block; the driver is gone once its process has ended
+        (a zombie counts as ended) or once that state's time, its heartbeat, is older than STALE_AFTER_NS.
+        """
+        owner = self.header.owner_pid
+        if not process_alive(owner):
+            return f"its process {owner} has ended"
+        age = None if state is None else time.monotonic_ns() - state.monotonic_ns
+        if age is not None and age > STALE_AFTER_NS:
+            return f"its last cycle was {age / 1e9:.1f} s ago"
+        return None
+
     @staticmethod
     def size(dof: int) -> int:
         """Bytes of a state segment for `dof` joints: header, names, poses, limits and the state block."""
@@ -154,9 +168,7 @@ class StateSegment:
             return
         try:
             owner = existing.header.owner_pid
-            state = existing.block.read(retries=100)
-            beat_age = time.monotonic_ns() - state.monotonic_ns if state is not None else None
-            live = process_alive(owner) and owner != os.getpid() and (beat_age is None or beat_age < STALE_AFTER_NS)
+            live = owner != os.getpid() and existing.driver_gone(existing.block.read(retries=100)) is None
         finally:
             existing.close()
         if live:

@@ -6,8 +6,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from plem.core.config.launch_args import parse_launch_arguments
+from plem.core.config.settings import Setting
 from plem.robot.config import ARM_SETTINGS
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
+
+
+def model_default(setting: Setting) -> object:
+    """The value of a configuration setting in the default arm's preset (e.g. 98 for rt_priority)."""
+    return getattr(model_for(DEFAULT_ROBOT_TYPE)(), setting.name)
 
 
 @dataclass(frozen=True)
@@ -45,9 +51,11 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("flight_recorder_seconds", "10", "seconds before a fault whose segments are never deleted "
                    "automatically"),
     LaunchArgument("shm_group", "", "group allowed to read the shared memory; default: owner only"),
+    LaunchArgument("max_consecutive_overruns", "", "overrun cycles in a row that fault the arm; default: 10 on "
+                   "EtherCAT, 1000 on bus:=mock (docs/runtime.md)"),
     LaunchArgument("robots", "", "YAML file with several robots (each its own robot_id, bus, interface)"),
     *(LaunchArgument(s.launch, "", f"{s.description} [default: ${s.env}, else "
-                                   f"{getattr(model_for(DEFAULT_ROBOT_TYPE)(), s.name)} for {DEFAULT_ROBOT_TYPE}]")
+                                   f"{model_default(s)} for {DEFAULT_ROBOT_TYPE}]")
       for s in ARM_SETTINGS if s.launch and s.launch not in ("robot_id", "eth_interface")),
 )
 NAMES: tuple[str, ...] = tuple(argument.name for argument in LAUNCH_ARGUMENTS)

@@ -1,28 +1,35 @@
-"""What one robot of a launch will be: its arguments checked, description found, configuration resolved.
+"""What the robots of a launch will be: their arguments checked, descriptions found, configurations resolved.
 
-The supervisor makes a plan to report every problem before anything starts (and to generate missing
-description files once); the RT driver makes the same plan from the same arguments to build the robot.
+`plan_launch` (the supervisor) checks every robot of a launch, and what the host must provide for them,
+before anything starts, reports all problems of all robots together, and only then generates missing
+description files. Each child process (RT driver, bridge, recorder) makes the same `plan_robot` from the
+same arguments to build its part; that has no side effects.
 """
 
 from __future__ import annotations
 
+import errno
 import grp
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
+from plem.core.config.settings import parse_int
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.discover import locate_package, package_for_launch
-from plem.description.generate import ResolvedDescription, resolve_description
+from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.validate import Stage, ValidationReport, require_valid
-from plem.errors import ConfigError, PlemError, raise_collected
-from plem.launch.arguments import DEFAULTS
+from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
+from plem.launch.arguments import DEFAULTS, model_default
+from plem.recording.access import FileAccess
+from plem.recording.problems import refuse_unusable, write_problem
 from plem.recording.settings import RecordingSettings
-from plem.robot.config import SerialArmConfig
+from plem.robot.config import ARM_SETTINGS, SerialArmConfig
 from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
 
@@ -33,6 +40,15 @@ MAX_JOINT_STATES_RATE = 1000.0
 DEFAULT_JOINT_STATES_RATE_CAP = 100.0
 BOOLEANS = {"true": True, "1": True, "yes": True, "false": False, "0": False, "no": False}
 BAG_STORAGES = ("mcap", "sqlite3")
+#: Whole-number launch arguments and their ranges (the configuration overrides are checked by the config rules).
+WHOLE_ARGUMENTS = {"retention_minutes": (1, 10_000_000), "disk_threshold": (1, 99), "bag_segment_seconds": (1, 86_400),
+                   "flight_recorder_seconds": (1, 3_600), "max_consecutive_overruns": (1, 1_000_000)}
+#: Overruns in a row that fault the arm, by bus, when max_consecutive_overruns:= is not given (docs/runtime.md).
+MAX_CONSECUTIVE_OVERRUNS = {"ethercat": 10, "ethercat_sim": 10, "mock": 1000}
+#: Group ids chown accepts: 0 to 2³² − 2 (2³² − 1 means "no change").
+MAX_GROUP_ID = 2**32 - 2
+#: Arguments naming a package or a file, whose ~ the description expands.
+PATH_ARGUMENTS = ("description_package", "urdf_file", "srdf_file")
 
 
 @dataclass
@@ -62,6 +78,12 @@ class RobotPlan:
     def robot_id(self) -> str:
         """Instance id of this robot: namespace of its topics and prefix of its shared memory."""
         return self.config.robot_id
+
+    @property
+    def max_consecutive_overruns(self) -> int:
+        """Overrun cycles in a row that fault the arm: the launch argument, else the bus's default."""
+        text = self.arguments.get("max_consecutive_overruns")
+        return int(text) if text else MAX_CONSECUTIVE_OVERRUNS[self.bus]
 
     def joint_state_rate(self) -> float:
         """Hz of joint_states: the launch argument, else controllers.yaml's update rate, at most 100 Hz."""
@@ -93,30 +115,107 @@ class RobotPlan:
         poses.setdefault("home", [0.0] * len(joint_names))
         return poses
 
+    def generate_files(self, temp_root: Path | None = None) -> None:
+        """Generate the optional description files the package lacks (into `description`), as the launch does."""
+        self.description = complete_description(self.report, cycle_time_us=self.config.cycle_time,
+                                                temp_root=temp_root)
+
 
 def _problem(name: str, value: str, what: str, how: str) -> ConfigError:
-    return ConfigError(f"invalid launch argument {name}:={value}", what=what, why=f"{name} is {value!r}", how=how)
+    return ConfigError(f"invalid launch argument {name}:={shown(value)}", what=what,
+                       why=f"{name} is '{shown(value)}'", how=how)
+
+
+def _flag(arguments: Mapping[str, str], name: str) -> bool | None:
+    """A true/false argument (its default when not given), None when it is neither."""
+    return BOOLEANS.get(arguments.get(name, DEFAULTS[name]).lower())
 
 
 def _boolean(arguments: Mapping[str, str], name: str, errors: list[PlemError]) -> bool:
-    text = arguments.get(name, DEFAULTS[name]).lower()
-    if text not in BOOLEANS:
-        errors.append(_problem(name, text, "true or false", f"e.g. {name}:=false"))
-        return False
-    return BOOLEANS[text]
+    value = _flag(arguments, name)
+    if value is None:
+        errors.append(_problem(name, arguments[name], "true or false", f"e.g. {name}:=false"))
+    return bool(value)
 
 
-def _positive(text: str, high: float) -> bool:
-    try:
-        return 0.0 < float(text) <= high
-    except ValueError:
-        return False
+def _whole(arguments: Mapping[str, str], name: str, errors: list[PlemError]) -> None:
+    text = arguments.get(name)
+    low, high = WHOLE_ARGUMENTS[name]
+    value = whole_number(text) if text is not None else low
+    if value is None or not low <= value <= high:
+        errors.append(_problem(name, text or "", f"a whole number from {low} to {high}, written with the digits 0-9",
+                               f"e.g. {name}:={DEFAULTS[name] or MAX_CONSECUTIVE_OVERRUNS['mock']}"))
 
 
-def _integer(arguments: Mapping[str, str], name: str, low: int, high: int, errors: list[PlemError]) -> None:
-    text = arguments.get(name) or DEFAULTS[name]
-    if not text.strip().isdigit() or not low <= int(text) <= high:
-        errors.append(_problem(name, text, f"a whole number from {low} to {high}", f"e.g. {name}:={DEFAULTS[name]}"))
+def _rate(arguments: Mapping[str, str], errors: list[PlemError]) -> None:
+    text = arguments.get("joint_states_rate")
+    value = decimal_number(text) if text is not None else 1.0
+    if value is None or not 0.0 < value <= MAX_JOINT_STATES_RATE:
+        errors.append(_problem("joint_states_rate", text or "", f"a rate in Hz above 0 and at most "
+                               f"{MAX_JOINT_STATES_RATE:.0f}, written with the digits 0-9 and at most one '.'",
+                               "e.g. joint_states_rate:=50"))
+
+
+def _home_problems(arguments: Mapping[str, str]) -> list[PlemError]:
+    """Path arguments starting with ~user of a user the system does not know."""
+    problems: list[PlemError] = []
+    for name in PATH_ARGUMENTS:
+        try:
+            check_home(arguments.get(name, ""), f"{name}:={arguments.get(name, '')}")
+        except PlemError as error:
+            problems.append(error)
+    return problems
+
+
+def _config_arguments(arguments: Mapping[str, str], errors: list[PlemError]) -> dict[str, str]:
+    """The arguments for the configuration layers; a number there not written in plain digits is a problem and
+    is left out (the configuration rules check the ranges)."""
+    config_arguments = dict(arguments)
+    for setting in ARM_SETTINGS:
+        name = setting.launch or ""
+        text = arguments.get(name)
+        if setting.parse is parse_int and text is not None and whole_number(text) is None:
+            errors.append(_problem(name, text, f"{setting.expected}, written with the digits 0-9",
+                                   f"e.g. {name}:={model_default(setting)}"))
+            del config_arguments[name]
+    return config_arguments
+
+
+def _your_groups() -> str:
+    names = set()
+    for gid in {os.getegid(), *os.getgroups()}:
+        try:
+            names.add(grp.getgrgid(gid).gr_name)
+        except KeyError:
+            names.add(str(gid))
+    return ", ".join(sorted(names))
+
+
+def _group(text: str, errors: list[PlemError]) -> int | None:
+    """The group id of shm_group (a name or a number), None when not given or a problem."""
+    if not text:
+        return None
+    gid = whole_number(text)
+    why = ""
+    if gid is None:
+        try:
+            gid = grp.getgrnam(text).gr_gid
+        except (KeyError, ValueError):
+            why = f"no group is named '{shown(text)}'"
+    elif gid > MAX_GROUP_ID:
+        why = f"{text} is above the largest group id, {MAX_GROUP_ID}"
+    if not why and os.geteuid() != 0 and gid not in (os.getegid(), *os.getgroups()):
+        why = f"you are not a member of group {shown(text)}, so plem may not give it your shared memory"
+    if why:
+        mine = _your_groups()
+        errors.append(ConfigError(
+            f"invalid launch argument shm_group:={shown(text)}",
+            what="the name or id of an existing group you are a member of (root: any group)",
+            why=f"{why}; your groups: {mine}",
+            how=f"pass shm_group:= one of {mine}, or leave it out for owner-only shared memory; to make a group: "
+                "sudo groupadd robots && sudo usermod -aG robots $USER (then log in again)"))
+        return None
+    return gid
 
 
 def bag_directory(arguments: Mapping[str, str]) -> Path:
@@ -124,35 +223,67 @@ def bag_directory(arguments: Mapping[str, str]) -> Path:
     return Path(arguments.get("bag_dir") or DEFAULTS["bag_dir"]).expanduser()
 
 
-def _check_bag_directory(arguments: Mapping[str, str], errors: list[PlemError]) -> None:
-    """bag_dir must be a directory plem may write into, or one it may create (the recorder creates it)."""
-    directory = bag_directory(arguments)
-    existing = next(path for path in (directory, *directory.parents) if path.exists())
-    if not existing.is_dir():
-        why = f"{existing} is not a directory"
-    elif not os.access(existing, os.W_OK | os.X_OK):
-        why = f"plem may not write into {existing}"
-    else:
-        return
-    errors.append(ConfigError(f"bag_dir {directory} cannot hold bags", what="a directory plem can write into",
-                              why=why, how="pass bag_dir:=DIR with a writable DIR, or record:=false"))
+def prepare_bag_directory(arguments: Mapping[str, str], robot_id: str | None, group: int | None) -> PlemError | None:
+    """Create the bag directory (and `robot_id`'s below it, when known) as the recorder would; the problem if not.
 
-
-def _group(text: str, errors: list[PlemError]) -> int | None:
-    if not text:
-        return None
+    The directories get the recorder's access (owner-only, or readable by `group`), and a problem is worded as
+    the recorder words it, naming `bag_dir:=`.
+    """
+    text = arguments.get("bag_dir") or DEFAULTS["bag_dir"]
     try:
-        return int(text) if text.isdigit() else grp.getgrnam(text).gr_gid
-    except KeyError:
-        errors.append(_problem("shm_group", text, "an existing group name or id", "create the group or drop shm_group"))
+        check_home(text, f"bag_dir:={text}")
+        directory = bag_directory(arguments)
+        target = directory / robot_id if robot_id else directory
+        refuse_unusable(target)
+    except PlemError as error:
+        return error
+    try:
+        existing = next(path for path in (target, *target.parents) if os.path.lexists(path))
+        if not existing.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(existing))
+        FileAccess(group).make_directory(target)
+        if not os.access(target, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(target))
+    except OSError as error:
+        return write_problem(target, error)
+    return None
+
+
+def _each(error: PlemError) -> list[PlemError]:
+    return list(error.errors) if isinstance(error, MultipleErrors) else [error]
+
+
+def _locate(arguments: Mapping[str, str], errors: list[PlemError]) -> Path | None:
+    try:
+        return Path(locate_package(package_for_launch(arguments.get("description_package"),
+                                                      arguments.get("robot_type"))))
+    except PlemError as error:
+        errors.extend(_each(error))
         return None
 
 
-def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root: Path | None = None) -> RobotPlan:
+def _validate(package: Path, arguments: Mapping[str, str], errors: list[PlemError]) -> ValidationReport | None:
+    try:
+        return require_valid(package, stage=Stage.STARTUP, urdf_file=arguments.get("urdf_file"),
+                             srdf_file=arguments.get("srdf_file"))
+    except PlemError as error:
+        errors.extend(_each(error))
+        return None
+
+
+def _resolve(arguments: Mapping[str, str], dof: int | None, errors: list[PlemError]) -> ResolvedConfig | None:
+    try:
+        return resolve_arm_config(launch_args=arguments, launch_defaults=LAUNCH_DEFAULTS, dof=dof)
+    except PlemError as error:
+        errors.extend(_each(error))
+        return None
+
+
+def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_root: Path | None = None) -> RobotPlan:
     """Check the launch arguments of one robot and resolve its description and configuration.
 
-    `generate` writes missing optional description files into a fresh temp directory (the supervisor);
-    the RT driver plans without it. All argument problems are raised together.
+    Every problem (arguments, description package, configuration) is raised together. `generate` also writes
+    the optional description files the package lacks (see `RobotPlan.generate_files`, under `temp_root`).
     """
     arguments = {name: value for name, value in arguments.items() if value != ""}
     errors: list[PlemError] = []
@@ -163,46 +294,101 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = True, temp_root
                                "network"))
     record, bridge, bridge_commands = (_boolean(arguments, name, errors)
                                        for name in ("record", "bridge", "bridge_commands"))
-    rate_text = arguments.get("joint_states_rate", "")
-    if rate_text and not _positive(rate_text, MAX_JOINT_STATES_RATE):
-        errors.append(_problem("joint_states_rate", rate_text, f"a rate in Hz above 0 and at most "
-                               f"{MAX_JOINT_STATES_RATE:.0f}", "e.g. joint_states_rate:=50"))
-    _integer(arguments, "retention_minutes", 1, 10_000_000, errors)
-    _integer(arguments, "disk_threshold", 1, 99, errors)
-    _integer(arguments, "bag_segment_seconds", 1, 86_400, errors)
-    _integer(arguments, "flight_recorder_seconds", 1, 3_600, errors)
+    _rate(arguments, errors)
+    for name in WHOLE_ARGUMENTS:
+        _whole(arguments, name, errors)
     storage = arguments.get("bag_storage", DEFAULTS["bag_storage"])
     if storage not in BAG_STORAGES:
         errors.append(_problem("bag_storage", storage, f"one of {', '.join(BAG_STORAGES)}", "e.g. bag_storage:=mcap"))
-    if record:
-        _check_bag_directory(arguments, errors)
     group = _group(arguments.get("shm_group", ""), errors)
-    raise_collected(errors, "the launch arguments")
+    config_arguments = _config_arguments(arguments, errors)
+    homeless = _home_problems(arguments)
+    errors.extend(homeless)
 
-    package = Path(locate_package(package_for_launch(arguments.get("description_package"),
-                                                     arguments.get("robot_type"))))
-    urdf_file, srdf_file = arguments.get("urdf_file"), arguments.get("srdf_file")
-    config_arguments = dict(arguments)
-    builtin = _builtin_model(package)
+    package = _locate(arguments, errors) if not homeless else None
+    builtin = _builtin_model(package) if package is not None else None
+    report = _validate(package, arguments, errors) if package is not None else None
     if builtin is None:
         config_arguments.pop("robot_type", None)  # a custom package: robot_type does not apply
     else:
         config_arguments["robot_type"] = builtin
-    description = None
-    if generate:
-        cycle_us = int(arguments["cycle_time"]) if arguments.get("cycle_time", "").isdigit() else 1000
-        description = resolve_description(package, urdf_file=urdf_file, srdf_file=srdf_file, cycle_time_us=cycle_us,
-                                          stage=Stage.STARTUP, temp_root=temp_root)
-        report = description.report
-    else:
-        report = require_valid(package, stage=Stage.STARTUP, urdf_file=urdf_file, srdf_file=srdf_file)
-    resolved = resolve_arm_config(launch_args=config_arguments, launch_defaults=LAUNCH_DEFAULTS,
-                                  dof=None if builtin else report.dof)
+    resolved = _resolve(config_arguments, None if builtin or report is None else report.dof, errors)
+    raise_collected(errors, "the launch arguments")
+    assert package is not None and report is not None and resolved is not None  # each failure added an error
+
     if bus == "ethercat":
         _interface_from_etherlab(resolved)
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
-    return RobotPlan(arguments, resolved, package, urdf_file, srdf_file, bus, robot_name, record, bridge,
-                     group, report, description, bridge_commands)
+    plan = RobotPlan(arguments, resolved, package, arguments.get("urdf_file"), arguments.get("srdf_file"), bus,
+                     robot_name, record, bridge, group, report, None, bridge_commands)
+    if generate:
+        plan.generate_files(temp_root)
+    return plan
+
+
+def _host_problems(arguments: Mapping[str, str], plan: RobotPlan | None) -> list[PlemError]:
+    """What the host must provide for one robot: its bag directory (created here) and its EtherCAT interface.
+
+    With the robot's own problems (`plan` None) both are still checked as far as the arguments tell: the bag
+    directory without the robot's subdirectory (its robot_id may be the problem), the interface when named.
+    """
+    problems: list[PlemError] = []
+    if _flag(arguments, "record"):  # a wrong shm_group is the plan's problem; the directories stay owner-only then
+        problem = prepare_bag_directory(arguments, plan.robot_id if plan else None,
+                                        _group(arguments.get("shm_group", ""), []))
+        problems.extend([problem] if problem else [])
+    interface = plan.config.network_interface if plan is not None else arguments.get("eth_interface")
+    if arguments.get("bus", DEFAULTS["bus"]) == "ethercat" and interface:
+        from plem.fieldbus.ethercat.bringup import check_access
+
+        try:
+            check_access(interface)
+        except PlemError as error:
+            problems.append(error)
+    return problems
+
+
+def _of_robot(error: PlemError, robot_id: str) -> PlemError:
+    """`error` with the robot it belongs to in its summary (for launches of several robots)."""
+    kind = UsageError if error.exit_code == UsageError.exit_code else ConfigError
+    return kind(f"robot {robot_id}: {error.summary}", what=error.what, why=error.why, how=error.how)
+
+
+def plan_launch(robots: Sequence[Mapping[str, str]], *, bridge: bool = True,
+                temp_root: Path | None = None) -> list[RobotPlan]:
+    """Plan every robot of a launch and check what the host must provide; all problems of all robots together.
+
+    Checked besides each robot's `plan_robot`: its bag directory (created as the recorder would create it),
+    its EtherCAT interface, EtherCAT hardware shared between robots and, when any robot has a bridge
+    (`bridge` False: the launch file disabled bridges), the DDS configuration. Nothing is generated or started
+    when anything is wrong; then the description files the packages lack are generated and the plans returned.
+    """
+    from plem.middleware.discovery import DiscoverySettings
+    from plem.middleware.node import check_configuration
+
+    errors: list[PlemError] = []
+    plans: list[RobotPlan] = []
+    for arguments in robots:
+        problems: list[PlemError] = []
+        plan = None
+        try:
+            plan = plan_robot(arguments)
+            plans.append(plan)
+        except PlemError as error:
+            problems.extend(_each(error))
+        problems.extend(_host_problems(arguments, plan))
+        robot_id = shown(arguments.get("robot_id") or DEFAULTS["robot_id"])
+        errors.extend(_of_robot(problem, robot_id) if len(robots) > 1 else problem for problem in problems)
+    errors.extend(shared_hardware_problems(plans))
+    if bridge and any(_flag(arguments, "bridge") is not False for arguments in robots):
+        try:
+            check_configuration(DiscoverySettings.from_environment())
+        except PlemError as error:
+            errors.append(error)
+    raise_collected(errors, "the launch")
+    for plan in plans:
+        plan.generate_files(temp_root)
+    return plans
 
 
 def _interface_from_etherlab(resolved: ResolvedConfig) -> None:
@@ -219,8 +405,8 @@ def _interface_from_etherlab(resolved: ResolvedConfig) -> None:
         resolved.sources["network_interface"] = Source(LayerKind.LAUNCH_DEFAULT, origin)
 
 
-def check_shared_hardware(plans: list[RobotPlan]) -> None:
-    """Robots of one launch on EtherCAT need their own interface and master index; all clashes raised together."""
+def shared_hardware_problems(plans: Sequence[RobotPlan]) -> list[PlemError]:
+    """Robots of one launch on EtherCAT need their own interface and master index: every clash."""
     errors: list[PlemError] = []
     for key, argument in (("network_interface", "eth_interface"), ("master_index", "master_index")):
         seen: dict[object, str] = {}
@@ -235,7 +421,7 @@ def check_shared_hardware(plans: list[RobotPlan]) -> None:
                     why=f"{seen[value]} and {plan.robot_id} would drive one EtherCAT master",
                     how=f"give each robot its own {argument}:= (and its own wired port) in robots.yaml"))
             seen[value] = plan.robot_id
-    raise_collected(errors, "the robots of the launch")
+    return errors
 
 
 def _builtin_model(package: Path) -> str | None:

@@ -19,10 +19,11 @@ from dataclasses import replace
 from plem.bridge.client import DriverGone, RobotClient, connect
 from plem.ipc.state_segment import process_alive
 from plem.launch.component import announce, run_component
-from plem.launch.plan import plan_robot
+from plem.launch.plan import bag_directory, plan_robot
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.types import library
 from plem.recording.access import restrict_umask
+from plem.recording.problems import refuse_unusable
 from plem.recording.recorder import Recorder
 from plem.recording.status import remove_status, write_status
 
@@ -35,12 +36,17 @@ DRAIN_TIMEOUT_S = 10.0
 
 
 def record(arguments: dict[str, str], stop: threading.Event) -> None:
-    """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`."""
+    """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`.
+
+    A bag_dir the recorder cannot create or write into is one RecordingError (WHAT/WHY/HOW), raised before
+    the driver is even looked for.
+    """
+    refuse_unusable(bag_directory(arguments))            # before the plan, whose checks would stumble on it
     plan = plan_robot(arguments, generate=False)
-    client = connect(plan.robot_id, plan.config.dof)
     settings = replace(plan.recording(), group=plan.shm_group)
     interfaces = library()
     recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store)
+    client = connect(plan.robot_id, plan.config.dof)
     feed = MonitorFeed(client, interfaces, plan.joint_state_rate(), history=True)
     try:
         recorder.start()

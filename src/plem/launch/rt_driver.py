@@ -17,7 +17,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from plem.control.events import Event
 from plem.control.limits import ArmLimits
 from plem.control.realtime import keep_threads_scheduled
 from plem.control.state import StateBlock
@@ -25,7 +24,7 @@ from plem.errors import PlemError
 from plem.fieldbus.bus import IBus
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import socket_path
-from plem.ipc.records import RawRecorder, event_record
+from plem.ipc.records import RawRecorder
 from plem.launch.command_process import CommandServiceProcess
 from plem.launch.component import announce, run_component
 from plem.launch.driver_service import DriverService
@@ -56,6 +55,7 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
 
     try:
         robot = (Robot.builder(plan.config).with_bus(_bus(plan)).with_description(str(plan.package), plan.urdf_file)
+                 .with_loop_settings(max_consecutive_overruns=plan.max_consecutive_overruns)
                  .with_state_block(state_block)
                  .with_cycle_observer(lambda block: RawRecorder(block, channels[0].rings["rt_raw"].write_values))
                  .build())
@@ -63,12 +63,7 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
         for created in channels:
             created.remove()
         raise
-    events = channels[0].rings["events"]
-
-    def record_event(event: Event) -> None:
-        events.write(event_record(event))
-
-    robot.events.subscribe(record_event)
+    channels[0].publish_events(robot.events)
     return robot, channels[0]
 
 
@@ -82,31 +77,46 @@ class Driver:
     commands: CommandServiceProcess
 
 
+def _stop_service(service: DriverService) -> None:
+    service.stop.set()
+    if service.thread.is_alive():
+        service.thread.join(2.0)
+
+
 @contextlib.contextmanager
-def driving(plan: RobotPlan) -> Iterator[Driver]:
-    """Build the robot, start its loop, service thread and command service; stop them all smoothly at the end."""
+def driving(plan: RobotPlan, *, realtime_helpers: bool = False) -> Iterator[Driver]:
+    """Build the robot, start its loop, service thread and command service; stop them all smoothly at the end.
+
+    Whatever fails on the way, everything started so far is stopped and the shared memory is removed.
+    `realtime_helpers` puts the calling thread, and the service thread, on SCHED_FIFO 1 once the robot is
+    built (`keep_threads_scheduled`): building (description, model, bus) runs at normal priority, so a robot
+    that starts never holds up the helper threads, and through them the loops, of robots already running.
+    """
     robot, channels = build(plan)
-    driver = Driver(robot, channels, DriverService(robot, channels), CommandServiceProcess(plan.robot_id))
-    try:
+    with contextlib.ExitStack() as cleanup:  # undone in reverse: command service, robot, service thread, memory
+        cleanup.callback(channels.remove)
+        service = DriverService(robot, channels)
+        cleanup.callback(_stop_service, service)
+        cleanup.callback(robot.shutdown)
+        commands = CommandServiceProcess(plan.robot_id)
+        cleanup.callback(commands.stop)
+        refused = keep_threads_scheduled() if realtime_helpers else None
+        if refused:
+            _log.warning(refused)
         robot.start()
-        driver.service.start()
-        driver.commands.start()
-        yield driver
-    finally:
-        driver.commands.stop()
-        robot.shutdown()
-        driver.service.stop.set()
-        driver.service.thread.join(2.0)
-        channels.remove()
+        service.start()
+        commands.start()
+        yield Driver(robot, channels, service, commands)
 
 
-def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, Any]], None]) -> None:
-    """Run the robot of `plan` until `stop`, after announcing readiness.
+def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, Any]], None], *,
+          realtime_helpers: bool = False) -> None:
+    """Run the robot of `plan` until `stop`, after announcing readiness (`realtime_helpers` as for `driving`).
 
     The loop runs on when the command service dies (it is restarted); when the service thread dies, the
     arm is stopped smoothly and the driver ends with an error, which `plem launch` reports.
     """
-    with driving(plan) as driver:
+    with driving(plan, realtime_helpers=realtime_helpers) as driver:
         robot = driver.robot
         report = robot.loop.report
         announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
@@ -126,10 +136,7 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, 
 
 
 def _serve_launched(arguments: dict[str, str], stop: threading.Event) -> None:
-    refused = keep_threads_scheduled()
-    if refused:
-        _log.warning(refused)
-    serve(plan_robot(arguments, generate=False), stop, announce)
+    serve(plan_robot(arguments), stop, announce, realtime_helpers=True)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -19,10 +19,11 @@ import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, TextIO
 
+from plem.control.loop import OVERRUN_WINDOW_S
 from plem.errors import PlemError
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
-from plem.middleware.discovery import DiscoverySettings
+from plem.robot.config import RT_KERNEL_FLAG
 
 if TYPE_CHECKING:
     from plem.bridge.client import RobotClient, Stream
@@ -97,8 +98,6 @@ class Supervisor:
                     for signum in (signal.SIGINT, signal.SIGTERM)}
         code = 0
         try:
-            if any(plan.bridge for plan in self.plans) and self.components.get("bridge", True):
-                DiscoverySettings.from_environment()  # a bad ROS_DOMAIN_ID stops the launch before the arm starts
             for plan in self.plans:
                 if self.stop_requested.is_set():
                     break
@@ -118,6 +117,8 @@ class Supervisor:
     def _start_robot(self, plan: RobotPlan) -> None:
         for line in plan.description.log_lines if plan.description else ():
             self.say(f"[{plan.robot_id}] {line}")
+        for warning in plan.resolved.warnings:  # as `plem config show` warns
+            self.say(f"[{plan.robot_id}] warning: {warning}")
         if plan.bus == "ethercat_sim":
             self._start(plan, "ethercat_sim", critical=True)
             if self.stop_requested.is_set():
@@ -176,6 +177,11 @@ class Supervisor:
                         else f"{ready['policy']} (real-time priority {config.rt_priority} refused)")
             self.say(f"  rt_driver     running, pid {ready['pid']}, {priority}, memory locked: "
                      f"{'yes' if ready['memory_locked'] else 'no'}")
+            origin = ("max_consecutive_overruns:=" + plan.arguments["max_consecutive_overruns"]
+                      if plan.arguments.get("max_consecutive_overruns")
+                      else f"the default on bus {plan.bus}; max_consecutive_overruns:=N sets it")
+            self.say(f"  overruns      counted every {OVERRUN_WINDOW_S:g} s; {plan.max_consecutive_overruns} in a row "
+                     f"fault the arm ({origin})")
             for warning in ready["warnings"]:
                 self.say(f"  warning: {warning}")
             self.say("  shared memory " + ", ".join(ready["shared_memory"].values()))
@@ -187,6 +193,9 @@ class Supervisor:
             self.say(f"  recorder      {self._recorder_status(children.get('recorder'))}")
             for component, title in NOT_BUILT.items():
                 self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
+        if not RT_KERNEL_FLAG.exists():
+            self.say(f"kernel: not PREEMPT_RT ({RT_KERNEL_FLAG} is absent), so nothing bounds how late the loop "
+                     "wakes: expect overruns while the machine is busy (docs/runtime.md, Timing)")
         self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
                  "plem move --to home, plem topic list")
 

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from plem.bridge.client import RemoteHandle, RobotClient
+from plem.bridge.client import DriverGone, RemoteHandle, RobotClient
 from plem.control.trajectory import (
     ErrorCode,
     JointTrajectory,
@@ -122,7 +122,10 @@ class TrajectoryGoal:
         """Feedback while the motion runs; its status and result once the driver replied."""
         reply = self._handle.reply if self._handle.done else None
         if reply is None:
-            return self._feedback(), None
+            try:
+                return self._feedback(), None
+            except DriverGone as gone:   # the driver stopped the motion with itself; say so instead of waiting
+                return rejected_trajectory(gone).poll()
         result = result_from_json(reply["result"])
         if isinstance(result, TrajectoryResult):   # the runtime's own outcome, also when the motion failed
             return None, (_STATUS[result.outcome], {"error_code": int(result.error_code),
@@ -175,8 +178,11 @@ class ModeGoal:
 
     def poll(self) -> tuple[dict[str, Any] | None, tuple[int, dict[str, Any]] | None]:
         """The current mode as feedback until the driver replied, then success or the reason it failed."""
-        state = self._client.state()
-        mode = state.mode.name.lower() if state is not None else ""
+        try:
+            state = self._client.state()
+        except DriverGone as gone:
+            return None, (ABORTED, {"success": False, "mode": "", "message": gone.render()})
+        mode = str(state.mode) if state is not None else ""
         error = self._error
         if self._handle is not None:
             reply = self._handle.reply if self._handle.done else None

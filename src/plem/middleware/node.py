@@ -191,20 +191,29 @@ class ServiceClient:
 _DOMAINS: dict[int, tuple[str, Domain]] = {}
 
 
+def _given(settings: DiscoverySettings) -> str:
+    return f"CYCLONEDDS_URI={settings.user_config!r}" if settings.user_config else "no CYCLONEDDS_URI"
+
+
+def _new_domain(settings: DiscoverySettings, config: str) -> Domain:
+    """A Domain with `config`; a configuration Cyclone DDS refuses is a ConfigError naming CYCLONEDDS_URI."""
+    try:
+        return Domain(settings.domain_id, config)
+    except (DDSException, UnicodeEncodeError) as error:
+        cause = "it holds characters other than ASCII" if isinstance(error, UnicodeEncodeError) else str(error)
+        raise ConfigError(f"Cyclone DDS refused the configuration of domain {settings.domain_id}",
+                          what="plem's discovery settings, then CYCLONEDDS_URI, as a configuration Cyclone DDS "
+                               "accepts",
+                          why=f"{cause}, with {_given(settings)}; Cyclone DDS names what it refused on stderr",
+                          how="fix or unset CYCLONEDDS_URI") from None
+
+
 def _domain(settings: DiscoverySettings) -> Domain:
     """The process's Domain of this id, created once: it carries the discovery configuration, and Cyclone
     allows one configuration per domain id and process."""
     config = settings.cyclone_config()
     if settings.domain_id not in _DOMAINS:
-        try:
-            _DOMAINS[settings.domain_id] = (config, Domain(settings.domain_id, config))
-        except DDSException as error:
-            given = f"CYCLONEDDS_URI={settings.user_config!r}" if settings.user_config else "no CYCLONEDDS_URI"
-            raise ConfigError(f"Cyclone DDS refused the configuration of domain {settings.domain_id}",
-                              what="plem's discovery settings, then CYCLONEDDS_URI, as a configuration Cyclone DDS "
-                                   "accepts",
-                              why=f"{error}, with {given}; Cyclone DDS names what it refused on stderr",
-                              how="fix or unset CYCLONEDDS_URI") from error
+        _DOMAINS[settings.domain_id] = (config, _new_domain(settings, config))
     existing, domain = _DOMAINS[settings.domain_id]
     if existing != config:
         raise ConfigError(f"domain {settings.domain_id} is already joined with other discovery settings",
@@ -214,6 +223,18 @@ def _domain(settings: DiscoverySettings) -> Domain:
     return domain
 
 
+def check_configuration(settings: DiscoverySettings) -> None:
+    """Raise the ConfigError a Node of `settings` would raise for its configuration, without joining the domain.
+
+    The domain is created with the configuration and deleted at once (a few tens of milliseconds), so
+    `plem launch` can refuse a bad CYCLONEDDS_URI before any robot starts.
+    """
+    if settings.domain_id in _DOMAINS:
+        _domain(settings)
+    else:
+        _new_domain(settings, settings.cyclone_config())  # dropped at once: deleting it leaves the domain
+
+
 class Node:
     """One participant on the ROS 2 domain, with the interface library that names and builds its types."""
 
@@ -221,7 +242,16 @@ class Node:
         self.settings = settings or DiscoverySettings.from_environment()
         self.library = interfaces or library()
         self._domain = _domain(self.settings)
-        self.participant = DomainParticipant(self.settings.domain_id, qos=Qos(Policy.Userdata(PARTICIPANT_USER_DATA)))
+        try:
+            self.participant = DomainParticipant(self.settings.domain_id,
+                                                 qos=Qos(Policy.Userdata(PARTICIPANT_USER_DATA)))
+        except DDSException as error:
+            raise ConfigError(f"cannot join DDS domain {self.settings.domain_id}",
+                              what=f"a DDS participant on domain {self.settings.domain_id}",
+                              why=f"Cyclone DDS refused it ({error}), with {_given(self.settings)}; it names the "
+                                  "cause on stderr",
+                              how="fix or unset CYCLONEDDS_URI; with ROS_AUTOMATIC_DISCOVERY_RANGE SUBNET or "
+                                  "LOCALHOST at most 32 participants of one domain fit on a host") from None
         self._topics: dict[str, Topic[Any]] = {}
 
     @property

@@ -19,15 +19,17 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from plem.core.files import write_atomic
+from plem.core.config.yaml_document import load_yaml
+from plem.core.files import read_regular_text, write_atomic
+from plem.errors import ConfigError
 from plem.recording.access import OWNER_ONLY, FileAccess
 from plem.recording.retention import Deletion, Segment
 
 _log = logging.getLogger("plem.recorder")
 EVENT_LOG = "event_log.jsonl"
 KEEP_SUFFIX = ".keep"
+#: The largest event log read back (a recorder appends a few hundred bytes a minute).
+MAX_EVENT_LOG_BYTES = 256 * 1024 * 1024
 
 
 def iso_time(wall_ns: int) -> str:
@@ -42,24 +44,39 @@ def directory_size(path: Path) -> int:
 
 
 def bag_metadata(path: Path) -> dict[str, Any] | None:
-    """The `rosbag2_bagfile_information` of a bag's metadata.yaml; None without one."""
+    """The `rosbag2_bagfile_information` of a bag's metadata.yaml; None without one.
+
+    A metadata.yaml that is not a small regular YAML file of that shape is a ConfigError saying why.
+    """
     metadata = path / "metadata.yaml"
-    if not metadata.is_file():
+    if not metadata.exists():
         return None
-    info: dict[str, Any] = yaml.safe_load(metadata.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    document = load_yaml(metadata, "rosbag2 metadata.yaml")
+    info = document.get("rosbag2_bagfile_information") if isinstance(document, dict) else None
+    if not isinstance(info, dict):
+        raise ConfigError(f"{metadata} is not rosbag2 metadata", what="a mapping rosbag2_bagfile_information",
+                          why="the file holds no such mapping", how="restore the file, or delete the segment")
     return info
 
 
 def extent_of(info: dict[str, Any]) -> tuple[int, int]:
-    """(start, end) in ns since the epoch of a bag's metadata."""
+    """(start, end) in ns since the epoch of a bag's metadata; KeyError, TypeError or ValueError if malformed."""
     start = int(info["starting_time"]["nanoseconds_since_epoch"])
     return start, start + int(info["duration"]["nanoseconds"])
 
 
 def bag_extent(path: Path) -> tuple[int, int] | None:
-    """(start, end) in ns since the epoch from a bag's metadata.yaml; None without one."""
+    """(start, end) in ns since the epoch from a bag's metadata.yaml; None without one, ConfigError if malformed."""
     info = bag_metadata(path)
-    return None if info is None else extent_of(info)
+    if info is None:
+        return None
+    try:
+        return extent_of(info)
+    except (KeyError, TypeError, ValueError) as error:
+        raise ConfigError(f"{path / 'metadata.yaml'} has no valid start and duration",
+                          what="starting_time.nanoseconds_since_epoch and duration.nanoseconds as integers",
+                          why=f"{type(error).__name__}: {error}", how="restore the file, or delete the segment") \
+            from None
 
 
 class Archive:
@@ -125,12 +142,17 @@ class Archive:
 
 
 def read_event_log(directory: Path) -> Iterator[dict[str, Any]]:
-    """The entries of a robot's event log, oldest first; a torn last line is skipped."""
+    """The entries of a robot's event log, oldest first; a torn or malformed line is skipped.
+
+    A log that is not a regular UTF-8 file of at most MAX_EVENT_LOG_BYTES is a ConfigError saying why.
+    """
     path = directory / EVENT_LOG
-    if not path.is_file():
+    if not path.exists():
         return
-    for line in path.read_text(encoding="utf-8").splitlines():
+    for line in read_regular_text(path, MAX_EVENT_LOG_BYTES, "recorder event log").splitlines():
         try:
-            yield json.loads(line)
-        except json.JSONDecodeError:
+            entry = json.loads(line)
+        except (json.JSONDecodeError, RecursionError):
             continue
+        if isinstance(entry, dict):
+            yield entry

@@ -4,18 +4,24 @@ A `Recorder` is the `MonitorSink` of a `MonitorFeed`. It writes every message in
 starts a new one every `segment_s`. `maintain()` (about once a second) deletes closed segments past the
 retention window or while the disk is fuller than the threshold, never the open one nor one kept for
 a fault. On a fault it puts the open segment on disk at once, keeps every segment holding the
-`flight_window_s` before it, and logs where in the bags the fault is. A write the disk refuses stops
-recording with a logged event (what follows is counted as not recorded) and recording resumes in a
-new segment once the guard brought the disk back under its threshold.
+`flight_window_s` before it, and logs where in the bags the fault is.
+
+A write the disk refuses stops recording: the open segment is finished with everything written to it
+(`SegmentWriter.salvage`), the cause is logged once as WHAT/WHY/HOW, and what follows is counted as not
+recorded. That segment stays out of the guard's reach while recording is stopped. Recording resumes in a
+new segment once the disk is below its threshold again (a full disk) or at the next guard pass that can
+write (any other cause); the resume is logged with the messages not recorded meanwhile.
 """
 
 from __future__ import annotations
 
 import logging
 import shutil
+import tempfile
 import time
+from collections import Counter
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -26,17 +32,45 @@ from plem.errors import PlemError
 from plem.middleware.monitor_feed import QueueCount
 from plem.recording.access import FileAccess
 from plem.recording.archive import Archive, directory_size, iso_time
+from plem.recording.problems import SPACE_ERRORS, write_problem
 from plem.recording.repair import repair
 from plem.recording.retention import Segment, choose_deletions
-from plem.recording.segment import SegmentWriter
+from plem.recording.segment import SegmentWriter, being_written
 from plem.recording.settings import RecordingSettings
 
 Clock = Callable[[], int]
 DiskUsage = Callable[[Path], tuple[int, int, int]]
 
 
+@dataclass
+class Stopped:
+    """Why recording stopped, since when (wall-clock ns), and what was not recorded since, per topic."""
+
+    problem: PlemError
+    errno: int | None
+    cause: str                                 # the system's words for it: 'No space left on device'
+    since_ns: int
+    interrupted: str | None                    # the segment that was open, kept from the guard until recording resumes
+    unfinished: bool                           # that segment could not be finished: rebuilt when recording resumes
+    lost: Counter[str] = field(default_factory=Counter)
+
+    def describe(self, now_ns: int) -> str:
+        """'1794 messages not recorded in 12.3 s (rt_raw 1790, rt_monitor_stats 4)'."""
+        topics = ", ".join(f"{name} {count}" for name, count in self.lost.most_common())
+        return (f"{self.lost.total()} messages not recorded in {(now_ns - self.since_ns) / 1e9:.1f} s"
+                + (f" ({topics})" if topics else ""))
+
+    def fields(self, now_ns: int) -> dict[str, Any]:
+        """The event log's fields of a stop that ended: its cause, length and the messages not recorded."""
+        return {"reason": self.cause, "not_recorded": self.lost.total(), "not_recorded_topics": dict(self.lost),
+                "stopped_s": round((now_ns - self.since_ns) / 1e9, 3)}
+
+
 class Recorder:
-    """Writes one robot's monitoring messages into segments under `settings.directory`."""
+    """Writes one robot's monitoring messages into segments under `settings.directory`.
+
+    Raises RecordingError (WHAT/WHY/HOW) when the directory cannot be created or written into.
+    """
 
     def __init__(self, settings: RecordingSettings, robot_id: str, topics: dict[str, str], store: Typestore,
                  clock: Clock = time.time_ns, disk_usage: DiskUsage = shutil.disk_usage) -> None:
@@ -47,17 +81,22 @@ class Recorder:
         self.clock = clock
         self.disk_usage = disk_usage
         self.access = FileAccess(settings.group)
-        self.archive = Archive(settings.directory, robot_id, self.access)
         self.written = 0
         self.unrecorded = 0
         self.closed: list[Segment] = []
         self.segment: SegmentWriter | None = None
-        self.stopped_because: str | None = None
+        self.stopped: Stopped | None = None
         self._segment_ns = round(settings.segment_s * 1e9)
         self._segment_start = 0
         self._next_guard = 0
         self._full_warned = False
-        self._adopt_previous_segments()
+        try:
+            self.archive = Archive(settings.directory, robot_id, self.access)
+            with tempfile.TemporaryFile(dir=settings.directory):
+                pass                               # the directory takes new files
+            self._adopt_previous_segments()
+        except (OSError, ValueError) as error:
+            raise write_problem(settings.directory, error) from None
 
     # -- MonitorSink -----------------------------------------------------------------------------------
     def rt_raw(self, cdr: bytes, wall_ns: int) -> None:
@@ -84,8 +123,11 @@ class Recorder:
 
     # -- segments --------------------------------------------------------------------------------------
     def start(self) -> None:
-        """Open the first segment."""
-        self._open(self.clock())
+        """Open the first segment; RecordingError when the directory takes none."""
+        try:
+            self._open(self.clock())
+        except OSError as error:
+            raise write_problem(self.settings.directory, error) from None
 
     def _open(self, wall_ns: int) -> None:
         path = self.archive.new_segment_path(wall_ns)
@@ -97,68 +139,82 @@ class Recorder:
                          storage=self.settings.storage)
 
     def _close(self) -> None:
-        """Finish the open segment (metadata.yaml) and hand it to the guard."""
-        segment, self.segment = self.segment, None
+        """Finish the open segment (metadata.yaml) and hand it to the guard; OSError leaves it open for `_stop`."""
+        segment = self.segment
         if segment is None:
             return
-        try:
-            segment.close()
-        except (OSError, ValueError):
-            self._give_up(segment)
-            raise
-        closed = self.archive.closed_segment(segment.directory)
-        if closed is not None:
-            self.closed.append(closed)
+        segment.close()
+        self.segment = None
+        self._hand_over(segment.directory)
         self.archive.log("segment_closed", f"segment {segment.name} closed: {segment.messages} messages",
                          segment=segment.name, messages=segment.messages)
 
+    def _hand_over(self, path: Path) -> None:
+        """Put a segment that ended under the guard: as its metadata tells, or from its start until now."""
+        self.closed.append(self.archive.closed_segment(path)
+                           or Segment(str(path), self._segment_start, self.clock(), directory_size(path),
+                                      self.archive.is_kept(path)))
+
     def _write(self, name: str, wall_ns: int, data: bytes) -> None:
         if self.segment is None:
-            self.unrecorded += 1
+            self._not_recorded(name)
             return
         try:
             if wall_ns - self._segment_start >= self._segment_ns:
                 self._close()
                 self._open(wall_ns)
-            self.segment.write(f"{self.namespace}/{name}", wall_ns, data)
+            self.segment.append(f"{self.namespace}/{name}", wall_ns, data)
         except OSError as error:
-            self.unrecorded += 1
             self._stop(error)
+            self._not_recorded(name)
             return
-        self.written += 1
+        self.written += 1                          # in the segment: a flush refused below is written again by `_stop`
+        try:
+            self.segment.flush_due()
+        except OSError as error:
+            self._stop(error)
+
+    def _not_recorded(self, name: str) -> None:
+        self.unrecorded += 1
+        if self.stopped is not None:
+            self.stopped.lost[name] += 1
 
     def close(self) -> None:
-        """Finish the open segment; called once when recording ends."""
+        """Finish the open segment; called once when recording ends. A stop still on is logged with its count."""
         try:
             self._close()
         except OSError as error:
             self._stop(error)
+        if self.stopped is not None:
+            now = self.clock()
+            self.archive.log("recording_ended", f"recording ended while stopped ({self.stopped.cause}): "
+                             f"{self.stopped.describe(now)}", logging.WARNING, **self.stopped.fields(now))
 
     # -- the disk --------------------------------------------------------------------------------------
     def _stop(self, error: OSError) -> None:
-        """The disk refused a write: give up the open segment (repairable later) and stop recording."""
+        """A write failed: finish the open segment with what it holds, stop recording, and say why once."""
         segment, self.segment = self.segment, None
-        self.stopped_because = f"{error.strerror or error} ({self.settings.directory})"
+        outcome, complete = "no new segment could be opened", True
         if segment is not None:
-            try:
-                segment.close()
-            except (OSError, ValueError):
-                self._give_up(segment)
-            else:
-                self._track(segment)
-        self.archive.log("recording_stopped", f"recording stopped: {self.stopped_because}; the robot goes on, "
-                         "recording resumes once the disk is below disk_threshold", logging.ERROR,
-                         reason=self.stopped_because)
-
-    def _give_up(self, segment: SegmentWriter) -> None:
-        """A segment the disk would not let finish: its file closed as a killed segment, still under the guard."""
-        segment.abandon()                           # `plem bag repair` (or the next recorder) rebuilds it
-        self._track(segment)
-
-    def _track(self, segment: SegmentWriter) -> None:
-        """Hand a segment that ended without `_close` to the guard, from its start until now."""
-        self.closed.append(Segment(str(segment.directory), self._segment_start, self.clock(),
-                                   directory_size(segment.directory), self.archive.is_kept(segment.directory)))
+            complete = segment.salvage()
+            self.written -= segment.lost           # a transaction sqlite3 rolled back
+            self.unrecorded += segment.lost
+            self._hand_over(segment.directory)
+            outcome = (f"segment {segment.name} finished with its {segment.messages} messages" if complete else
+                       f"segment {segment.name} left unfinished with {segment.messages} messages, "
+                       f"{segment.lost} more lost with its last transaction (rebuilt once recording resumes, "
+                       "or by `plem bag repair`)")
+        problem = write_problem(self.settings.directory, error, self.settings.disk_threshold, outcome)
+        if self.stopped is None:
+            self.stopped = Stopped(problem, error.errno, error.strerror or str(error), self.clock(),
+                                   None if segment is None else str(segment.directory), not complete)
+        elif self.stopped.errno == error.errno:
+            return                                 # a resume that failed for the same reason: said already
+        else:
+            self.stopped = replace(self.stopped, problem=problem, errno=error.errno,
+                                   cause=error.strerror or str(error))
+        self.archive.log("recording_stopped", problem.render(), logging.ERROR, reason=problem.why,
+                         errno=error.errno, segment=None if segment is None else segment.name)
 
     def maintain(self) -> None:
         """Apply retention and the disk guard (at most once per guard period); resume a stopped recording."""
@@ -166,13 +222,17 @@ class Recorder:
         if now < self._next_guard:
             return
         self._next_guard = now + round(self.settings.guard_period_s * 1e9)
-        total, used, _ = self.disk_usage(self.settings.directory)
+        try:
+            total, used, _ = self.disk_usage(self.settings.directory)
+        except OSError:
+            return                                 # the directory is gone: writing says why
+        interrupted = self.stopped.interrupted if self.stopped is not None else None
 
         def percent(freed: int) -> float:
             return 100.0 * (used - freed) / total
 
-        deletions = choose_deletions(self.closed, now, round(self.settings.retention_s * 1e9),
-                                     self.settings.disk_threshold, percent)
+        deletions = choose_deletions([segment for segment in self.closed if segment.path != interrupted], now,
+                                     round(self.settings.retention_s * 1e9), self.settings.disk_threshold, percent)
         freed = 0
         for deletion in deletions:
             try:
@@ -187,15 +247,28 @@ class Recorder:
         if over and not self._full_warned:
             self.archive.log("disk_above_threshold", f"disk {percent(freed):.1f} % full, above disk_threshold "
                              f"{self.settings.disk_threshold:g} %, and no closed segment is left to delete "
-                             "(kept fault segments stay)", logging.WARNING, percent=round(percent(freed), 1))
+                             "(kept fault segments stay, and the segment a full disk interrupted until recording "
+                             "resumes)", logging.WARNING, percent=round(percent(freed), 1))
         self._full_warned = over
-        if self.segment is None and self.stopped_because is not None and not over:
-            self.archive.log("recording_resumed", "recording resumed: the disk is below disk_threshold again")
-            self.stopped_because = None
-            try:
-                self._open(now)
-            except OSError as error:
-                self._stop(error)
+        if self.stopped is not None and not (over and self.stopped.errno in SPACE_ERRORS):
+            self._resume(now)
+
+    def _resume(self, now: int) -> None:
+        """Open a new segment after a stop; the segment the stop interrupted is rebuilt if it was left unfinished."""
+        stopped = self.stopped
+        assert stopped is not None
+        try:
+            self._open(now)
+        except OSError as error:
+            self._stop(error)
+            return
+        self.stopped = None
+        name = self.segment.name if self.segment is not None else ""
+        self.archive.log("recording_resumed", f"recording resumed in segment {name} after a stop "
+                         f"({stopped.cause}): {stopped.describe(now)}", logging.WARNING, **stopped.fields(now))
+        if stopped.interrupted is not None and stopped.unfinished:
+            self.closed = [segment for segment in self.closed if segment.path != stopped.interrupted]
+            self._repair(Path(stopped.interrupted))
 
     # -- the flight recorder ---------------------------------------------------------------------------
     def _keep_fault_window(self, event: Event, wall_ns: int) -> None:
@@ -228,18 +301,34 @@ class Recorder:
 
     # -- start-up --------------------------------------------------------------------------------------
     def _adopt_previous_segments(self) -> None:
-        """Closed segments of earlier runs come under the guard; segments of a killed recorder are repaired."""
+        """Closed segments of earlier runs come under the guard; unfinished ones (a killed recorder) are repaired.
+
+        A segment another recorder holds open is left alone.
+        """
         for path in self.archive.segment_paths():
-            segment = self.archive.closed_segment(path)
-            if segment is None:
-                try:
-                    report = repair(path)
-                except (PlemError, OSError) as error:
-                    self.archive.log("repair_failed", f"segment {path.name} of a killed recorder could not be "
-                                     f"repaired: {error}", logging.WARNING, segment=path.name)
-                    continue
-                self.archive.log("repaired", f"segment {path.name} of a killed recorder repaired: "
-                                 f"{report.messages} messages", segment=path.name, messages=report.messages)
+            if being_written(path):
+                continue
+            try:
                 segment = self.archive.closed_segment(path)
-            if segment is not None:
+            except PlemError as error:
+                self.archive.log("segment_unreadable", f"segment {path.name} left alone: {error.summary}: "
+                                 f"{error.why}", logging.WARNING, segment=path.name)
+                continue
+            if segment is None:
+                self._repair(path)
+            else:
                 self.closed.append(segment)
+
+    def _repair(self, path: Path) -> None:
+        """Rebuild an unfinished segment (a killed recorder's, or one a full disk interrupted); it joins the guard."""
+        try:
+            report = repair(path)
+            segment = self.archive.closed_segment(path)
+        except PlemError as error:
+            self.archive.log("repair_failed", f"unfinished segment {path.name} could not be repaired: "
+                             f"{error.summary}: {error.why}", logging.WARNING, segment=path.name)
+            return
+        self.archive.log("repaired", f"unfinished segment {path.name} repaired: {report.messages} messages",
+                         segment=path.name, messages=report.messages)
+        if segment is not None:
+            self.closed.append(segment)

@@ -2,13 +2,16 @@
 
 A killed MCAP segment has its chunks but no summary, footer or metadata.yaml, and readers refuse it.
 Every complete chunk is read (schemas and channels travel in the first one); the first incomplete record
-ends the scan. A killed sqlite3 segment has its committed transactions and no metadata.yaml. The rebuilt
-bag replaces the directory only after it reads back with every recovered message; the original file is
-then removed. The rebuilt bag is built in an owner-only workspace and given the original's access.
+ends the scan. A killed sqlite3 segment has its committed transactions and no metadata.yaml. A segment
+whose metadata.yaml is there but whose file no longer reads (truncated, damaged) is rebuilt the same way
+from what can be read. The rebuilt bag replaces the directory only after it reads back with every
+recovered message; the original file is then removed. The rebuilt bag is built in an owner-only
+workspace and given the original's access. Every failure is a RepairError (WHAT/WHY/HOW).
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import sqlite3
 import struct
@@ -16,12 +19,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rosbags.rosbag2 import Reader, Writer
+from rosbags.rosbag2.errors import ReaderError, WriterError
 
+from plem.core.files import read_regular
 from plem.errors import PlemError
 from plem.middleware.types import library
 from plem.recording.access import FileAccess
 from plem.recording.mcap_records import CHANNEL, CHUNK, MAGIC, MESSAGE, SCHEMA, chunk_records, records, string
-from plem.recording.segment import BAG_VERSION, STORAGES, bag_file
+from plem.recording.segment import BAG_VERSION, STORAGES, bag_file, open_bag_file
 
 
 class RepairError(PlemError):
@@ -37,13 +42,18 @@ class RepairReport:
     repaired: bool
 
 
+#: The largest storage file read into memory for a rebuild.
+MAX_BAG_FILE_BYTES = 8 * 1024**3
+#: What reading a damaged bag file may raise, besides a PlemError.
+DAMAGED = (OSError, ReaderError, WriterError, sqlite3.Error, struct.error, KeyError, IndexError, TypeError, ValueError)
 Channels = dict[int, tuple[str, str]]
 Messages = list[tuple[int, int, bytes]]
 
 
 def recover_sqlite3(db3: Path) -> tuple[Channels, Messages]:
     """Topics (id → topic, type) and committed messages (topic id, time, data) of a killed sqlite3 file."""
-    connection = sqlite3.connect(f"file:{db3}?mode=ro", uri=True)
+    os.close(open_bag_file(db3))                         # a regular file: sqlite3 would block on a FIFO
+    connection = sqlite3.connect(f"file:{db3}?mode=rw", uri=True)   # rolls back an interrupted transaction
     try:
         channels = {row[0]: (row[1], row[2]) for row in connection.execute("SELECT id, name, type FROM topics")}
         messages = list(connection.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"))
@@ -57,7 +67,7 @@ def recover_sqlite3(db3: Path) -> tuple[Channels, Messages]:
 
 def recover_mcap(mcap: Path) -> tuple[Channels, Messages]:
     """Channels (id → topic, type) and messages (channel id, time, data) of a killed MCAP file."""
-    data = mcap.read_bytes()
+    data = read_regular(mcap, MAX_BAG_FILE_BYTES, "bag file")
     if not data.startswith(MAGIC):
         raise RepairError(f"{mcap} is not an MCAP file", what="a file starting with the MCAP magic",
                           why="its first bytes differ", how="pass the directory of a plem bag segment")
@@ -81,15 +91,39 @@ def recover_mcap(mcap: Path) -> tuple[Channels, Messages]:
     return channels, messages
 
 
-def repair(directory: Path) -> RepairReport:
-    """Make a killed segment readable again; a segment that has its metadata.yaml is left as it is."""
-    if (directory / "metadata.yaml").exists():
+def intact(directory: Path) -> int | None:
+    """The message count of a segment that has its metadata.yaml and reads back whole; None otherwise."""
+    if not (directory / "metadata.yaml").exists():
+        return None
+    try:
         with Reader(directory) as reader:
-            return RepairReport(directory, reader.message_count, repaired=False)
+            count = sum(1 for _ in reader.messages())
+    except DAMAGED:
+        return None
+    return count
+
+
+def repair(directory: Path) -> RepairReport:
+    """Make an unfinished or damaged segment readable again; one that reads back whole is left as it is."""
+    count = intact(directory)
+    if count is not None:
+        return RepairReport(directory, count, repaired=False)
     file = bag_file(directory)
     if file is None:
         raise RepairError(f"{directory} is not a killed segment", what="a .mcap or .db3 file and no metadata.yaml",
                           why="it has no bag file", how="pass one segment directory of the bag")
+    workspace = directory.with_name(f".{directory.name}.repairing")
+    try:
+        return _rebuild(directory, file, workspace)
+    except DAMAGED as error:
+        shutil.rmtree(workspace, ignore_errors=True)
+        raise RepairError(f"{directory.name} could not be rebuilt", what="a readable bag rebuilt from the segment",
+                          why=f"{type(error).__name__}: {error}", how="check the disk and the segment's files") \
+            from None
+
+
+def _rebuild(directory: Path, file: Path, workspace: Path) -> RepairReport:
+    """Write what `file` holds into a new bag, built in `workspace`, that replaces `directory` once it reads back."""
     storage = "mcap" if file.suffix == ".mcap" else "sqlite3"
     channels, messages = (recover_mcap if storage == "mcap" else recover_sqlite3)(file)
     store = library().store
@@ -97,7 +131,6 @@ def repair(directory: Path) -> RepairReport:
     if unknown:
         raise RepairError(f"{directory} holds types plem does not know", what="plem's recorded types",
                           why=f"unknown: {', '.join(unknown)}", how="repair it with the tool that wrote it")
-    workspace = directory.with_name(f".{directory.name}.repairing")
     shutil.rmtree(workspace, ignore_errors=True)
     workspace.mkdir(mode=0o700)                          # nobody else sees the bag while it is built
     rebuilt = workspace / directory.name                 # same name: the files inside are named after it

@@ -9,6 +9,7 @@ summarised in seconds rather than deserialized message by message.
 from __future__ import annotations
 
 import mmap
+import os
 import re
 import sqlite3
 import struct
@@ -19,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
@@ -37,8 +37,7 @@ from plem.recording.mcap_records import (
     records,
     string,
 )
-from plem.recording.segment import bag_file
-from plem.recording.status import read_status
+from plem.recording.segment import bag_file, being_written, open_bag_file
 
 #: Gaps listed one by one; the totals count every gap.
 LISTED_GAPS = 20
@@ -77,10 +76,14 @@ def find_bags(path: Path) -> list[RobotBags]:
                        how="pass the directory the recorder wrote (launch argument bag_dir)")
     if bag_file(path) is not None:
         return [RobotBags(path.parent.name, path.parent, [path], whole=False)]
-    if segments := _segments(path):
-        return [RobotBags(path.name, path, segments)]
-    robots = [RobotBags(child.name, child, segments) for child in sorted(path.iterdir())
-              if child.is_dir() and (segments := _segments(child))]
+    try:
+        if segments := _segments(path):
+            return [RobotBags(path.name, path, segments)]
+        robots = [RobotBags(child.name, child, segments) for child in sorted(path.iterdir())
+                  if child.is_dir() and (segments := _segments(child))]
+    except OSError as error:
+        raise BagError(f"cannot read {error.filename or path}", what=f"{usage}, readable by you",
+                       why=error.strerror or str(error), how="run plem as a user who may read the bags") from None
     if not robots:
         raise BagError(f"no bags in {path}", what=f"{usage}, holding .mcap or .db3 segments",
                        why="no segment directory found in it or in its sub-directories",
@@ -117,28 +120,68 @@ def read_topic(segment: Path, topic: str, head: int | None = None) -> Iterator[P
     return _mcap_topic(file, topic) if file.suffix == ".mcap" else _sqlite3_topic(file, topic, head)
 
 
-def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
-    """Every chunk with messages of `topic`, found through the message index that follows each chunk."""
-    with path.open("rb") as handle:
-        data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) if path.stat().st_size else b""
+@dataclass(frozen=True)
+class McapIndex:
+    """An MCAP file as far as it reads: its channels, its chunks with their message indexes, whether it ends whole."""
+
+    channels: dict[int, str]
+    indexed: list[tuple[memoryview, memoryview]]
+    whole: bool
+
+    def counts(self) -> Counter[str]:
+        """Messages per topic that the message indexes point at: what can be read."""
+        counts: Counter[str] = Counter()
+        for _, index in self.indexed:
+            (channel_id,) = struct.unpack_from("<H", index, 0)
+            counts[self.channels.get(channel_id, "")] += (len(index) - 6) // 16
+        return counts
+
+
+def _corrupt(path: Path, error: Exception) -> BagError:
+    return BagError(f"{path} is damaged", what="MCAP records as the recorder writes them",
+                    why=f"{type(error).__name__}: {error}", how="run `plem bag repair` on its segment, or delete it")
+
+
+def mcap_index(path: Path) -> McapIndex:
+    """Scan an MCAP file's records (their headers only); BagError when it is not an MCAP file or not a regular one."""
+    try:
+        with os.fdopen(open_bag_file(path), "rb") as handle:
+            size = os.fstat(handle.fileno()).st_size
+            data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+    except PlemError as error:
+        raise BagError(error.summary, what=error.what, why=error.why, how=error.how) from None
     if data[:len(MAGIC)] != MAGIC:
         raise BagError(f"{path} is not an MCAP file", what="a file starting with the MCAP magic",
                        why="its first bytes differ" if data else "it is empty", how="pass a segment the recorder wrote")
     channels: dict[int, str] = {}
     indexed: list[tuple[memoryview, memoryview]] = []
     chunk = None
-    for opcode, content in records(data, len(MAGIC)):
-        if opcode == CHUNK:
-            chunk = content
-        elif opcode == MESSAGE_INDEX and chunk is not None:
-            indexed.append((chunk, content))
-        elif opcode == CHANNEL:
-            (channel_id,) = struct.unpack_from("<H", content, 0)
-            channels[channel_id], _ = string(content, 4)
-    for chunk, index in indexed:
-        (channel_id,) = struct.unpack_from("<H", index, 0)
-        if channels.get(channel_id) == topic:
-            yield _indexed_payloads(chunk, index)
+    try:
+        for opcode, content in records(data, len(MAGIC)):
+            if opcode == CHUNK:
+                chunk = content
+            elif opcode == MESSAGE_INDEX and chunk is not None:
+                if len(content) < 6 or (len(content) - 6) % 16:
+                    raise ValueError(f"a message index of {len(content)} bytes")
+                indexed.append((chunk, content))
+            elif opcode == CHANNEL:
+                (channel_id,) = struct.unpack_from("<H", content, 0)
+                channels[channel_id], _ = string(content, 4)
+    except (struct.error, ValueError) as error:
+        raise _corrupt(path, error) from None
+    return McapIndex(channels, indexed, len(data) > 2 * len(MAGIC) and data[-len(MAGIC):] == MAGIC)
+
+
+def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
+    """Every chunk with messages of `topic`, found through the message index that follows each chunk."""
+    index = mcap_index(path)
+    for chunk, entries in index.indexed:
+        (channel_id,) = struct.unpack_from("<H", entries, 0)
+        if index.channels.get(channel_id) == topic:
+            try:
+                yield _indexed_payloads(chunk, entries)
+            except (struct.error, IndexError, ValueError) as error:
+                raise _corrupt(path, error) from None
 
 
 def _indexed_payloads(chunk: memoryview, index: memoryview) -> Payloads:
@@ -154,7 +197,7 @@ def _indexed_payloads(chunk: memoryview, index: memoryview) -> Payloads:
 def _sqlite3_topic(path: Path, topic: str, head: int | None, batch: int = 100_000) -> Iterator[Payloads]:
     """The messages of `topic` in a rosbag2 sqlite3 file (their first `head` bytes), `batch` rows at a time."""
     data = "m.data" if head is None else f"substr(m.data, 1, {int(head)})"
-    connection = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    connection = _sqlite3_open(path)
     try:
         cursor = connection.execute(f"SELECT m.timestamp, {data} FROM messages m JOIN topics t ON m.topic_id = t.id "
                                     "WHERE t.name = ? ORDER BY m.id", (topic,))
@@ -170,10 +213,37 @@ def _sqlite3_topic(path: Path, topic: str, head: int | None, batch: int = 100_00
         connection.close()
 
 
+def _sqlite3_open(path: Path) -> sqlite3.Connection:
+    """A read-only connection to a regular sqlite3 file (sqlite3 would block on a FIFO)."""
+    try:
+        os.close(open_bag_file(path))
+    except PlemError as error:
+        raise BagError(error.summary, what=error.what, why=error.why, how=error.how) from None
+    return sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+
+
+def _sqlite3_count(path: Path) -> int:
+    """The messages a rosbag2 sqlite3 file holds; BagError when it does not read."""
+    connection = _sqlite3_open(path)
+    try:
+        (count,) = connection.execute("SELECT count(*) FROM messages").fetchone()
+    except sqlite3.DatabaseError as error:
+        raise BagError(f"{path} cannot be read", what="a rosbag2 sqlite3 database", why=str(error),
+                       how="run `plem bag repair` on its segment, or delete it") from error
+    finally:
+        connection.close()
+    return int(count)
+
+
 # -- segments ----------------------------------------------------------------------------------------------
 @dataclass
 class SegmentInfo:
-    """One segment: `state` is complete, killed (no metadata.yaml), recording (open) or unreadable."""
+    """One segment and its `state`.
+
+    complete; recording (a live recorder holds it open); killed (unfinished: no metadata.yaml, and no
+    recorder writes it); damaged (metadata.yaml is there but the file is truncated or damaged: `problem`
+    says how much reads); unreadable (its metadata.yaml or bag file cannot be read at all).
+    """
 
     path: Path
     storage: str
@@ -196,12 +266,25 @@ class SegmentInfo:
 
     def note(self) -> str:
         """What to tell about a segment that is not complete ('' for a complete one)."""
-        return {"killed": "killed — run `plem bag repair`", "recording": "open — being recorded",
+        return {"killed": "unfinished (recorder killed) — run `plem bag repair`", "recording": "being recorded",
+                "damaged": f"damaged: {self.problem} — run `plem bag repair`",
                 "unreadable": f"unreadable: {self.problem}"}.get(self.state, "")
 
+    def error(self) -> BagError | None:
+        """The WHAT/WHY/HOW of a damaged or unreadable segment; None for the others."""
+        if self.state == "damaged":
+            return BagError(f"segment {self.name} is damaged", what="a bag file that reads back whole",
+                            why=self.problem, how=f"run `plem bag repair {self.path}`: it rebuilds the segment from "
+                                                   "what can be read and keeps the original if that fails")
+        if self.state == "unreadable":
+            return BagError(f"segment {self.name} cannot be read", what="a segment with a readable metadata.yaml and "
+                            "bag file, as the recorder writes them", why=self.problem,
+                            how=f"restore the files of {self.path}, or delete it")
+        return None
 
-def segment_info(path: Path, recording: bool = False) -> SegmentInfo:
-    """What a segment holds; `recording`: a recorder is writing it now (it then has no metadata.yaml yet)."""
+
+def segment_info(path: Path) -> SegmentInfo:
+    """What a segment holds, and whether it is complete, being recorded, unfinished or damaged."""
     file = bag_file(path)
     storage = "mcap" if file is not None and file.suffix == ".mcap" else "sqlite3"
     info = SegmentInfo(path, storage, "complete", directory_size(path),
@@ -209,16 +292,39 @@ def segment_info(path: Path, recording: bool = False) -> SegmentInfo:
     try:
         metadata = bag_metadata(path)
         if metadata is None:
-            info.state = "recording" if recording else "killed"
+            info.state = "recording" if being_written(path) else "killed"
             return info
         extent = extent_of(metadata)
         info.topics = {entry["topic_metadata"]["name"]: (entry["topic_metadata"]["type"], int(entry["message_count"]))
                        for entry in metadata["topics_with_message_count"]}
-    except (yaml.YAMLError, KeyError, TypeError, ValueError) as error:
+    except PlemError as error:
+        info.state, info.problem = "unreadable", f"{error.summary}: {error.why}"
+        return info
+    except (KeyError, TypeError, ValueError) as error:
         info.state, info.problem = "unreadable", f"metadata.yaml: {type(error).__name__}: {error}"
         return info
     info.start_ns, info.duration_ns = extent[0], extent[1] - extent[0]
+    if file is not None:
+        _check_readable(info, file)
     return info
+
+
+def _check_readable(info: SegmentInfo, file: Path) -> None:
+    """Mark a segment whose file holds less than its metadata.yaml says (truncated, damaged) damaged or unreadable."""
+    expected = sum(count for _, count in info.topics.values())
+    try:
+        if info.storage == "mcap":
+            index = mcap_index(file)
+            readable, whole = index.counts().total(), index.whole
+        else:
+            readable, whole = _sqlite3_count(file), True
+    except BagError as error:
+        info.state, info.problem = "unreadable", f"{error.summary}: {error.why}"
+        return
+    if readable < expected or not whole:
+        ending = "" if whole else "ends before its summary (truncated); "
+        info.state = "damaged"
+        info.problem = f"{file.name} {ending}{readable} of {expected} messages can be read"
 
 
 # -- one robot ---------------------------------------------------------------------------------------------
@@ -269,6 +375,8 @@ class RobotSummary:
     recorder: dict[str, Any] | None
     faults: list[dict[str, Any]]
     deletions: list[tuple[str, int]]    # (latest reason of a kind, how many)
+    stops: list[dict[str, Any]] = field(default_factory=list)    # recording stops that ended, with what was lost
+    problems: list[PlemError] = field(default_factory=list)      # damaged segments, an unreadable event log
 
 
 def _cycle_drops(segments: list[SegmentInfo], deleted: list[str]) -> CycleDrops:
@@ -332,19 +440,29 @@ def _deletion_kinds(entries: list[dict[str, Any]]) -> list[tuple[str, int]]:
 
 
 def robot_segments(robot: RobotBags) -> list[SegmentInfo]:
-    """The robot's segments found; the newest one is `recording` while a recorder of the robot runs."""
-    open_segment = _segments(robot.directory)[-1] if read_status(robot.robot_id) else None
-    return [segment_info(path, recording=path == open_segment) for path in robot.segments]
+    """The robot's segments found, each with its state."""
+    return [segment_info(path) for path in robot.segments]
 
 
 def summarise(robot: RobotBags) -> RobotSummary:
-    """Segments, drops, the recorder's counters, faults and deletions of one robot."""
+    """Segments, drops, the recorder's counters, faults, deletions and stops of one robot, and what cannot be read."""
     segments = robot_segments(robot)
-    entries = list(read_event_log(robot.directory))
+    problems: list[PlemError] = [error for segment in segments if (error := segment.error()) is not None]
+    try:
+        entries = list(read_event_log(robot.directory))
+    except PlemError as error:
+        entries = []
+        problems.append(error)
     if not robot.whole:
         entries = [entry for entry in entries if entry.get("segment") == robot.segments[0].name]
     deleted = [entry for entry in entries if entry.get("kind") == "deleted"]
-    return RobotSummary(robot.robot_id, robot.directory, segments,
-                        _cycle_drops(segments, [str(entry.get("segment", "")) for entry in deleted]),
-                        _recorder_counts(segments), [entry for entry in entries if entry.get("kind") == "fault"],
-                        _deletion_kinds(deleted))
+    try:
+        drops = _cycle_drops(segments, [str(entry.get("segment", "")) for entry in deleted])
+        recorder = _recorder_counts(segments)
+    except BagError as error:
+        drops, recorder = CycleDrops(), None
+        problems.append(error)
+    return RobotSummary(robot.robot_id, robot.directory, segments, drops, recorder,
+                        [entry for entry in entries if entry.get("kind") == "fault"], _deletion_kinds(deleted),
+                        [entry for entry in entries if entry.get("kind") in ("recording_resumed", "recording_ended")],
+                        problems)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from collections.abc import Mapping
 from datetime import datetime
 from pathlib import Path
@@ -12,16 +13,52 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, StrictStr, ValidationError, model_validator
 
 from plem.core.config.environment import plem_home
-from plem.core.files import write_atomic
-from plem.errors import ProfileError
+from plem.core.files import read_regular_text, write_atomic, write_new
+from plem.errors import ConfigError, ProfileError
 from plem.robot.config import SUPPORTED_DOF, offsets_problem
 from plem.robot.serial import serial_problem
 
 PROFILE_SUFFIX = ".json"
+PROFILE_MODE = 0o600
+#: A profile holds a serial, seven offsets and a date: a few hundred bytes. Nothing valid comes near this.
+MAX_PROFILE_BYTES = 64 * 1024
 
 
-def _create_hint(serial: str, dof: int = 6) -> str:
-    return f"plem profile create --serial {serial} --offsets {','.join(['0'] * dof)}  (one offset per joint)"
+def _create_hint(serial: str, replace: bool = False) -> str:
+    return (f"plem profile create --serial {serial} --offsets {','.join(['0'] * 6)}"
+            + (" --force" if replace else "") + "  (one offset per joint)")
+
+
+class ProfileExists(ProfileError):
+    """A profile was to be created where one already is; nothing was written."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(
+            f"Profile {path.stem} already exists",
+            what=f"no profile at {path} yet",
+            why=f"{path} exists (created before, or by another command at the same time)",
+            how=f"keep it (`plem profile show {path.stem}`), or replace it: {_create_hint(path.stem, replace=True)}",
+        )
+        self.path = path
+
+
+def _parse_json(text: str, path: Path, serial_hint: str) -> Any:
+    """The JSON value in a profile's text; malformed, too deeply nested or overlong numbers are a ProfileError."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        problem = f"{path}:{exc.lineno}:{exc.colno}: {exc.msg}"
+    except RecursionError:
+        problem = f"{path}: lists or objects nest too deeply to read (a profile nests two levels)"
+    except ValueError:
+        problem = (f"{path}: a number has more than {sys.get_int_max_str_digits()} digits "
+                   "(a joint offset is an int32: at most 10 digits)")
+    raise ProfileError(
+        f"Profile file is not valid JSON: {path}",
+        what='a JSON object such as {"robot_serial": "...", "joint_offsets": [...]}',
+        why=problem,
+        how=f"fix the JSON at that place, or recreate it: {_create_hint(serial_hint, replace=True)}",
+    )
 
 
 class RobotProfile(BaseModel):
@@ -67,8 +104,11 @@ class RobotProfile(BaseModel):
         """True when the profile can be used (with `dof` joints when given)."""
         return not self.problems(dof)
 
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write atomically (temp file, fsync, rename); an invalid profile is refused, not written."""
+    def save(self, path: str | os.PathLike[str], *, exclusive: bool = False) -> None:
+        """Write atomically (temp file, fsync, rename); an invalid profile is refused, not written.
+
+        With `exclusive`, only create: a ProfileExists error, and nothing written, when the file is already there.
+        """
         problems = self.problems()
         if problems:
             raise ProfileError(
@@ -77,8 +117,23 @@ class RobotProfile(BaseModel):
                 why="; ".join(problems),
                 how="fix the listed fields and save again",
             )
-        document = self.model_dump(exclude_none=True)
-        write_atomic(Path(path).expanduser(), json.dumps(document, indent=2) + "\n", mode=0o600)
+        target = Path(path).expanduser()
+        text = json.dumps(self.model_dump(exclude_none=True), indent=2) + "\n"
+        try:
+            if exclusive:
+                try:
+                    write_new(target, text, mode=PROFILE_MODE)
+                except FileExistsError:
+                    raise ProfileExists(target) from None
+            else:
+                write_atomic(target, text, mode=PROFILE_MODE)
+        except OSError as error:
+            raise ProfileError(
+                f"Cannot write profile file {target}",
+                what=f"a folder where plem can write robot profiles ({target.parent})",
+                why=f"{error.filename or target}: {error.strerror or error}",
+                how=f"make {target.parent} a folder you can write to, or export PLEM_HOME=/path/to/a/writable/folder",
+            ) from None
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> RobotProfile:
@@ -86,36 +141,19 @@ class RobotProfile(BaseModel):
         path = Path(path).expanduser()
         serial_hint = path.stem or "<serial>"
         try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ProfileError(
-                f"Failed to open profile file: {path}",
-                what=f"a robot profile (JSON) at {path}",
-                why="the file does not exist",
-                how=f"create it: {_create_hint(serial_hint)}",
-            ) from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ProfileError(
-                f"Failed to open profile file: {path}",
-                what=f"a readable UTF-8 JSON file at {path}",
-                why=str(exc),
-                how="check the file's permissions, or recreate it with `plem profile create`",
-            ) from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise ProfileError(
-                f"Profile file is not valid JSON: {path}",
-                what='a JSON object such as {"robot_serial": "...", "joint_offsets": [...]}',
-                why=f"{path}:{exc.lineno}:{exc.colno}: {exc.msg}",
-                how=f"fix the JSON at that line, or recreate it: {_create_hint(serial_hint)}",
-            ) from None
+            text = read_regular_text(path, MAX_PROFILE_BYTES, "robot profile (JSON)")
+        except ConfigError as error:
+            fix = (f"create it: {_create_hint(serial_hint)}" if not path.exists()
+                   else f"{error.how}; or recreate it: {_create_hint(serial_hint, replace=True)}")
+            raise ProfileError(f"Failed to open profile file: {path}", what=error.what, why=error.why,
+                               how=fix) from None
+        data = _parse_json(text, path, serial_hint)
         if not isinstance(data, dict):
             raise ProfileError(
                 f"Profile file has the wrong shape: {path}",
                 what="a JSON object with robot_serial and joint_offsets",
                 why=f"the file holds a JSON {type(data).__name__}",
-                how=f"recreate it: {_create_hint(serial_hint)}",
+                how=f"recreate it: {_create_hint(serial_hint, replace=True)}",
             )
         missing = [name for name in ("robot_serial", "joint_offsets") if name not in data]
         try:

@@ -22,7 +22,7 @@ from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
-from plem.control.loop import CycleLoop, LoopSettings
+from plem.control.loop import CycleLoop, LoopSettings, OverrunWindow
 from plem.control.modes import Mode
 from plem.control.motion import Motion, plan_point_to_point
 from plem.control.runtime import ArmRuntime, RuntimeSettings
@@ -414,13 +414,19 @@ class RobotBuilder:
         loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
                                      **self.loop_settings)
 
-        def report_overruns(new: int, total: int, missed: int) -> None:
-            runtime.events.emit(EventKind.OVERRUN, "overrun", f"{new} overruns since the last report ({total} in all, "
-                                f"{missed} missed periods)", runtime.mode, runtime.cycle_count)
+        limit = loop_settings.max_consecutive_overruns
+
+        def report_overruns(window: OverrunWindow) -> None:
+            runtime.events.emit(EventKind.OVERRUN, "overrun",
+                                f"{window.overruns} overruns in the last {window.seconds:.0f} s "
+                                f"({window.missed_periods} periods skipped, at most {window.longest_run} in a row; "
+                                f"{limit} in a row fault the arm), {window.total_overruns} in all",
+                                runtime.mode, runtime.cycle_count)
 
         loop = CycleLoop(runtime.cycle, loop_settings,
                          on_overruns=lambda n: runtime.fault("overrun", f"{n} consecutive cycles overran their "
-                                                                        f"{config.cycle_time} µs period"),
+                                                                        f"{config.cycle_time} µs period "
+                                                                        f"(max_consecutive_overruns {limit})"),
                          on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
                          on_overrun_report=report_overruns,
                          on_warning=lambda text: _warn(runtime, text),

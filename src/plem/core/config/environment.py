@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import os
+import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from plem.core.config.settings import Setting, parse_int
+from plem.core.files import file_kind
 from plem.errors import ConfigError
 
 DEFAULT_HOME = "~/.plem"
@@ -22,9 +24,32 @@ DOMAIN_SETTING = Setting(
 
 
 def plem_home(environ: Mapping[str, str] | None = None) -> Path:
-    """plem's per-user folder: `PLEM_HOME`, default `~/.plem`."""
+    """plem's per-user folder: `PLEM_HOME`, default `~/.plem`; a folder, or not there yet (created on use).
+
+    Anything else (a regular file, /dev/null, a path through a file) is a ConfigError naming PLEM_HOME.
+    """
     env = os.environ if environ is None else environ
-    return Path(env.get("PLEM_HOME") or DEFAULT_HOME).expanduser()
+    given = env.get("PLEM_HOME")
+    home = Path(given or DEFAULT_HOME).expanduser()
+    try:
+        mode = home.stat().st_mode
+    except FileNotFoundError:
+        return home
+    except OSError as error:
+        found = error.strerror or str(error)
+    else:
+        if stat.S_ISDIR(mode):
+            return home
+        found = f"it is a {file_kind(mode)}"
+    origin = f"PLEM_HOME={given}" if given else f"PLEM_HOME is unset, so {DEFAULT_HOME}"
+    raise ConfigError(
+        f"PLEM_HOME is not a folder: {home}",
+        what="PLEM_HOME naming a folder (plem keeps robot profiles in $PLEM_HOME/profiles), or a path where "
+             "one can be created",
+        why=f"{origin}: {home} cannot be used as a folder: {found}",
+        how=f"export PLEM_HOME=/path/to/a/folder, or unset PLEM_HOME to use {DEFAULT_HOME}"
+            if given else f"move {home} out of the way, or export PLEM_HOME=/path/to/a/folder",
+    )
 
 
 @dataclass
@@ -68,8 +93,12 @@ def _check_domain(domain: int, warnings: list[str]) -> None:
     if domain in SPEC_DOMAIN_RANGE:
         return
     if domain == RESERVED_DOMAIN_ID or not 0 <= domain <= ROS_DOMAIN_MAX:
-        reason = ("215 is reserved" if domain == RESERVED_DOMAIN_ID
-                  else f"ids above {ROS_DOMAIN_MAX} give UDP ports past 65535")
+        if domain == RESERVED_DOMAIN_ID:
+            reason = "215 is reserved"
+        elif domain < 0:
+            reason = f"a domain id cannot be negative (usable ids are 0 to {ROS_DOMAIN_MAX})"
+        else:
+            reason = f"ids above {ROS_DOMAIN_MAX} give UDP ports past 65535"
         raise ConfigError(
             f"ROS_DOMAIN_ID {domain} cannot be used",
             what="ROS_DOMAIN_ID from 0 to 101",

@@ -43,7 +43,12 @@ class ConfigLoader:
 
     def document(self, path: str | os.PathLike[str]) -> YamlDocument:
         """The parsed file at `path` (absolute, relative, or package/relative), re-read if it changed."""
-        resolved = resolve_resource(path).resolve()
+        try:
+            resolved = resolve_resource(path).resolve()
+        except (OSError, ValueError) as error:   # a name the OS rejects: too long, a NUL byte
+            raise ConfigError(f"Cannot use the path {str(path)[:80]!r}", what="a YAML file path the system accepts",
+                              why=getattr(error, "strerror", None) or str(error),
+                              how="check the path: each part at most 255 characters, no NUL bytes") from None
         try:
             st = resolved.stat()
         except OSError:
