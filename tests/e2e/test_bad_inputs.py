@@ -126,6 +126,12 @@ ROWS = {
     "topic_hz_timeout_inf": Row(("topic", "hz", "/x", "--timeout", "inf"), "--timeout is inf", code=2),
     # 8. a negative domain id
     "domain_negative": Row(("config", "show"), "cannot be negative", env={"ROS_DOMAIN_ID": "-1"}),
+    # a home directory of a user the system does not know; digits other than 0-9 in a number
+    "validate_unknown_home": Row(("validate", "~nosuchuser0/bot_description"), "there is no user 'nosuchuser0'"),
+    "validate_override_unknown_home": Row(("validate", "indy7_v2_description", "urdf_file:=~nosuchuser0/a.urdf"),
+                                          "there is no user 'nosuchuser0'"),
+    "environment_superscript_digit": Row(("config", "show"), "PLEM_CYCLE_TIME_US is '²'",
+                                         env={"PLEM_CYCLE_TIME_US": "²"}),
     # 10. validate's name:=value overrides
     "validate_unknown_override": Row(("validate", "indy7_v2_description", "urdf:=x"), "did you mean urdf_file",
                                      code=2),

@@ -310,6 +310,29 @@ def test_in_fault_with_the_drives_down_the_brakes_hold_the_bent_arm(holding):
     assert not np.any(np.array(trace.velocity)) and not np.any(holding.bus.true_velocities)
 
 
+def test_in_fault_an_arm_the_drives_cannot_hold_goes_onto_its_brakes(holding):
+    """A faulted arm is held by its enabled drives; pushed beyond what they can hold (here an external torque
+    twice their effort limit), it is not left to run away: the drives are disabled, the brakes hold it, and an
+    event says why."""
+    holding.move_joints([0.0, 0.9, -0.6, 0.4, 1.0, 0.2]).wait()
+    holding.loop.on_error(RuntimeError("stop here"))
+    holding.step(1000)
+    assert holding.mode is Mode.FAULT and holding.bus.drive_state(1) is DriveState.OPERATION_ENABLED
+    pushed_at = holding.runtime.cycle_count
+    holding.bus.apply_external_torque(1, 2.0 * float(holding.bus.effort_limits[1]))
+    trace = step_recording(holding, 3000)
+    [warning] = holding.events.recent({EventKind.WARNING})
+    assert warning.cause == "brakes_engaged" and "could not hold the arm" in warning.reason
+    assert "brakes hold" in warning.reason and warning.cycle - pushed_at < 50
+    assert all(holding.bus.drive_state(i) is DriveState.SWITCH_ON_DISABLED for i in range(6))
+    positions = np.array(trace.position)
+    assert np.array_equal(positions[-1000:], np.tile(positions[-1], (1000, 1)))
+    assert not np.any(holding.bus.true_velocities)
+    holding.bus.clear_external_torque()
+    assert holding.reset_fault() is Mode.HOLD
+    assert np.allclose(holding.state().command_position, positions[-1])
+
+
 def test_internal_error_in_a_cycle_faults_instead_of_crashing(holding):
     holding.loop.on_error(RuntimeError("boom"))
     [event] = faults(holding)

@@ -9,18 +9,16 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from plem.control.limits import ArmLimits
-from plem.control.trajectory import JointTrajectory, TrajectoryPoint
 from plem.description.validate import Stage, validate_package
-from plem.errors import CommandRejected
+from plem.errors import PlemError
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
 
 from .packages import copy_builtin
-from .robot_fixtures import RAW_ZERO, step_recording
+from .robot_fixtures import RAW_ZERO
 
 JOINTS = tuple(f"joint{i}" for i in range(6))
 URDF_VELOCITY = [2.617993878] * 3 + [3.141592654] * 3
@@ -110,35 +108,20 @@ def test_tighter_file_values_are_kept(tmp_path, monkeypatch):
     assert report.limits["joint0"].max_position == URDF_POSITION
 
 
-@pytest.fixture
-def loosened_robot(tmp_path, monkeypatch):
+def test_a_robot_is_not_started_from_a_file_that_loosens_the_urdf(tmp_path, monkeypatch):
+    """Start-up runs the same check: the robot is refused before its bus opens, both files named."""
     root = loosening_package(tmp_path, monkeypatch)
     config = Indy7V2()
     config.joint_offsets = [-r for r in RAW_ZERO]
-    config.custom_bus = MockBus(6, raw_zero=RAW_ZERO)
-    robot = Robot.builder(config).with_description(str(root)).build()
-    robot.set_mode("hold")
-    yield robot
-    robot.shutdown()
-
-
-def test_a_robot_never_commands_more_than_the_urdf_velocity(loosened_robot):
-    """joint0's velocity limit is switched off and joint1's doubled in the file: both still move at most at the
-    URDF's velocity, and a trajectory needing more is refused naming the URDF's limit."""
-    robot = loosened_robot
-    assert robot.limits.max_velocity.tolist() == URDF_VELOCITY
-    handle = robot.move_joints([-2.9, 2.9, 0.0, 0.0, 0.0, 0.0])
-    trace = step_recording(robot, 20_000, until=lambda: handle.done)
-    handle.wait(0)
-    velocity = np.abs(trace.commands()[:, 1])
-    assert velocity[:, :2].max(axis=0) == pytest.approx(URDF_VELOCITY[:2], rel=1e-3)  # as fast as the URDF allows
-    assert np.all(velocity <= np.array(URDF_VELOCITY) * (1 + 1e-6))
-    assert np.all(np.abs(np.array(trace.velocity)) <= np.array(URDF_VELOCITY) * 1.1)
-    zeros = (0.0,) * 6
-    trajectory = JointTrajectory(JOINTS, (TrajectoryPoint((-2.9, 0.9, 0.0, 0.0, 0.0, 0.0), 1.0, zeros, zeros),))
-    with pytest.raises(CommandRejected) as caught:  # 2 rad in 1 s peaks at 3.75 rad/s on joint1
-        robot.execute_trajectory(trajectory)
-    assert "velocity limit of joint1" in caught.value.summary and "2.61799" in caught.value.what
+    bus = MockBus(6, raw_zero=RAW_ZERO)
+    config.custom_bus = bus
+    with pytest.raises(PlemError) as caught:
+        Robot.builder(config).with_description(str(root)).build()
+    text = caught.value.render()
+    assert "removes the velocity limit of joint0" in text and "loosens the velocity limit of joint1" in text
+    assert "joint_limits.yaml:" in text and ".urdf.xacro:" in text
+    with pytest.raises(PlemError, match="not open"):
+        bus.read()   # refused before the bus was opened
 
 
 def test_a_limit_a_macro_names_is_placed_by_its_line_in_the_rendered_urdf(tmp_path, monkeypatch):

@@ -155,6 +155,7 @@ class ArmRuntime:
         self._have_previous = False
         self._active: ActiveMotion | None = None
         self._pending_mode: _PendingMode | None = None
+        self._braking = False   # FAULT: the drives could not hold the arm and were disabled onto the brakes
         self.basis = PlanBasis(self.command_position.copy())
 
     # -- one cycle -------------------------------------------------------------------------------
@@ -172,6 +173,8 @@ class ArmRuntime:
             self.effort[:] = io.torque
             if self.mode is not Mode.FAULT:
                 self._supervise_measurement(io)
+            elif not self._braking and self._can_command():
+                self._supervise_fault_hold()
         elif self.communication_ok:
             self.communication_ok = False
             self._fault("communication_lost", f"bus communication lost: {bus.status.detail or 'no response'}")
@@ -207,6 +210,28 @@ class ArmRuntime:
         bounds = self._measure_bounds[mode]
         if self._measure_flags.greater(measure, bounds):
             self._measurement_fault(measure, bounds)
+
+    def _supervise_fault_hold(self) -> None:
+        """In FAULT with drives enabled, the drives hold the arm where the stop leaves it. When they cannot (it runs
+        away from its command or past its velocity limit: short of torque, a heavy load), disable them so the brakes
+        hold it, and say so."""
+        measure, bounds = self._measure, self._measure_bounds[Mode.HOLD]
+        measure[:2] = 0.0
+        np.copyto(measure[2], self.velocity)
+        np.subtract(self.command_position, self.position, out=measure[3])
+        np.abs(measure, out=measure)
+        statusword = self.bus.io.statusword
+        measure[:, (statusword & ENABLED_MASK) != ENABLED_VALUE] = 0.0   # a disabled drive's joint is on its brake
+        if not self._measure_flags.greater(measure, bounds):
+            return
+        row, i = (int(x) for x in np.argwhere(self._measure_flags.buffer)[0])
+        found = (f"moves at {self.velocity[i]:.4g} rad/s (limit {self.limits.max_velocity[i]:.4g} rad/s)" if row == 2
+                 else f"is {measure[3, i]:.4g} rad from where it is held (tolerance {bounds[3, i]:g} rad)")
+        self.bus.disable()
+        self._braking = True
+        self.events.emit(EventKind.WARNING, "brakes_engaged",
+                         f"in FAULT the drives could not hold the arm: {self.joint_names[i]} {found}; drives "
+                         "disabled, the brakes hold the joints", Mode.FAULT, self.cycle_count)
 
     def _measurement_fault(self, measure: np.ndarray, bounds: np.ndarray) -> None:
         """Name the first breached check (rows in order of how basic they are) and fault."""
@@ -520,6 +545,7 @@ class ArmRuntime:
         self.mode = Mode.FAULT
         self.events.emit(EventKind.FAULT, cause, reason, Mode.FAULT, self.cycle_count, previous)
         self._have_previous = False
+        self._braking = False
         active, self._active = self._active, None
         if active is not None and active.handle is not None:
             result = TrajectoryResult(TrajectoryOutcome.ABORTED, f"robot fault: {reason}",

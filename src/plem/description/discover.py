@@ -10,6 +10,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from plem.core.config.launch_args import check_home
 from plem.core.paths import PACKAGE_MARKER, find_package, is_dir, is_file
 from plem.description.problems import Findings
 from plem.errors import PackageNotFoundError
@@ -53,6 +54,7 @@ def locate_package(package: str | os.PathLike[str]) -> Path:
 
     A name is never looked up in the working directory: a folder planted there must not replace a package."""
     if _is_path(package):
+        check_home(os.fspath(package), os.fspath(package))
         path = Path(package).expanduser()
         if is_dir(path):
             return path.resolve()
@@ -90,6 +92,7 @@ def package_for_launch(description_package: str | None, robot_type: str | None) 
 
 def _override(files: DescriptionFiles, kind: str, given: str | os.PathLike[str]) -> Path | None:
     """The file named by a `urdf_file`/`srdf_file` argument (absolute or package-relative), or a problem."""
+    check_home(os.fspath(given), f"{kind}_file:={os.fspath(given)}")
     path = Path(given).expanduser()
     path = path if path.is_absolute() else files.root / path
     if is_file(path):

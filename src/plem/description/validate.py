@@ -1,8 +1,9 @@
 """Validation of a description package: every rule of the protocol, all problems reported at once.
 
 The same checks serve three stages, as the protocol's timing table says: LAUNCH (files exist, YAML and
-XML parse, the URDF renders), STARTUP (adds ros2_control tags and drive parameters, joint count and types)
-and FULL (adds every cross-file consistency check; what `plem validate` runs).
+XML parse, the URDF renders), STARTUP (adds ros2_control tags and drive parameters, joint count and types,
+joint_limits.yaml within the URDF's limits) and FULL (adds every other cross-file consistency check; what
+`plem validate` runs).
 """
 
 from __future__ import annotations
@@ -134,8 +135,8 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
         _check_joint_types(urdf, source, found)
         _check_urdf_values(report, urdf, source)
         _check_ros2_control(report, urdf, source)
+        _check_limits_against_urdf(report, urdf)   # a file that loosens the URDF's limits never starts a robot
     if stage >= Stage.FULL:
-        _check_limits_against_urdf(report, urdf)
         _check_meshes(urdf, source, found)
         _check_controllers(report, urdf)
         if report.srdf is not None and files.srdf is not None:

@@ -148,13 +148,18 @@ class StateSegment:
         if SharedSegment.own_leftover(name):
             cls._replace_stale(robot_id, name, warn)
         segment = SharedSegment.create(name, cls.size(len(joint_names)), mode, group)
-        buffer = segment.buffer
-        buffer[NAMES_OFFSET:NAMES_OFFSET + len(names)] = names
-        buffer[POSES_OFFSET:POSES_OFFSET + len(poses_json)] = poses_json
-        header = SegmentHeader(len(joint_names), cycle_time_ns, os.getpid(), tuple(joint_names))
-        _limits_view(buffer, header.dof)[:] = [getattr(limits, row) for row in LIMIT_ROWS]
-        buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, header.dof, cycle_time_ns, header.owner_pid,
-                                             joint_names_hash(joint_names))
+        try:
+            buffer = segment.buffer
+            buffer[NAMES_OFFSET:NAMES_OFFSET + len(names)] = names
+            buffer[POSES_OFFSET:POSES_OFFSET + len(poses_json)] = poses_json
+            header = SegmentHeader(len(joint_names), cycle_time_ns, os.getpid(), tuple(joint_names))
+            _limits_view(buffer, header.dof)[:] = [getattr(limits, row) for row in LIMIT_ROWS]
+            buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, header.dof, cycle_time_ns, header.owner_pid,
+                                                 joint_names_hash(joint_names))
+        except BaseException:   # never leave a half-written segment behind
+            segment.close()
+            SharedSegment.unlink(name)
+            raise
         return cls(segment, header)
 
     @classmethod

@@ -297,8 +297,13 @@ class Supervisor:
 
 def status_line(robot_id: str, client: RobotClient) -> str:
     """One compact line: mode, cycle, recent latency, overruns, fault reason when faulted."""
-    state = client.state()
-    stats = client.stats() or {}
+    from plem.bridge.client import DriverGone  # the client module loads once a robot is connected
+
+    try:
+        state = client.state()
+        stats = client.stats() or {}
+    except DriverGone:   # its process ended since the last look; the supervisor reports how on its next one
+        return f"{robot_id}: driver gone"
     if state is None:
         return f"{robot_id}: starting"
     interval = stats.get("latency_interval", {})

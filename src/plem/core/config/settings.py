@@ -14,8 +14,11 @@ from plem.errors import ConfigError
 
 
 def parse_int(text: str) -> int:
-    """A whole number; '80', '-3' and '0x10' are accepted, '8.5' and 'abc' are not."""
-    return int(text.strip(), 0)
+    """A whole number; '80', '-3' and '0x10' are accepted, '8.5', 'abc' and digits other than 0-9 ('²') are not."""
+    text = text.strip()
+    if not text.isascii():
+        raise ValueError(f"{text!r} holds characters other than ASCII digits")
+    return int(text, 0)
 
 
 def parse_text(text: str) -> str:
