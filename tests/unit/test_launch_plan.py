@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from plem.core.config.launch_args import decimal_number, whole_number
-from plem.errors import ConfigError, MultipleErrors, UsageError
+from plem.description.scaffold import create_package
+from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError
 from plem.launch.arguments import DEFAULTS, NAMES, help_text, parse
 from plem.launch.plan import MAX_CONSECUTIVE_OVERRUNS, plan_launch, plan_robot, prepare_bag_directory
 from plem.launch.robots_file import load_robots
@@ -95,6 +96,18 @@ def test_joint_state_rate_follows_controllers_yaml_capped(tmp_path, text, expect
     controllers.write_text(text)
     plan.report.files.controllers = controllers
     assert plan.joint_state_rate() == expected
+
+
+def test_a_controllers_yaml_plem_cannot_read_stops_the_plan(tmp_path, monkeypatch):
+    """An alias bomb in the package's controllers.yaml is refused while planning, before any component reads it."""
+    monkeypatch.setenv("PLEM_PACKAGE_PATH", str(tmp_path))
+    root = create_package(tmp_path, "bombed", 6).root
+    [controllers] = root.glob("config/*controllers.yaml")
+    controllers.write_text("a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{name}: &{name} [{', '.join([f'*{previous}'] * 9)}]\n" for previous, name in zip("abcdefgh", "bcdefghi",
+                                                                                         strict=True)))
+    with pytest.raises(PlemError, match="alias"):
+        plan_robot({"bus": "mock", "description_package": str(root)})
 
 
 def test_joint_state_rate_argument_wins_and_is_checked():

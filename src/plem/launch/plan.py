@@ -16,10 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
+from plem.core.config.yaml_document import load_yaml
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.discover import locate_package, package_for_launch
 from plem.description.generate import ResolvedDescription, complete_description
@@ -89,15 +88,9 @@ class RobotPlan:
         """Hz of joint_states: the launch argument, else controllers.yaml's update rate, at most 100 Hz."""
         if self.arguments.get("joint_states_rate"):
             return float(self.arguments["joint_states_rate"])
-        rate = 1e6 / self.config.cycle_time
         controllers = self.report.files.controllers
-        if controllers is not None:
-            value: Any = yaml.safe_load(controllers.read_text(encoding="utf-8"))
-            for key in ("controller_manager", "ros__parameters", "update_rate"):
-                value = value.get(key) if isinstance(value, dict) else None
-            if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
-                rate = float(value)
-        return min(rate, DEFAULT_JOINT_STATES_RATE_CAP)
+        rate = update_rate(controllers) if controllers is not None else None
+        return min(rate or 1e6 / self.config.cycle_time, DEFAULT_JOINT_STATES_RATE_CAP)
 
     def recording(self) -> RecordingSettings:
         """Where and how the recorder writes this robot's bags: `bag_dir/{robot_id}/`."""
@@ -279,6 +272,15 @@ def _resolve(arguments: Mapping[str, str], dof: int | None, errors: list[PlemErr
         return None
 
 
+def update_rate(controllers: Path) -> float | None:
+    """controllers.yaml's `controller_manager.ros__parameters.update_rate` in Hz, None when it gives none; a
+    file plem cannot read is a ConfigError (checked at planning, so a component never meets it first)."""
+    value: Any = load_yaml(controllers, "controllers.yaml")
+    for key in ("controller_manager", "ros__parameters", "update_rate"):
+        value = value.get(key) if isinstance(value, dict) else None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else None
+
+
 def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_root: Path | None = None) -> RobotPlan:
     """Check the launch arguments of one robot and resolve its description and configuration.
 
@@ -313,6 +315,11 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
     else:
         config_arguments["robot_type"] = builtin
     resolved = _resolve(config_arguments, None if builtin or report is None else report.dof, errors)
+    if report is not None and report.files.controllers is not None:
+        try:
+            update_rate(report.files.controllers)
+        except PlemError as error:
+            errors.append(error)
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 
