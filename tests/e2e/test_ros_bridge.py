@@ -201,8 +201,9 @@ def test_rt_raw_carries_every_cycle(peer: RosPeer, client: RobotClient):
 def test_rt_monitor_stats_at_10_hz_with_queue_counters(peer: RosPeer):
     stats = peer.rt_monitor_stats()
     assert wait_for(stats.take, 5), "no rt_monitor_stats"
-    messages, elapsed = collect(stats.take, 2.0, period=0.02)
-    assert 0.7 * STATS_HZ < len(messages) / elapsed < 1.2 * STATS_HZ, (len(messages), elapsed)
+    messages, _ = collect(stats.take, 2.0, period=0.02)
+    stamped = stamp_s(messages[-1]) - stamp_s(messages[0])   # the driver's clock: delivery delays do not count
+    assert 0.7 * STATS_HZ < (len(messages) - 1) / stamped < 1.2 * STATS_HZ, (len(messages), stamped)
     cycles = np.diff([message.cycles for message in messages])
     assert np.all(cycles > 0) and np.all(cycles < 3 * LOOP_HZ / STATS_HZ), cycles
     for message in messages:
@@ -211,7 +212,9 @@ def test_rt_monitor_stats_at_10_hz_with_queue_counters(peer: RosPeer):
         assert message.latency.samples > 0 and message.latency.max_us >= message.latency.p50_us
         queues = {queue.name: queue for queue in message.queues}
         assert set(queues) >= QUEUES, set(queues)
-        assert all(queue.dropped == 0 for queue in message.queues), [(q.name, q.dropped) for q in message.queues]
+        # The driver's rings never drop here; a bridge starved of CPU may drop DDS samples, and counts them.
+        assert all(queue.dropped == 0 for queue in message.queues if not queue.name.startswith("dds:")), [
+            (q.name, q.dropped) for q in message.queues]
         assert queues["rt_raw"].capacity > 0 and queues["rt_raw"].fill <= queues["rt_raw"].capacity
     first, last = ({q.name: q for q in message.queues} for message in (messages[0], messages[-1]))
     assert last["dds:rt_raw"].written > first["dds:rt_raw"].written

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from plem.bridge.client import DriverGone, RemoteHandle, RobotClient
+from plem.control.modes import Mode
 from plem.control.trajectory import (
     ErrorCode,
     JointTrajectory,
@@ -189,6 +190,9 @@ class ModeGoal:
             if reply is None:
                 return {"mode": mode}, None
             error = error_from_json(reply["error"]) if reply["error"] is not None else None
+            reached = result_from_json(reply["result"]) if error is None else None
+            if isinstance(reached, Mode):   # the mode the reply names: the state block may be a cycle behind it
+                mode = str(reached)
         if error is not None:
             return None, (ABORTED, {"success": False, "mode": mode, "message": error.render()})
         return None, (SUCCEEDED, {"success": True, "mode": mode, "message": ""})
