@@ -1,12 +1,14 @@
 """Cost of `plem validate` against rendering the same xacro alone, per built-in description package.
 
-Usage: python benchmarks/validate_vs_xacro.py [--repeat N].
-Every measurement interleaves the two sides (A, B, A, B ...).
+Usage: python benchmarks/validate_vs_xacro.py [--repeat N] [--cli-runs N].
+Every measurement interleaves the two sides (A, B, A, B ...). The whole commands run from compiled bytecode on
+both sides: plem's modules are compiled first, as an installed package has them (xacro's already are).
 """
 
 from __future__ import annotations
 
 import argparse
+import compileall
 import importlib.metadata
 import os
 import platform
@@ -22,6 +24,7 @@ from pathlib import Path
 
 import xacro
 
+import plem
 import plem.description.render  # noqa: F401  (patches xacro's $(find) to plem's package search; both sides use it)
 from plem.core.config.loader import ConfigLoader
 from plem.core.paths import BUILTIN_PACKAGES_DIR, find_package
@@ -31,7 +34,6 @@ from plem.description.validate import validate_package
 PACKAGES = tuple(f"{kind}_description"
                  for kind in ("indy7", "indy7_v2", "indy12", "indy12_v2", "indyrp2", "indyrp2_v2"))
 WARMUP = 3
-CLI_RUNS = 10
 CLI_WARMUP = 1
 TARGET_RATIO = 1.3
 BIN = Path(sys.executable).parent
@@ -58,6 +60,10 @@ class Samples:
     @property
     def median(self) -> float:
         return statistics.median(self.ms)
+
+    @property
+    def p10(self) -> float:
+        return statistics.quantiles(self.ms, n=10, method="inclusive")[0]
 
     @property
     def p90(self) -> float:
@@ -141,8 +147,9 @@ def in_process_table(repeat: int) -> None:
                  f"<= {TARGET_RATIO}x"], rows)
 
 
-def command_table(env: dict[str, str]) -> None:
-    print(f"\nWhole command as a subprocess, {CLI_WARMUP} warm-up then {CLI_RUNS} interleaved runs each; ms")
+def command_table(env: dict[str, str], runs: int) -> None:
+    print(f"\nWhole command as a subprocess, {CLI_WARMUP} warm-up then {runs} interleaved runs each; ms "
+          "(median, and p10-p90 for the spread)")
     plem_command, xacro_command = commands(PACKAGES[0])
     print(f"  A: {shlex.join(plem_command)}\n  B: {shlex.join(xacro_command)}\n  (likewise for every package; both "
           f"run with PYTHONPATH={env['PYTHONPATH']}, whose ament_index_python stand-in lets xacro resolve $(find))")
@@ -150,11 +157,14 @@ def command_table(env: dict[str, str]) -> None:
         if (error := failure(command, env)) is not None:
             print(f"{side} CLI not available: {error}")
             return
+    compileall.compile_dir(Path(plem.__file__).parent, quiet=1)
     rows = []
     for package in PACKAGES:
-        plem, bare = interleave([command_job(c, env) for c in commands(package)], CLI_RUNS, CLI_WARMUP)
-        rows.append([package, f"{plem.median:.1f}", f"{bare.median:.1f}", *ratio_cells(plem, bare)])
-    print_table(["package", "plem validate median", "xacro median", "ratio", f"<= {TARGET_RATIO}x"], rows)
+        plem_side, bare = interleave([command_job(c, env) for c in commands(package)], runs, CLI_WARMUP)
+        rows.append([package, f"{plem_side.median:.1f}", f"{plem_side.p10:.1f}-{plem_side.p90:.1f}",
+                     f"{bare.median:.1f}", f"{bare.p10:.1f}-{bare.p90:.1f}", *ratio_cells(plem_side, bare)])
+    print_table(["package", "plem validate median", "p10-p90", "xacro median", "p10-p90", "ratio",
+                 f"<= {TARGET_RATIO}x"], rows)
 
 
 def print_machine() -> None:
@@ -167,9 +177,12 @@ def print_machine() -> None:
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=30, help="timed in-process repetitions per side (>= 30)")
+    parser.add_argument("--cli-runs", type=int, default=30, help="timed whole-command runs per side (>= 10)")
     args = parser.parse_args(argv)
     if args.repeat < 30:
         parser.error("--repeat must be at least 30")
+    if args.cli_runs < 10:
+        parser.error("--cli-runs must be at least 10")
     print_machine()
     in_process_table(args.repeat)
     with tempfile.TemporaryDirectory(prefix="plem-bench-") as shim:
@@ -177,7 +190,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         (Path(shim) / "ament_index_python" / "__init__.py").write_text("", encoding="utf-8")
         (Path(shim) / "ament_index_python" / "packages.py").write_text(AMENT_STAND_IN, encoding="utf-8")
         python_path = os.pathsep.join(filter(None, (shim, os.environ.get("PYTHONPATH"))))
-        command_table({**os.environ, "PYTHONPATH": python_path, SHARE_VARIABLE: os.fspath(BUILTIN_PACKAGES_DIR)})
+        command_table({**os.environ, "PYTHONPATH": python_path, SHARE_VARIABLE: os.fspath(BUILTIN_PACKAGES_DIR)},
+                      args.cli_runs)
 
 
 if __name__ == "__main__":

@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 import sys
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
-from rich.table import Table
 
 from plem.errors import PlemError
+
+if TYPE_CHECKING:
+    from rich.table import Table
 
 
 class OutputFormat(StrEnum):
@@ -33,6 +35,8 @@ def print_error(error: PlemError) -> None:
 
 def new_table(title: str, *columns: str) -> Table:
     """A table whose cells fold rather than truncate, so no value is ever cut off."""
+    from rich.table import Table  # only the commands that print a table need it
+
     table = Table(title=title)
     for column in columns:
         table.add_column(column, overflow="fold")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import statistics
 from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cache, cached_property
@@ -381,6 +380,13 @@ def _bad_inertial(urdf: UrdfModel, link: str, inertial: Inertial) -> list[str]:
     return bad
 
 
+def _median(values: list[float]) -> float:
+    """statistics.median of a non-empty list, without importing statistics (and fractions, decimal) for it."""
+    ordered = sorted(values)
+    middle = len(ordered) // 2
+    return ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2
+
+
 def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
     """Warn about a total mass or a link mass far beyond what an arm weighs, and an inertia too large for its
     mass: usually a unit slip (g for kg) or a typo."""
@@ -397,7 +403,7 @@ def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: P
                       how="check the values and their unit (kg)", file=source)
     for link, mass in masses.items():
         others = [other for name, other in masses.items() if name != link]
-        typical = statistics.median(others) if len(others) >= 2 else None
+        typical = _median(others) if len(others) >= 2 else None
         if typical is not None and mass > MASS_RATIO_WARNING * typical:
             path, line, note = _urdf_place(report, "link", link, "inertial", urdf.inertials[link].line)
             found.warning("urdf.inertial_implausible", f"Link {link} weighs {mass:g} kg",
