@@ -418,7 +418,8 @@ class RobotBuilder:
 
         def report_overruns(window: OverrunWindow) -> None:
             runtime.events.emit(EventKind.OVERRUN, "overrun",
-                                f"{window.overruns} overruns in the last {window.seconds:.0f} s "
+                                f"{window.overruns} overrun{'' if window.overruns == 1 else 's'} in the last "
+                                f"{window.seconds:.0f} s "
                                 f"({window.missed_periods} periods skipped, at most {window.longest_run} in a row; "
                                 f"{limit} in a row fault the arm), {window.total_overruns} in all",
                                 runtime.mode, runtime.cycle_count)
