@@ -503,31 +503,38 @@ def _check_drive_parameters(report: ValidationReport, urdf: UrdfModel, joints: l
 
 
 def _check_prefix(report: ValidationReport, source: Path) -> None:
-    """Rendering with prefix:=PROBE must rename every link, joint and ros2_control joint."""
+    """Rendering with prefix:=PROBE should rename every link, joint and ros2_control joint.
+
+    Names that ignore it are a warning (an error under --strict): plem keeps robots apart by their namespace
+    and tf prefix, so the prefix matters only when one URDF is to hold several arms, and a third-party arm
+    wrapped as the protocol shows (`prefix=""` passed to its macro) must still validate.
+    """
     files, found, prefixed = report.files, report.findings, report.prefixed
     if prefixed is None:
-        found.error("ros2_control.prefix", "The URDF ignores the prefix argument",
-                    what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name and passed "
-                         "to the ros2_control macro, so several robots can share one namespace",
-                    why=f"rendering {source.name} with prefix:={PREFIX_SENTINEL} changes no name",
-                    how='declare <xacro:arg name="prefix" default=""/>, write names as $(arg prefix)NAME and pass '
-                        'prefix="$(arg prefix)" to the ros2_control macro', file=source)
+        found.warning("ros2_control.prefix", "The URDF ignores the prefix argument",
+                      what="<xacro:arg name=\"prefix\" default=\"\"/> applied to every link and joint name and "
+                           "passed to the ros2_control macro, so one URDF can hold several arms",
+                      why=f"rendering {source.name} with prefix:={PREFIX_SENTINEL} changes no name",
+                      how='declare <xacro:arg name="prefix" default=""/>, write names as $(arg prefix)NAME and pass '
+                          'prefix="$(arg prefix)" to the ros2_control macro; without it this arm cannot share one '
+                          "URDF with another (separate robots are kept apart by robot_id anyway)", file=source)
         return
     names = [*prefixed.links, *prefixed.joints]
     unchanged = [name for name in names if not name.startswith(PREFIX_SENTINEL)]
     if unchanged:
-        found.error("urdf.prefix", "Some link or joint names ignore the prefix argument",
-                    what="every link and joint name written as $(arg prefix)NAME",
-                    why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
-                    how="prefix those names too, or two robots with different prefixes will clash", file=source)
+        found.warning("urdf.prefix", "Some link or joint names ignore the prefix argument",
+                      what="every link and joint name written as $(arg prefix)NAME",
+                      why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
+                      how="prefix those names too, or two arms rendered into one URDF with different prefixes "
+                          "will clash", file=source)
     hardware = [hw.name for block in prefixed.ros2_control for hw in block.joints]
     unchanged = [name for name in hardware if not name.startswith(PREFIX_SENTINEL)]
     if unchanged:
-        found.error("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",
-                    what="a macro with params=\"prefix:=''\" writing every joint as ${prefix}NAME",
-                    why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
-                    how="write the joint names as ${prefix}joint1 and so on, and call the macro with "
-                        'prefix="$(arg prefix)"', file=files.ros2_control or source)
+        found.warning("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",
+                      what="a macro with params=\"prefix:=''\" writing every joint as ${prefix}NAME",
+                      why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
+                      how="write the joint names as ${prefix}joint1 and so on, and call the macro with "
+                          'prefix="$(arg prefix)"', file=files.ros2_control or source)
     if files.ros2_control and files.ros2_control.name.encode() not in _source_bytes(source):
         found.error("ros2_control.not_included", f"{files.ros2_control.name} is not included by the URDF",
                     what="the URDF includes its ros2_control xacro", why=f"{source.name} never names it",
