@@ -50,8 +50,8 @@ class RosPeer:
     def rt_events(self) -> Subscription[Any]:
         return self.subscribe("rt_events", "plem_msgs/msg/RtEvent", EVENTS)
 
-    def robot_description(self) -> Subscription[Any]:
-        return self.subscribe("robot_description", "std_msgs/msg/String", LATCHED)
+    def robot_description(self, topic: str = "robot_description") -> Subscription[Any]:
+        return self.subscribe(topic, "std_msgs/msg/String", LATCHED)
 
     def rt_monitor_stats(self) -> Subscription[Any]:
         return self.subscribe("rt_monitor_stats", "plem_msgs/msg/RtMonitorStats", DEFAULT)

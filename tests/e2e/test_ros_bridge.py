@@ -164,6 +164,15 @@ def test_robot_description_reaches_a_late_subscriber(peer: RosPeer):
     assert all(f'name="{joint}"' in urdf for joint in JOINT_NAMES)
 
 
+def test_robot_description_semantic_reaches_a_late_subscriber(peer: RosPeer):
+    """The package has an SRDF: it is latched on robot_description_semantic, as MoveIt's nodes read it."""
+    semantic = peer.robot_description("robot_description_semantic")
+    messages = wait_for(semantic.take, 5)
+    assert messages, "no robot_description_semantic for a late subscriber"
+    srdf = messages[-1].data
+    assert "<robot" in srdf and "<group " in srdf and 'group_state name="home"' in srdf
+
+
 def test_joint_states_at_the_default_rate_with_the_robot_joints(peer: RosPeer):
     peer.joint_state()
     messages, _ = collect(peer.joint_states.take, 2.0, period=0.02)

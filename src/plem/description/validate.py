@@ -89,6 +89,8 @@ class ValidationReport:
     urdf: UrdfModel | None = None
     prefixed: UrdfModel | None = None
     srdf: SrdfModel | None = None
+    #: The SRDF as published on robot_description_semantic (rendered when it is a xacro).
+    srdf_xml: str | None = None
     #: The limits the driver enforces: joint_limits.yaml tightened by the URDF's <limit> (see limits.tighten).
     limits: dict[str, JointLimit] = field(default_factory=dict)
     #: joint_limits.yaml as written.
@@ -213,6 +215,7 @@ def _check_srdf(report: ValidationReport) -> None:
     try:
         text = render_xacro(files.srdf) if files.srdf.name.endswith(".xacro") else read_xml_file(files.srdf, "SRDF")
         report.srdf = parse_srdf(text, files.srdf)
+        report.srdf_xml = text if isinstance(text, str) else text.decode("utf-8", errors="replace")
     except PlemError as error:
         report.findings.add("srdf.xml", error, files.srdf)
 

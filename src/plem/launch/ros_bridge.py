@@ -30,7 +30,8 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     node = Node()
     client = connect(plan.robot_id, plan.config.dof)
     rate = plan.joint_state_rate()
-    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, commands=plan.bridge_commands)
+    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, commands=plan.bridge_commands,
+                         semantic=plan.report.srdf_xml)
     commands = _command_thread(bridge, stop) if bridge.commands else None
     announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),
               "joint_state_rate": rate, "commands": bridge.commands})

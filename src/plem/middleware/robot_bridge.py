@@ -1,6 +1,7 @@
 """One robot on ROS 2: its shared memory published as topics, ROS commands passed to its RT driver.
 
-Under `/{robot_id}/` it publishes joint_states, robot_description (latched), rt_raw (every cycle),
+Under `/{robot_id}/` it publishes joint_states, robot_description and robot_description_semantic (latched; the
+latter when the package has an SRDF), rt_raw (every cycle),
 rt_events and rt_monitor_stats (10 Hz), and serves joint_trajectory_controller's topic and action and
 the wim_rt_driver/set_mode action. A read-only bridge (`commands=False`) creates none of these command
 endpoints, so nothing on the network can command the arm through it. It only reads shared memory and
@@ -37,7 +38,7 @@ class RobotBridge:
     set_mode: ActionServer
 
     def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float,
-                 commands: bool = True) -> None:
+                 commands: bool = True, semantic: str | None = None) -> None:
         self.client = client
         self.node = node
         self.library = node.library
@@ -51,6 +52,9 @@ class RobotBridge:
         if commands:
             self._command_endpoints()
         self.description.publish(self.description.message(data=description))
+        if semantic is not None:
+            self.semantic = node.publisher(f"{ns}/robot_description_semantic", "std_msgs/msg/String", LATCHED)
+            self.semantic.publish(self.semantic.message(data=semantic))
         self.feed = MonitorFeed(client, self.library, joint_state_rate)
         self._profiles = profiles
 
