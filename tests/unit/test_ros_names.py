@@ -135,7 +135,7 @@ def test_invalid_names_raise_config_error(name: str) -> None:
 
 #: Endpoints under /{robot_id}/ the bridge creates, as the ROS 2 tools know them.
 BRIDGE_ENDPOINTS = {
-    "joint_states", "robot_description", "rt_raw", "rt_events", "rt_monitor_stats",
+    "joint_states", "robot_description", "robot_description_semantic", "rt_raw", "rt_events", "rt_monitor_stats",
     "joint_trajectory_controller/joint_trajectory", "joint_trajectory_controller/follow_joint_trajectory",
     "wim_rt_driver/set_mode",
 }
