@@ -220,8 +220,8 @@ class ArmRuntime:
         np.copyto(measure[2], self.velocity)
         np.subtract(self.command_position, self.position, out=measure[3])
         np.abs(measure, out=measure)
-        statusword = self.bus.io.statusword
-        measure[:, (statusword & ENABLED_MASK) != ENABLED_VALUE] = 0.0   # a disabled drive's joint is on its brake
+        self._flags.not_equal(np.bitwise_and(self.bus.io.statusword, ENABLED_MASK, out=self._status), ENABLED_VALUE)
+        np.copyto(measure, 0.0, where=self._flags.buffer)   # a disabled drive's joint is on its brake
         if not self._measure_flags.greater(measure, bounds):
             return
         row, i = (int(x) for x in np.argwhere(self._measure_flags.buffer)[0])
