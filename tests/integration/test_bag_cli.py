@@ -94,7 +94,8 @@ def killed_segment(destination: Path, cycles: int) -> None:
                            [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], STORE)
     for cycle in range(cycles):
         values[0] = cycle
-        writer.write("/arm/rt_raw", START + 10 * S + cycle * 1_000_000, encoder.encode(values, START))
+        writer.append("/arm/rt_raw", START + 10 * S + cycle * 1_000_000, encoder.encode(values, START))
+        writer.flush_due()
     writer.flush()
     shutil.copytree(writer.directory, destination)
     writer.close()

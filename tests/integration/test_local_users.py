@@ -380,7 +380,7 @@ def test_a_repaired_segment_keeps_the_access_of_the_killed_one(tmp_path: Path, p
                            access=FileAccess(group))
     encoder = RawEncoder(6)
     for cycle in range(10):
-        writer.write("/arm/rt_raw", S + cycle, encoder.encode(np.full(43, float(cycle)), S + cycle))
+        writer.append("/arm/rt_raw", S + cycle, encoder.encode(np.full(43, float(cycle)), S + cycle))
     writer.flush()
     writer.abandon()                                                    # killed: no metadata.yaml
     assert repair(segment).repaired

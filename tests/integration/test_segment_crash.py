@@ -28,7 +28,8 @@ WRITER = """
     cycle = 0
     while True:
         record[0] = cycle
-        segment.write("/r/rt_raw", 1_700_000_000_000_000_000 + cycle * 1_000_000, encoder.encode(record, 0))
+        segment.append("/r/rt_raw", 1_700_000_000_000_000_000 + cycle * 1_000_000, encoder.encode(record, 0))
+        segment.flush_due()
         if cycle % 100 == 0:
             print(cycle, flush=True)
         cycle += 1

@@ -203,11 +203,6 @@ class SegmentWriter:
         with contextlib.suppress(OSError):                   # gone already, or the directory is no longer ours
             self._reserve.unlink()
 
-    def write(self, topic: str, timestamp_ns: int, data: bytes) -> None:
-        """Append one message and flush when due: a writer that needs no say in between."""
-        self.append(topic, timestamp_ns, data)
-        self.flush_due()
-
     def append(self, topic: str, timestamp_ns: int, data: bytes) -> None:
         """Add one message to the segment (MCAP: to its pending chunk, in memory); `flush_due` puts it on disk."""
         with _storage_errors():
