@@ -11,10 +11,10 @@ from __future__ import annotations
 import errno
 import grp
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
@@ -31,6 +31,8 @@ from plem.recording.settings import RecordingSettings
 from plem.robot.config import ARM_SETTINGS, SerialArmConfig
 from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
+
+T = TypeVar("T")
 
 BUSES = ("ethercat", "ethercat_sim", "mock")
 ETHERCAT_BUSES = ("ethercat", "ethercat_sim")
@@ -246,27 +248,10 @@ def _each(error: PlemError) -> list[PlemError]:
     return list(error.errors) if isinstance(error, MultipleErrors) else [error]
 
 
-def _locate(arguments: Mapping[str, str], errors: list[PlemError]) -> Path | None:
+def _collected(errors: list[PlemError], step: Callable[[], T]) -> T | None:
+    """What `step` returns; None when it raises a PlemError, whose problems go to `errors`."""
     try:
-        return Path(locate_package(package_for_launch(arguments.get("description_package"),
-                                                      arguments.get("robot_type"))))
-    except PlemError as error:
-        errors.extend(_each(error))
-        return None
-
-
-def _validate(package: Path, arguments: Mapping[str, str], errors: list[PlemError]) -> ValidationReport | None:
-    try:
-        return require_valid(package, stage=Stage.STARTUP, urdf_file=arguments.get("urdf_file"),
-                             srdf_file=arguments.get("srdf_file"))
-    except PlemError as error:
-        errors.extend(_each(error))
-        return None
-
-
-def _resolve(arguments: Mapping[str, str], dof: int | None, errors: list[PlemError]) -> ResolvedConfig | None:
-    try:
-        return resolve_arm_config(launch_args=arguments, launch_defaults=LAUNCH_DEFAULTS, dof=dof)
+        return step()
     except PlemError as error:
         errors.extend(_each(error))
         return None
@@ -307,19 +292,21 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
     homeless = _home_problems(arguments)
     errors.extend(homeless)
 
-    package = _locate(arguments, errors) if not homeless else None
+    package = None if homeless else _collected(errors, lambda: Path(locate_package(package_for_launch(
+        arguments.get("description_package"), arguments.get("robot_type")))))
     builtin = _builtin_model(package) if package is not None else None
-    report = _validate(package, arguments, errors) if package is not None else None
+    report = None if package is None else _collected(errors, lambda: require_valid(
+        package, stage=Stage.STARTUP, urdf_file=arguments.get("urdf_file"), srdf_file=arguments.get("srdf_file")))
     if builtin is None:
         config_arguments.pop("robot_type", None)  # a custom package: robot_type does not apply
     else:
         config_arguments["robot_type"] = builtin
-    resolved = _resolve(config_arguments, None if builtin or report is None else report.dof, errors)
-    if report is not None and report.files.controllers is not None:
-        try:
-            update_rate(report.files.controllers)
-        except PlemError as error:
-            errors.append(error)
+    dof = None if builtin or report is None else report.dof
+    resolved = _collected(errors, lambda: resolve_arm_config(launch_args=config_arguments,
+                                                            launch_defaults=LAUNCH_DEFAULTS, dof=dof))
+    controllers = report.files.controllers if report is not None else None
+    if controllers is not None:
+        _collected(errors, lambda: update_rate(controllers))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 
