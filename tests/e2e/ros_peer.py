@@ -88,18 +88,19 @@ class RosPeer:
         return self.library.new("builtin_interfaces/msg/Duration", sec=whole, nanosec=round((seconds - whole) * 1e9))
 
     def trajectory(self, points: Sequence[tuple[Sequence[float], float]],
-                   joint_names: Sequence[str] = JOINT_NAMES) -> Any:
-        """A JointTrajectory through (positions, time_from_start) points, at rest at every point.
+                   joint_names: Sequence[str] = JOINT_NAMES, at_rest: bool = True) -> Any:
+        """A JointTrajectory through (positions, time_from_start) points.
 
-        Zero velocities and accelerations make every segment a quintic that starts and ends smoothly;
-        without accelerations the spline is cubic and jumps in acceleration at the start, which the
-        driver refuses for its jerk limit.
+        `at_rest` gives every point zero velocities and accelerations, so each segment is a quintic that starts
+        and ends smoothly and runs as sent; without, the points carry positions only, as `ros2 topic pub` users
+        send them, and the driver smooths them.
         """
         new = self.library.new
         return new("trajectory_msgs/msg/JointTrajectory", joint_names=list(joint_names), points=[
             new("trajectory_msgs/msg/JointTrajectoryPoint", positions=[float(p) for p in positions],
-                velocities=[0.0] * len(positions),
-                accelerations=[0.0] * len(positions), time_from_start=self.duration(at)) for positions, at in points])
+                velocities=[0.0] * len(positions) if at_rest else [],
+                accelerations=[0.0] * len(positions) if at_rest else [], time_from_start=self.duration(at))
+            for positions, at in points])
 
     def send_trajectory(self, trajectory: Any, timeout: float = 5.0) -> bytes:
         """Send a FollowJointTrajectory goal; its id (it must be accepted: plem accepts, then aborts if invalid)."""

@@ -277,6 +277,16 @@ def test_follow_joint_trajectory_moves_the_arm_with_feedback(holding: RosPeer):
     assert np.allclose(peer.position(), target, atol=ARRIVED), (peer.position(), target)
 
 
+def test_a_one_point_positions_only_goal_is_smoothed_and_runs_in_the_time_asked(holding: RosPeer):
+    peer = holding
+    target = toward_middle(peer.position(), 2, 0.15)
+    goal_id = peer.send_trajectory(peer.trajectory([(target, 1.5)], at_rest=False))
+    status, result, _ = peer.follow_goal(goal_id, 10)
+    assert (status, result.error_code) == (SUCCEEDED, 0), result.error_string
+    assert "smoothed at the points" in result.error_string and "1.500 s as asked" in result.error_string
+    assert np.allclose(peer.position(), target, atol=ARRIVED), (peer.position(), target)
+
+
 def test_goal_with_wrong_joint_names_is_aborted_as_invalid_joints(holding: RosPeer):
     peer = holding
     start = peer.position()

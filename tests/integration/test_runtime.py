@@ -191,10 +191,31 @@ def test_trajectory_is_followed_and_succeeds(holding):
     assert np.allclose(trace.position[-1], [0.4, -0.2, 0.3, 0.0, 0.1, 0.2], atol=2e-3)
 
 
-def test_trajectory_too_fast_is_rejected_naming_the_limit(holding):
-    with pytest.raises(CommandRejected) as caught:
-        holding.execute_trajectory(quintic_trajectory([(0.2, [1.0] * 6)]))
-    assert "limit" in caught.value.render()
+def test_trajectory_too_fast_runs_slower_within_the_limits_and_says_how_much(holding):
+    handle = holding.execute_trajectory(quintic_trajectory([(0.2, [1.0] * 6)]))
+    trace = step_recording(holding, 20_000, until=lambda: handle.done)
+    result = handle.wait(0)
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED
+    assert "slowed to stay within the limits" in result.message and "instead of 0.200 s" in result.message
+    assert_within_limits(holding, trace.commands())
+    assert np.allclose(trace.position[-1], [1.0] * 6, atol=2e-3)
+    started = [e for e in holding.events.recent({EventKind.MOTION_STARTED}) if e.cause == "trajectory"][-1]
+    assert "instead of 0.200 s" in started.reason
+
+
+@pytest.mark.parametrize("shape", ["positions", "cubic"])
+def test_positions_only_and_cubic_trajectories_run_within_the_limits(holding, shape):
+    positions = [[0.1 * k, -0.05 * k, 0.08 * k, 0.0, 0.05 * k, -0.1 * k] for k in range(1, 6)]
+    points = tuple(TrajectoryPoint(tuple(q), 0.5 * k, None if shape == "positions" else
+                                   tuple((0.0 if k == 5 else 0.2 * np.sign(v)) for v in q))
+                   for k, q in enumerate(positions, start=1))
+    handle = holding.execute_trajectory(JointTrajectory(tuple(f"joint{i}" for i in range(6)), points))
+    trace = step_recording(holding, 20_000, until=lambda: handle.done)
+    result = handle.wait(0)
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED, result.message
+    assert "smoothed at the points" in result.message
+    assert_within_limits(holding, trace.commands())
+    assert np.allclose(trace.position[-1], positions[-1], atol=2e-3)
 
 
 def test_new_motion_preempts_the_running_one_without_a_jump(holding):

@@ -132,6 +132,7 @@ class StartMotion:
     tolerances: TrajectoryTolerances
     handle: CommandHandle
     label: str = "motion"
+    note: str = ""  # how the motion differs from what was asked (re-timed to the limits), for the result
 
 
 @dataclass
@@ -162,6 +163,7 @@ class ActiveMotion:
     tolerances: TrajectoryTolerances
     handle: CommandHandle | None
     label: str
+    note: str = ""
     settle_deadline_cycle: int | None = None
     ended: bool = False
 

@@ -58,7 +58,7 @@ class ArmLimits:
         maxima: np.ndarray = getattr(self, f"max_{kind}")
         return maxima
 
-    def check_vector(self, values: Sequence[float], what: str) -> np.ndarray:
+    def check_vector(self, values: Sequence[float] | np.ndarray, what: str) -> np.ndarray:
         """`values` as a float array of length dof with finite entries, else CommandRejected."""
         try:
             array = np.asarray(values, dtype=float).reshape(-1)
@@ -75,10 +75,10 @@ class ArmLimits:
                                   why=f"not finite for {', '.join(bad)}", how="send finite values")
         return array
 
-    def check_positions(self, positions: np.ndarray, what: str) -> None:
-        """Reject positions outside [min_position, max_position], naming the joint, limit and value."""
-        low = positions < self.min_position
-        high = positions > self.max_position
+    def check_positions(self, positions: np.ndarray, what: str, tolerance: float = 0.0) -> None:
+        """Reject positions more than `tolerance` outside [min_position, max_position], naming the joint and value."""
+        low = positions < self.min_position - tolerance
+        high = positions > self.max_position + tolerance
         if low.any() or high.any():
             i = int(np.flatnonzero(low | high)[0])
             bound = self.min_position[i] if low[i] else self.max_position[i]

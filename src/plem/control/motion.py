@@ -17,6 +17,9 @@ from plem.control.limits import ArmLimits
 from plem.control.polynomial import PolynomialMotion, from_ruckig
 from plem.errors import CommandRejected
 
+#: Where a motion starts: position, velocity and acceleration per joint.
+StartState = tuple[np.ndarray, np.ndarray, np.ndarray]
+
 
 class Motion(Protocol):
     """A planned motion sampled by the loop; `t` is seconds since the motion became active."""
@@ -63,15 +66,21 @@ class RuckigMotion:
         return np.array([e.min for e in extrema]), np.array([e.max for e in extrema])
 
 
+#: ruckig plans this far inside the limits, so that rounding in the piecewise-polynomial form never crosses them.
+INSIDE = 1.0 - 1e-6
+#: How far past a position limit ruckig's extrema may lie from rounding alone (rad).
+POSITION_ROUNDING = 1e-9
+
+
 def _input(limits: ArmLimits, position: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
            scale: float) -> InputParameter:
     parameters = InputParameter(limits.dof)
     parameters.current_position = position.tolist()
     parameters.current_velocity = velocity.tolist()
     parameters.current_acceleration = acceleration.tolist()
-    parameters.max_velocity = (limits.max_velocity * scale).tolist()
-    parameters.max_acceleration = (limits.max_acceleration * scale**2).tolist()
-    parameters.max_jerk = (limits.max_jerk * scale**3).tolist()
+    parameters.max_velocity = (limits.max_velocity * scale * INSIDE).tolist()
+    parameters.max_acceleration = (limits.max_acceleration * scale**2 * INSIDE).tolist()
+    parameters.max_jerk = (limits.max_jerk * scale**3 * INSIDE).tolist()
     return parameters
 
 
@@ -86,13 +95,13 @@ def _calculate(parameters: InputParameter, dof: int, what: str) -> RuckigMotion:
     return RuckigMotion(trajectory)
 
 
-def plan_point_to_point(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, np.ndarray], target: np.ndarray,
-                        speed_scale: float = 1.0) -> RuckigMotion:
+def plan_point_to_point(limits: ArmLimits, start: StartState, target: np.ndarray,
+                        speed_scale: float = 1.0, minimum_duration: float = 0.0) -> RuckigMotion:
     """Time-optimal motion from `start` (position, velocity, acceleration) to rest at `target`.
 
     `speed_scale` in (0, 1] scales time: velocity, acceleration and jerk limits by s, s² and s³, so the
-    motion follows the same path and takes 1/s as long. The target must lie
-    within the position limits, and so must every position the motion passes through.
+    motion follows the same path and takes 1/s as long; the motion takes at least `minimum_duration` s.
+    The target must lie within the position limits, and so must every position the motion passes through.
     """
     if not (isinstance(speed_scale, (int, float)) and math.isfinite(speed_scale) and 0 < speed_scale <= 1):
         raise CommandRejected("speed_scale is out of range", what="0 < speed_scale <= 1",
@@ -106,13 +115,16 @@ def plan_point_to_point(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, 
     limits.check_positions(target, "the target")
     parameters = _input(limits, *start, scale=float(speed_scale))
     parameters.target_position = target.tolist()
+    if minimum_duration > 0.0:
+        parameters.minimum_duration = minimum_duration
     motion = _calculate(parameters, limits.dof, "the point-to-point motion")
     low, high = motion.position_range()
-    limits.check_positions(np.where(low < limits.min_position, low, high), "the motion toward the target")
+    limits.check_positions(np.where(low < limits.min_position, low, high), "the motion toward the target",
+                           tolerance=POSITION_ROUNDING)
     return motion
 
 
-def plan_stop(limits: ArmLimits, start: tuple[np.ndarray, np.ndarray, np.ndarray]) -> RuckigMotion:
+def plan_stop(limits: ArmLimits, start: StartState) -> RuckigMotion:
     """The quickest jerk-limited motion from `start` to standstill (used for cancels and faults)."""
     parameters = _input(limits, *start, scale=1.0)
     parameters.control_interface = ControlInterface.Velocity

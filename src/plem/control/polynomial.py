@@ -48,6 +48,55 @@ def hermite_coefficients(duration: np.ndarray, p0: np.ndarray, p1: np.ndarray, v
     return c
 
 
+def derivative_stack(coefficients: np.ndarray) -> np.ndarray:
+    """Coefficients of the 0th to 4th time derivative, stacked: (5, segments, ORDER, dof)."""
+    stack = [coefficients]
+    for _ in range(4):
+        derivative = np.zeros_like(coefficients)
+        derivative[:, :-1] = stack[-1][:, 1:] * np.arange(1, ORDER)[:, None]
+        stack.append(derivative)
+    return np.stack(stack)
+
+
+def extrema(coefficients: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lowest and highest value of each polynomial row (lowest order first) on [0, its duration].
+
+    The candidates are both ends and the real stationary points inside, found for all rows at once as
+    eigenvalues of companion matrices, grouped by the derivative's degree.
+    """
+    count, size = coefficients.shape
+    scaled = coefficients * durations[:, None] ** np.arange(size)  # in s = t / duration, s in [0, 1]
+    slope = scaled[:, 1:] * np.arange(1, size)
+    magnitude = np.abs(slope)
+    significant = magnitude > 1e-12 * magnitude.max(axis=1, keepdims=True)
+    degree = np.where(significant.any(axis=1), size - 2 - np.argmax(significant[:, ::-1], axis=1), 0)
+    points = np.full((count, size), np.nan)
+    points[:, 0], points[:, 1] = 0.0, 1.0
+    for d in range(1, size - 1):
+        rows = np.flatnonzero(degree == d)
+        if not rows.size:
+            continue
+        monic = slope[rows, :d] / slope[rows, d:d + 1]
+        companion = np.zeros((rows.size, d, d))
+        companion[:, np.arange(1, d), np.arange(d - 1)] = 1.0
+        companion[:, :, -1] = -monic
+        roots = np.linalg.eigvals(companion)
+        inside = (np.abs(roots.imag) < 1e-6) & (roots.real > 0.0) & (roots.real < 1.0)
+        points[rows, 2:2 + d] = np.where(inside, roots.real, np.nan)
+    powers = points[:, :, None] ** np.arange(size)
+    values = np.einsum("rcp,rp->rc", np.nan_to_num(powers), scaled)
+    values[np.isnan(points)] = np.nan
+    return np.nanmin(values, axis=1), np.nanmax(values, axis=1)
+
+
+def segment_ranges(derivatives: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per derivative order 0-3, segment and joint, the lowest and highest value: two (4, segments, dof) arrays."""
+    segments, dof = derivatives.shape[1], derivatives.shape[3]
+    rows = derivatives[:4].transpose(0, 1, 3, 2).reshape(4 * segments * dof, ORDER)
+    low, high = extrema(rows, np.tile(np.repeat(durations, dof), 4))
+    return low.reshape(4, segments, dof), high.reshape(4, segments, dof)
+
+
 class PolynomialMotion:
     """A motion sampled from knot times and coefficient arrays, which it views without copying.
 
@@ -123,7 +172,11 @@ def _ruckig_knots(trajectory: Any) -> list[float]:  # a ruckig.Trajectory: rucki
 
 
 def from_ruckig(trajectory: Any, dof: int) -> PolynomialMotion:
-    """The ruckig trajectory as a piecewise polynomial, exact: quintic Hermite pieces between phase boundaries."""
+    """The ruckig trajectory as a piecewise polynomial, exact: a cubic per joint between phase boundaries.
+
+    Each piece is the Taylor cubic from the state at its start with the phase's constant jerk, which stays
+    well conditioned for the microsecond phases ruckig produces (a Hermite fit would divide by T⁵).
+    """
     knots = _ruckig_knots(trajectory)
     states = np.array([[np.asarray(v, dtype=float) for v in trajectory.at_time(t)]
                        for t in knots]).reshape(len(knots), 3, dof)
@@ -131,8 +184,7 @@ def from_ruckig(trajectory: Any, dof: int) -> PolynomialMotion:
     if len(knots) < 2:
         return PolynomialMotion(np.array([0.0]), np.zeros((0, ORDER, dof)), final)
     times = np.array(knots)
-    coefficients = hermite_coefficients(np.diff(times)[:, None], states[:-1, 0], states[1:, 0], states[:-1, 1],
-                                        states[1:, 1], states[:-1, 2], states[1:, 2],
-                                        np.full(len(knots) - 1, 5))
+    coefficients = np.zeros((len(knots) - 1, ORDER, dof))
+    coefficients[:, 0], coefficients[:, 1], coefficients[:, 2] = states[:-1, 0], states[:-1, 1], states[:-1, 2] / 2
+    coefficients[:, 3] = np.diff(states[:, 2], axis=0) / (6 * np.diff(times)[:, None])
     return PolynomialMotion(times, coefficients, final)
-

@@ -355,6 +355,8 @@ class ArmRuntime:
         if self.mode is Mode.TRAJECTORY:
             self._set_mode(Mode.HOLD, "motion_finished", active.label if active else "motion ended")
         if active is not None and active.handle is not None and result is not None:
+            if active.note and result.outcome in (TrajectoryOutcome.SUCCEEDED, TrajectoryOutcome.ABORTED):
+                result = TrajectoryResult(result.outcome, f"{result.message}; {active.note}", result.error_code)
             self.events.emit(EventKind.MOTION_FINISHED, result.outcome.name.lower(), result.message, self.mode,
                              self.cycle_count)
             active.handle.finish(result, motion_error(result))
@@ -425,11 +427,12 @@ class ArmRuntime:
             previous.handle.finish(TrajectoryResult.preempted())
             self.events.emit(EventKind.MOTION_FINISHED, "preempted", previous.label, self.mode, self.cycle_count)
         self._active = ActiveMotion(command.motion, self.cycle_count, command.tolerances, command.handle,
-                                    command.label)
+                                    command.label, command.note)
         self._rebase()
         command.handle.accept()
         self._set_mode(Mode.TRAJECTORY, "motion_started", command.label)
-        self.events.emit(EventKind.MOTION_STARTED, command.label, f"{command.motion.duration:.3f} s", self.mode,
+        self.events.emit(EventKind.MOTION_STARTED, command.label,
+                         f"{command.motion.duration:.3f} s" + (f": {command.note}" if command.note else ""), self.mode,
                          self.cycle_count)
 
     def _request_mode(self, requested: Mode, handle: CommandHandle) -> None:

@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.polynomial import polynomial
 
 from plem.control.limits import KINDS, ArmLimits, limit_exceeded
-from plem.control.polynomial import ORDER, PolynomialMotion, hermite_coefficients
+from plem.control.polynomial import ORDER, PolynomialMotion, derivative_stack, hermite_coefficients, segment_ranges
 from plem.description.limits import UNITS
 from plem.errors import CommandRejected
 
@@ -43,7 +44,7 @@ class JointNamesRejected(CommandRejected):
     """The trajectory's joint names are not exactly the arm's joints (FollowJointTrajectory INVALID_JOINTS)."""
 
 
-def _beyond(value: np.ndarray | float, limit: np.ndarray | float) -> np.ndarray | bool:
+def beyond(value: np.ndarray | float, limit: np.ndarray | float) -> np.ndarray | bool:
     """Whether `value` exceeds the upper bound `limit` by more than the rounding slack (elementwise)."""
     return value > limit + SLACK * np.maximum(1.0, np.abs(limit))
 
@@ -115,16 +116,6 @@ def _coefficients(times: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray
     return c, kinds
 
 
-def _derivatives(coefficients: np.ndarray) -> np.ndarray:
-    """Coefficients of the 0th to 4th time derivative, stacked: (5, segments, ORDER, dof)."""
-    stack = [coefficients]
-    for _ in range(4):
-        derivative = np.zeros_like(coefficients)
-        derivative[:, :-1] = stack[-1][:, 1:] * np.arange(1, ORDER)[:, None]
-        stack.append(derivative)
-    return np.stack(stack)
-
-
 def _extrema(coefficients: np.ndarray, duration: float) -> tuple[float, float, float, float]:
     """(min, time of min, max, time of max) of a polynomial on [0, duration], from its stationary points."""
     scaled = coefficients * duration ** np.arange(coefficients.size)  # in s = t / duration, s in [0, 1]
@@ -142,7 +133,7 @@ def _extrema(coefficients: np.ndarray, duration: float) -> tuple[float, float, f
 
 
 def _near_beyond(value: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """`_beyond` with a little less slack, so that the exact check sees every case that might fail it."""
+    """`beyond` with a little less slack, so that the exact check sees every case that might fail it."""
     finite = np.isfinite(limit)
     return value > np.where(finite, limit - SLACK * np.maximum(1.0, np.abs(np.where(finite, limit, 0.0))), limit)
 
@@ -153,37 +144,6 @@ def _suspect_jumps(limits: ArmLimits, jumps: np.ndarray, cycle_time_s: float) ->
     for k in (1, 2):
         suspect |= _near_beyond(np.abs(jumps[k]) / cycle_time_s, limits.maximum(KINDS[k + 1])).any(axis=1)
     return suspect
-
-
-def _extrema_of_many(coefficients: np.ndarray, durations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest and highest value of each polynomial row (lowest order first) on [0, its duration].
-
-    The candidates are both ends and the real stationary points inside, found for all rows at once as
-    eigenvalues of companion matrices, grouped by the derivative's degree.
-    """
-    count, size = coefficients.shape
-    scaled = coefficients * durations[:, None] ** np.arange(size)  # in s = t / duration, s in [0, 1]
-    slope = scaled[:, 1:] * np.arange(1, size)
-    magnitude = np.abs(slope)
-    significant = magnitude > 1e-12 * magnitude.max(axis=1, keepdims=True)
-    degree = np.where(significant.any(axis=1), size - 2 - np.argmax(significant[:, ::-1], axis=1), 0)
-    points = np.full((count, size), np.nan)
-    points[:, 0], points[:, 1] = 0.0, 1.0
-    for d in range(1, size - 1):
-        rows = np.flatnonzero(degree == d)
-        if not rows.size:
-            continue
-        monic = slope[rows, :d] / slope[rows, d:d + 1]
-        companion = np.zeros((rows.size, d, d))
-        companion[:, np.arange(1, d), np.arange(d - 1)] = 1.0
-        companion[:, :, -1] = -monic
-        roots = np.linalg.eigvals(companion)
-        inside = (np.abs(roots.imag) < 1e-6) & (roots.real > 0.0) & (roots.real < 1.0)
-        points[rows, 2:2 + d] = np.where(inside, roots.real, np.nan)
-    powers = points[:, :, None] ** np.arange(size)
-    values = np.einsum("rcp,rp->rc", np.nan_to_num(powers), scaled)
-    values[np.isnan(points)] = np.nan
-    return np.nanmin(values, axis=1), np.nanmax(values, axis=1)
 
 
 def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_names: tuple[str, ...]) -> None:
@@ -208,56 +168,94 @@ def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_
                 how=f"end the trajectory at rest: set the last point's {field} to 0 (or leave them out)")
 
 
+@dataclass(frozen=True, eq=False)
+class Waypoints:
+    """A validated trajectory in the arm's joint order, its knots as the spline runs through them.
+
+    Knot 0 is the arm's state at activation when the first point lies after t = 0 (then `first_point` is 1);
+    `states` holds position, velocity and acceleration per knot, zero where the point gives none.
+    """
+
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    states: np.ndarray
+    has_velocities: np.ndarray
+    has_accelerations: np.ndarray
+    start: np.ndarray
+    first_point: int
+
+    @property
+    def point_knots(self) -> np.ndarray:
+        """The knot index of each trajectory point."""
+        return np.arange(self.first_point, len(self.times))
+
+
+def read_waypoints(trajectory: JointTrajectory, limits: ArmLimits, start_positions: Sequence[float] | np.ndarray,
+                   start_velocities: Sequence[float] | np.ndarray,
+                   start_accelerations: Sequence[float] | np.ndarray) -> Waypoints:
+    """Validate `trajectory` against the arm and its state at activation; the knots in the arm's order."""
+    order = _joint_order(trajectory.joint_names, limits)
+    start = np.stack([limits.check_vector(start_positions, "the start positions"),
+                      limits.check_vector(start_velocities, "the start velocities"),
+                      limits.check_vector(start_accelerations, "the start accelerations")])
+    if not trajectory.points:
+        raise CommandRejected("the trajectory has no points", what="at least one point",
+                              why="points is empty", how="add the points to move through")
+    names = tuple(trajectory.joint_names)
+    times: list[float] = []
+    rows, has_v, has_a = [], [], []
+    for index, point in enumerate(trajectory.points):
+        if point.accelerations is not None and point.velocities is None:
+            raise CommandRejected(f"point {index} has accelerations but no velocities",
+                                  what="velocities wherever accelerations are given",
+                                  why=f"point {index} carries positions and accelerations only",
+                                  how="add velocities to the point, or drop its accelerations")
+        times.append(_time(point, index, times[-1] if times else -math.inf))
+        rows.append([np.zeros(limits.dof) if values is None else _field(values, index, field, names, order)
+                     for field, values in (("positions", point.positions), ("velocities", point.velocities),
+                                           ("accelerations", point.accelerations))])
+        has_v.append(point.velocities is not None)
+        has_a.append(point.accelerations is not None)
+    states = np.array(rows)  # (points, 3, dof): positions, velocities, accelerations in arm order
+    _check_ends(states, times[0], start, limits.joint_names)
+    if times[0] > 0.0:
+        times, states = [0.0, *times], np.concatenate([start[None], states])
+        has_v, has_a = [True, *has_v], [True, *has_a]
+    return Waypoints(limits.joint_names, np.array(times), states, np.array(has_v), np.array(has_a), start,
+                     first_point=len(times) - len(trajectory.points))
+
+
 class Spline(PolynomialMotion):
-    """Piecewise polynomial through a validated trajectory, in the arm's joint order, sampled every cycle."""
+    """Piecewise polynomial through a validated trajectory, in the arm's joint order, sampled every cycle.
+
+    `point_knots` holds the knot index of each trajectory point, so that a problem is reported at the point
+    the user knows; other knots (the start state, or where a re-timed motion changes phase) go by their time.
+    """
 
     def __init__(self, joint_names: tuple[str, ...], times: np.ndarray, coefficients: np.ndarray,
-                 kinds: tuple[str, ...], start: np.ndarray, final: np.ndarray, first_point: int) -> None:
+                 kinds: tuple[str, ...], start: np.ndarray, final: np.ndarray, point_knots: np.ndarray) -> None:
         super().__init__(times, coefficients, final)
         self.joint_names = joint_names
         self.segment_kinds = kinds
         self.segment_starts = times[:-1]
         self._start = start
-        self._first_point = first_point  # knot index of trajectory point 0: 1 when a start segment precedes it
-        self._derivatives = _derivatives(coefficients)
+        self._point_knots = point_knots
+        self._derivatives = derivative_stack(coefficients)
 
     @classmethod
     def build(cls, trajectory: JointTrajectory, limits: ArmLimits, start_positions: Sequence[float],
               start_velocities: Sequence[float], start_accelerations: Sequence[float]) -> Spline:
         """Validate `trajectory` against the arm and its state at activation, and fit the segments."""
-        order = _joint_order(trajectory.joint_names, limits)
-        start = np.stack([limits.check_vector(start_positions, "the start positions"),
-                          limits.check_vector(start_velocities, "the start velocities"),
-                          limits.check_vector(start_accelerations, "the start accelerations")])
-        if not trajectory.points:
-            raise CommandRejected("the trajectory has no points", what="at least one point",
-                                  why="points is empty", how="add the points to move through")
-        names = tuple(trajectory.joint_names)
-        times: list[float] = []
-        rows, has_v, has_a = [], [], []
-        for index, point in enumerate(trajectory.points):
-            if point.accelerations is not None and point.velocities is None:
-                raise CommandRejected(f"point {index} has accelerations but no velocities",
-                                      what="velocities wherever accelerations are given",
-                                      why=f"point {index} carries positions and accelerations only",
-                                      how="add velocities to the point, or drop its accelerations")
-            times.append(_time(point, index, times[-1] if times else -math.inf))
-            rows.append([np.zeros(limits.dof) if values is None else _field(values, index, field, names, order)
-                         for field, values in (("positions", point.positions), ("velocities", point.velocities),
-                                               ("accelerations", point.accelerations))])
-            has_v.append(point.velocities is not None)
-            has_a.append(point.accelerations is not None)
-        states = np.array(rows)  # (points, 3, dof): positions, velocities, accelerations in arm order
-        _check_ends(states, times[0], start, limits.joint_names)
-        if times[0] > 0.0:
-            times, states = [0.0, *times], np.concatenate([start[None], states])
-            has_v, has_a = [True, *has_v], [True, *has_a]
-        coefficients, kinds = _coefficients(np.array(times), states[:, 0], states[:, 1], states[:, 2],
-                                            np.array(has_v), np.array(has_a))
-        final = states[-1].copy()
-        final.flags.writeable = False
-        return cls(limits.joint_names, np.array(times), coefficients, kinds, start, final,
-                   first_point=len(times) - len(trajectory.points))
+        return cls.through(read_waypoints(trajectory, limits, start_positions, start_velocities, start_accelerations))
+
+    @classmethod
+    def through(cls, waypoints: Waypoints) -> Spline:
+        """The spline joint_trajectory_controller interpolates through `waypoints`."""
+        states = waypoints.states
+        coefficients, kinds = _coefficients(waypoints.times, states[:, 0], states[:, 1], states[:, 2],
+                                            waypoints.has_velocities, waypoints.has_accelerations)
+        return cls(waypoints.joint_names, waypoints.times, coefficients, kinds, waypoints.start, states[-1],
+                   waypoints.point_knots)
 
     def check_limits(self, limits: ArmLimits, cycle_time_s: float) -> None:
         """Reject the spline if a joint leaves its range or exceeds a derivative limit anywhere along it."""
@@ -282,28 +280,26 @@ class Spline(PolynomialMotion):
 
     def _suspect_segments(self, limits: ArmLimits, durations: np.ndarray) -> np.ndarray:
         """Per segment, whether some joint may leave its range or exceed a derivative limit inside it."""
-        segments, dof = len(durations), limits.dof
-        suspect = np.zeros(segments, dtype=bool)
-        repeat = np.repeat(durations, dof)
-        for k in range(4):
-            rows = self._derivatives[k].transpose(0, 2, 1).reshape(segments * dof, ORDER)
-            low, high = (values.reshape(segments, dof) for values in _extrema_of_many(rows, repeat))
-            if k == 0:
-                suspect |= (_near_beyond(-low, -limits.min_position) | _near_beyond(high, limits.max_position)).any(1)
-            else:
-                suspect |= _near_beyond(np.maximum(-low, high), limits.maximum(KINDS[k])).any(1)
-        return suspect
+        low, high = segment_ranges(self._derivatives, durations)
+        suspect = (_near_beyond(-low[0], -limits.min_position) | _near_beyond(high[0], limits.max_position)).any(1)
+        for k in (1, 2, 3):
+            suspect |= _near_beyond(np.maximum(-low[k], high[k]), limits.maximum(KINDS[k])).any(1)
+        result: np.ndarray = suspect
+        return result
 
     def _knot_name(self, q: int) -> str:
-        """The knot as the user knows it: a point index, or the start state."""
-        return f"point {q - self._first_point}" if q >= self._first_point else "the start state"
+        """The knot as the user knows it: a point index, the start state, or its time."""
+        points = np.flatnonzero(self._point_knots == q)
+        if points.size:
+            return f"point {int(points[0])}"
+        return "the start state" if q == 0 else f"t = {self.knots[q]:.6g} s"
 
     def _check_jumps(self, limits: ArmLimits, jumps: np.ndarray, q: int, cycle_time_s: float) -> None:
         """A velocity or acceleration step at a knot is commanded within one cycle: judge it as such."""
         for k in (1, 2):
             limit = limits.maximum(KINDS[k + 1])
             level = np.abs(jumps[k]) / cycle_time_s
-            for j in np.flatnonzero(_beyond(level, limit)):
+            for j in np.flatnonzero(beyond(level, limit)):
                 where = (f"the {KINDS[k]} step of {abs(jumps[k, j]):.6g} {UNITS[f'max_{KINDS[k]}']} at "
                          f"{self._knot_name(q)} (t = {self.knots[q]:.6g} s), made within one "
                          f"{cycle_time_s * 1e3:.6g} ms cycle,")
@@ -324,7 +320,7 @@ class Spline(PolynomialMotion):
                     continue
                 low, t_low, high, t_high = _extrema(self._derivatives[k, s, :, j], duration)
                 value, t = (low, t_low) if -low > high else (high, t_high)
-                if _beyond(abs(value), limit):
+                if beyond(abs(value), limit):
                     where = f"the trajectory at t = {float(self.knots[s]) + t:.6g} s ({between})"
                     error = limit_exceeded(KINDS[k], joint, value, limit, where)
                     error.how = SMOOTH_HOW if k == 3 and self.segment_kinds[s] != "quintic" else SLOWER_HOW
@@ -333,7 +329,7 @@ class Spline(PolynomialMotion):
     def _check_position(self, limits: ArmLimits, j: int, position: float, t: float, where: str) -> None:
         """Reject one joint's position outside [min_position, max_position], saying when along the trajectory."""
         low, high = float(limits.min_position[j]), float(limits.max_position[j])
-        if not (_beyond(-position, -low) or _beyond(position, high)):
+        if not (beyond(-position, -low) or beyond(position, high)):
             return
         joint = self.joint_names[j]
         side, bound = ("min", low) if position < low else ("max", high)

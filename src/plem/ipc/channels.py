@@ -102,7 +102,7 @@ class RobotChannels:
         events, faults = self.rings["events"], self.rings["faults"]
 
         def publish(event: Event) -> None:
-            record = event_record(event)
+            record = event_record(event, events.slot_bytes)
             events.write(record)
             if event.kind in FAULT_KINDS:
                 faults.write(record)

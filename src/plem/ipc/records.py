@@ -72,12 +72,19 @@ class RawRecorder:
         self._write(self.record)
 
 
-def event_record(event: Event) -> bytes:
-    """An event as one JSON record."""
-    return json.dumps({"kind": event.kind.value, "cause": event.cause, "reason": event.reason,
-                       "mode": event.mode.name, "cycle": event.cycle, "monotonic_ns": event.monotonic_ns,
-                       "wall_time": event.wall_time,
-                       "previous_mode": None if event.previous_mode is None else event.previous_mode.name}).encode()
+def event_record(event: Event, max_bytes: int = 1024) -> bytes:
+    """An event as one JSON record of at most `max_bytes`; a reason too long for that is cut short, marked '…'."""
+    reason = event.reason
+    while True:
+        record = json.dumps({"kind": event.kind.value, "cause": event.cause[:64], "reason": reason,
+                             "mode": event.mode.name, "cycle": event.cycle, "monotonic_ns": event.monotonic_ns,
+                             "wall_time": event.wall_time,
+                             "previous_mode": None if event.previous_mode is None else event.previous_mode.name
+                             }).encode()
+        if len(record) <= max_bytes or not reason:
+            return record
+        keep = max(0, len(reason) * max_bytes // len(record) - 16)
+        reason = reason[:keep] + "…" if keep else ""
 
 
 def event_from_record(record: bytes) -> Event:

@@ -25,9 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from plem.control.motion import plan_point_to_point
+from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
-from plem.control.spline import Spline
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import (
@@ -50,6 +49,7 @@ from plem.ipc.requests import (
     tolerances_json,
 )
 from plem.launch.component import announce, begin
+from plem.planning import fit_to_limits
 
 #: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.
 PREEMPTION_LEAD_S = 0.02
@@ -62,7 +62,6 @@ MAX_PENDING_OUTPUT = 1 << 20
 POLL_S = 0.0005
 RESTART_HOW = "check the robot with `plem state`; restart it with `plem launch` if its loop stopped"
 COUNTERS_PERIOD_S = 0.1
-StartState = tuple[np.ndarray, np.ndarray, np.ndarray]  # position, velocity and acceleration
 _log = logging.getLogger("plem.command_service")
 
 
@@ -245,13 +244,13 @@ class CommandService:
             prepared = next(self._tokens)
             self._write_intake({"op": "prepare", "token": prepared, "lead_s": PREEMPTION_LEAD_S * 2 ** attempt})
             start = np.array(self._await(prepared)["start"], dtype=float)
-            motion = plan((start[0], start[1], start[2]))
+            motion, note = plan((start[0], start[1], start[2]))
             slot = self._take_slot()
             segments = self.slab.write(slot, motion)
             token = next(self._tokens)
             self._commands[token] = _Command(client, request.id, slot)
             self._write_intake({"op": "start", "token": token, "prepared": prepared, "slot": slot,
-                                "segments": segments, "label": label,
+                                "segments": segments, "label": label, "note": note,
                                 "tolerances": None if request.args["tolerances"] is None
                                 else tolerances_json(request.args["tolerances"])})
             answer = self._await(token)
@@ -267,17 +266,16 @@ class CommandService:
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop the robot first")
 
-    def _planner(self, request: CheckedRequest) -> Callable[[StartState], PolynomialMotion]:
+    def _planner(self, request: CheckedRequest) -> Callable[[StartState], tuple[PolynomialMotion, str]]:
+        """What plans the request's motion from a start state: the motion, and how it differs from the request."""
         limits, args = self.limits, request.args
         if request.op == "move_joints":
-            return lambda start: plan_point_to_point(limits, start, args["target"], args["speed_scale"]).polynomial()
+            return lambda start: (plan_point_to_point(limits, start, args["target"], args["speed_scale"]).polynomial(),
+                                  "")
 
-        def fit(start: StartState) -> PolynomialMotion:
-            position, velocity, acceleration = start
-            spline = Spline.build(args["trajectory"], limits, position.tolist(), velocity.tolist(),
-                                  acceleration.tolist())
-            spline.check_limits(limits, self.cycle_time_s)
-            return spline
+        def fit(start: StartState) -> tuple[PolynomialMotion, str]:
+            timed = fit_to_limits(args["trajectory"], limits, start, self.cycle_time_s)
+            return timed.motion, timed.note()
 
         return fit
 

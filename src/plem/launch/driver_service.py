@@ -36,6 +36,8 @@ STATS_PERIOD_S = 0.1
 PREPARED_KEPT = 16
 #: Characters of each text of an error on the outcomes ring (its 4096-byte slot holds four of them).
 OUTCOME_TEXT_CHARS = 600
+#: Longest note on how a motion was re-timed that travels with it to its result.
+NOTE_CHARACTERS = 400
 #: A motion's first sample may differ this much (rad, rad/s, rad/s²) from the state it was planned from.
 START_MATCH = 1e-6
 _log = logging.getLogger("plem.rt_driver")
@@ -164,11 +166,12 @@ class DriverService:
                                   how="retry; restart the robot if it happens again")
         tolerances = command.get("tolerances")
         label = str(command.get("label", "motion"))[:32]
+        note = str(command.get("note", ""))[:NOTE_CHARACTERS]
         handle = CommandHandle(label)
         self._pending[token] = _Pending(handle, slot)
         self.robot.runtime.inbox.append(StartMotion(motion, basis, activation,
                                                     TrajectoryTolerances(**tolerances) if tolerances
-                                                    else TrajectoryTolerances(), handle, label))
+                                                    else TrajectoryTolerances(), handle, label, note))
 
     def _answer_pending(self) -> None:
         for token, pending in list(self._pending.items()):

@@ -24,14 +24,15 @@ from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
 from plem.control.loop import CycleLoop, LoopSettings, OverrunWindow
 from plem.control.modes import Mode
-from plem.control.motion import Motion, plan_point_to_point
+from plem.control.motion import Motion, StartState, plan_point_to_point
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
-from plem.control.trajectory import JointTrajectory, Spline, TrajectoryTolerances
+from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus.bus import BusSetup, IBus
 from plem.ipc.request_bounds import point_count
+from plem.planning import fit_to_limits
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 
@@ -46,7 +47,6 @@ MAX_SWITCH_INTERVAL_S = 0.0002
 SWITCH_INTERVALS_PER_CYCLE = 5  # another thread holds the interpreter for at most a fifth of a period
 DEFAULT_COUNTS_PER_RADIAN = MOTOR_ENCODER_COUNTS * LARGE_JOINT_GEAR / (2 * math.pi)
 
-StartState = tuple[np.ndarray, np.ndarray, np.ndarray]  # position, velocity and acceleration
 
 
 _log = logging.getLogger("plem.robot")
@@ -263,31 +263,34 @@ class Robot:
         Returns once the loop accepted the motion; wait on the handle for the result.
         """
         goal = self.limits.check_vector(target, "the target")
-        return self._submit(lambda start: plan_point_to_point(self.limits, start, goal, speed_scale),
+        return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale), ""),
                             tolerances, "move_joints")
 
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
-        """Follow a JointTrajectory with ros2_control's spline semantics; rejected up front if it breaks a limit."""
+        """Follow a JointTrajectory with ros2_control's spline semantics, re-timed where it would break a limit.
+
+        Refused up front only for what no timing can fix (see `plem.planning.fit_to_limits`); the result's
+        message says when and how the motion was re-timed.
+        """
         point_count(len(trajectory.points))
-        def plan(start: StartState) -> Spline:
-            position, velocity, acceleration = start
-            spline = Spline.build(trajectory, self.limits, position.tolist(), velocity.tolist(), acceleration.tolist())
-            spline.check_limits(self.limits, self.runtime.dt)
-            return spline
+
+        def plan(start: StartState) -> tuple[Motion, str]:
+            timed = fit_to_limits(trajectory, self.limits, start, self.runtime.dt)
+            return timed.motion, timed.note()
 
         return self._submit(plan, tolerances, "trajectory")
 
-    def _submit(self, plan: Callable[[StartState], Motion],
+    def _submit(self, plan: Callable[[StartState], tuple[Motion, str]],
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
         """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
         tolerances = tolerances or TrajectoryTolerances()
         for attempt in range(PLAN_ATTEMPTS):
             basis: PlanBasis = self.runtime.basis
             activation, start = self._start_state(basis, attempt)
-            motion = plan(start)
+            motion, note = plan(start)
             handle = CommandHandle(label, self._pump)
-            self._send(StartMotion(motion, basis, activation, tolerances, handle, label))
+            self._send(StartMotion(motion, basis, activation, tolerances, handle, label, note))
             handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else PREEMPTION_LEAD_S * 2 ** attempt))
             if not handle.stale:
                 return handle
