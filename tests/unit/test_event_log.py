@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from plem.control.events import FAULT_HISTORY, EventKind, EventLog, newest_fault
 from plem.control.modes import Mode
+from plem.ipc.records import event_from_record, event_record
 
 
 def overruns(log: EventLog, count: int) -> None:
@@ -40,3 +43,14 @@ def test_the_fault_history_is_bounded():
     history = log.faults()
     assert len(history) == FAULT_HISTORY and history[-1].kind is EventKind.FAULT_CLEARED
     assert log.last_fault().reason == f"fault {FAULT_HISTORY + 9}"
+
+
+def test_an_event_too_long_for_its_ring_slot_is_cut_short_and_still_reads_back():
+    log = EventLog()
+    reason = "joint_with_a_long_name² " * 200
+    event = log.emit(EventKind.MOTION_STARTED, "trajectory", reason, Mode.TRAJECTORY, 7)
+    record = event_record(event, 1024)
+    assert len(record) <= 1024
+    back = event_from_record(record)
+    assert back.reason.endswith("…") and reason.startswith(back.reason[:-1]) and len(back.reason) > 100
+    assert event_from_record(event_record(replace(event, reason="short"))).reason == "short"
