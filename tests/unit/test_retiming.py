@@ -45,7 +45,45 @@ def dense_states(timed: Timed, per_segment: int = 40) -> np.ndarray:
     return np.concatenate(rows, axis=1) if rows else np.zeros((4, 0, len(motion.final_positions)))
 
 
+def states_at(timed: Timed, times: np.ndarray) -> np.ndarray:
+    """Position, velocity and acceleration at each of `times` (clamped to the motion): (3, len(times), dof)."""
+    motion = timed.motion
+    final = np.stack([motion.final_positions, motion.final_velocities, motion.final_accelerations])
+    if not motion.segments:
+        return np.repeat(final[:, None], len(times), axis=1)
+    t = np.clip(times, 0.0, motion.duration)
+    s = np.clip(np.searchsorted(motion.knots, t, side="right") - 1, 0, motion.segments - 1)
+    tau = (t - motion.knots[s])[:, None]
+    c = motion.coefficients[s]  # (samples, ORDER, dof)
+    powers = np.arange(c.shape[1])
+    rows = []
+    for k in range(3):
+        factor = np.array([np.prod(np.arange(n - k + 1, n + 1)) if n >= k else 0.0 for n in powers])
+        rows.append(np.einsum("sp,spj->sj", factor * tau ** np.maximum(powers - k, 0), c))
+    after = t >= motion.duration
+    result = np.stack(rows)
+    result[:, after] = final[:, None]
+    return result
+
+
+def assert_cycle_steps_within(timed: Timed, limits: ArmLimits, start) -> None:
+    """As the loop commands it: from one 1 kHz sample to the next, velocity changes by at most a_max·dt and
+    acceleration by at most j_max·dt. Sampled around every knot and on a grid across the motion."""
+    motion = timed.motion
+    grid = np.linspace(0.0, motion.duration, min(20_000, int(motion.duration / CYCLE) + 2))
+    around = (motion.knots[:, None] + np.array([-1.0, -0.5, -0.1, 0.0])[None] * CYCLE).ravel()
+    t = np.concatenate([grid, around[around >= 0.0]])
+    now, later = states_at(timed, t), states_at(timed, t + CYCLE)
+    slack = 1e-6
+    assert (np.abs(later[1] - now[1]) <= limits.max_acceleration * CYCLE * (1 + slack) + 1e-9).all()
+    assert (np.abs(later[2] - now[2]) <= limits.max_jerk * CYCLE * (1 + slack) + 1e-9).all()
+    first = states_at(timed, np.array([0.0]))[:, 0]
+    assert (np.abs(first[1] - start[1]) <= limits.max_acceleration * CYCLE * (1 + slack) + 1e-9).all()
+    assert (np.abs(first[2] - start[2]) <= limits.max_jerk * CYCLE * (1 + slack) + 1e-9).all()
+
+
 def assert_within(timed: Timed, limits: ArmLimits, start, points: list[TrajectoryPoint], order: np.ndarray) -> None:
+    assert_cycle_steps_within(timed, limits, start)
     motion = timed.motion
     states = dense_states(timed)
     slack = 1e-6
@@ -219,3 +257,14 @@ def test_a_point_outside_the_position_limits_is_refused_with_its_index():
     with pytest.raises(CommandRejected) as refused:
         fit([point(np.full(6, 0.1), 1.0), point(beyond, 2.0)])
     assert "point 1 is outside the position limits of joint2" in refused.value.summary
+
+
+def test_dense_positions_only_points_are_judged_by_what_changes_within_a_cycle():
+    """5000 points 0.2 ms apart: each velocity step is tiny, five of them in one cycle are not."""
+    u = np.arange(1, 5001) / 5000
+    ramp = 10 * u**3 - 15 * u**4 + 6 * u**5
+    points = [point(np.linspace(0.2, 1.5, 6) * r, t) for r, t in zip(ramp, u, strict=True)]
+    timed = fit(points)
+    assert "steps adding up to" in timed.change and "points after it, made within one 1 ms cycle" in timed.change
+    assert timed.slowdown > 1.0
+    assert_within(timed, LIMITS, HOME, points, np.arange(6))

@@ -138,11 +138,11 @@ def _near_beyond(value: np.ndarray, limit: np.ndarray) -> np.ndarray:
     return value > np.where(finite, limit - SLACK * np.maximum(1.0, np.abs(np.where(finite, limit, 0.0))), limit)
 
 
-def _suspect_jumps(limits: ArmLimits, jumps: np.ndarray, cycle_time_s: float) -> np.ndarray:
-    """Per knot, whether a velocity or acceleration step there may exceed the next derivative's limit."""
-    suspect = np.zeros(jumps.shape[1], dtype=bool)
+def _suspect_jumps(limits: ArmLimits, steps: np.ndarray, cycle_time_s: float) -> np.ndarray:
+    """Per knot, whether the velocity or acceleration steps within a cycle from it may exceed the next limit."""
+    suspect = np.zeros(steps.shape[1], dtype=bool)
     for k in (1, 2):
-        suspect |= _near_beyond(np.abs(jumps[k]) / cycle_time_s, limits.maximum(KINDS[k + 1])).any(axis=1)
+        suspect |= _near_beyond(steps[k] / cycle_time_s, limits.maximum(KINDS[k + 1])).any(axis=1)
     return suspect
 
 
@@ -265,14 +265,18 @@ class Spline(PolynomialMotion):
         ends = np.einsum("sp,kspj->ksj", durations[:, None] ** np.arange(ORDER), self._derivatives[:3])
         before = np.concatenate([self._start[:, None], ends], axis=1)  # (3, knots, dof): value just before knot
         after = np.concatenate([self._derivatives[:3, :, 0], self._final[:, None]], axis=1)
-        jumps = after - before
+        # Steps at knots closer together than a cycle are commanded within the same cycle: add them up.
+        totals = np.concatenate([np.zeros((3, 1, limits.dof)), np.cumsum(np.abs(after - before), axis=1)], axis=1)
+        window_end = np.searchsorted(self.knots, self.knots + cycle_time_s * (1 - 1e-9), side="left")
+        steps = totals[:, window_end] - totals[:, :-1]
+        counts = window_end - np.arange(len(self.knots))
         # Find the knots and segments that may break a limit all at once, then let the exact per-knot and
         # per-segment checks judge those in order (the first one they reject is the one reported).
-        suspects = sorted([(int(q), 0) for q in np.flatnonzero(_suspect_jumps(limits, jumps, cycle_time_s))]
+        suspects = sorted([(int(q), 0) for q in np.flatnonzero(_suspect_jumps(limits, steps, cycle_time_s))]
                           + [(int(s), 1) for s in np.flatnonzero(self._suspect_segments(limits, durations))])
         for q, kind in suspects:
             if kind == 0:
-                self._check_jumps(limits, jumps[:, q], q, cycle_time_s)
+                self._check_jumps(limits, steps[:, q], int(counts[q]), q, cycle_time_s)
             else:
                 self._check_segment(limits, q, float(durations[q]))
         for j, position in enumerate(self.final_positions):
@@ -294,15 +298,20 @@ class Spline(PolynomialMotion):
             return f"point {int(points[0])}"
         return "the start state" if q == 0 else f"t = {self.knots[q]:.6g} s"
 
-    def _check_jumps(self, limits: ArmLimits, jumps: np.ndarray, q: int, cycle_time_s: float) -> None:
-        """A velocity or acceleration step at a knot is commanded within one cycle: judge it as such."""
+    def _check_jumps(self, limits: ArmLimits, steps: np.ndarray, count: int, q: int, cycle_time_s: float) -> None:
+        """Velocity or acceleration steps from a knot on (`count` knots within one cycle, `steps` their summed
+        sizes) are commanded within one cycle: judge them as such."""
         for k in (1, 2):
             limit = limits.maximum(KINDS[k + 1])
-            level = np.abs(jumps[k]) / cycle_time_s
+            level = steps[k] / cycle_time_s
             for j in np.flatnonzero(beyond(level, limit)):
-                where = (f"the {KINDS[k]} step of {abs(jumps[k, j]):.6g} {UNITS[f'max_{KINDS[k]}']} at "
-                         f"{self._knot_name(q)} (t = {self.knots[q]:.6g} s), made within one "
-                         f"{cycle_time_s * 1e3:.6g} ms cycle,")
+                unit = UNITS[f"max_{KINDS[k]}"]
+                name = self._knot_name(q)
+                at = name if name.startswith("t =") else f"{name} (t = {self.knots[q]:.6g} s)"
+                what = (f"the {KINDS[k]} step of {steps[k, j]:.6g} {unit} at {at}" if count == 1 else
+                        f"the {KINDS[k]} steps adding up to {steps[k, j]:.6g} {unit} at {at} and the {count - 1} "
+                        f"points after it")
+                where = f"{what}, made within one {cycle_time_s * 1e3:.6g} ms cycle,"
                 error = limit_exceeded(KINDS[k + 1], self.joint_names[j], level[j], limit[j], where)
                 error.how = SMOOTH_HOW
                 raise error
