@@ -38,6 +38,8 @@ DEFAULT_ROBOT_ID = "indy"
 POLL_S = 0.0005
 LIVENESS_PERIOD_NS = 50_000_000  # how often a waiting stream checks that the driver still runs
 ACCEPT_TIMEOUT_S = 5.0
+#: Extra wait for acceptance per trajectory point: re-timing costs up to about 1.2 ms per point (BENCHMARKS.md).
+RETIMING_S_PER_POINT = 0.004
 SEND_TIMEOUT_S = 5.0
 
 
@@ -256,17 +258,22 @@ class RobotClient:
                     tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
         """Time-optimal jerk-limited motion to `target` (rad); returns once the driver accepted it."""
         return self._send("move_joints", {"target": _floats(target), "speed_scale": speed_scale,
-                                          "tolerances": _tolerances(tolerances)}, wait_accepted=True)
+                                          "tolerances": _tolerances(tolerances)}, accept_within=ACCEPT_TIMEOUT_S)
 
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
-        """Follow a JointTrajectory (ros2_control spline semantics); returns once the driver accepted it."""
+        """Follow a JointTrajectory (ros2_control spline semantics); returns once the driver accepted it.
+
+        A trajectory that would break a limit is re-timed first (about a millisecond per point), so the wait
+        for acceptance grows with the number of points.
+        """
         points = [{"positions": list(p.positions), "time_from_start": p.time_from_start,
                    **({"velocities": list(p.velocities)} if p.velocities is not None else {}),
                    **({"accelerations": list(p.accelerations)} if p.accelerations is not None else {})}
                   for p in trajectory.points]
         return self._send("execute_trajectory", {"joint_names": list(trajectory.joint_names), "points": points,
-                                                 "tolerances": _tolerances(tolerances)}, wait_accepted=True)
+                                                 "tolerances": _tolerances(tolerances)},
+                          accept_within=ACCEPT_TIMEOUT_S + RETIMING_S_PER_POINT * len(points))
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
@@ -296,7 +303,8 @@ class RobotClient:
                                 why=f"mode {state.mode.name}", how="wait longer or call stop()")
             time.sleep(0.002)
 
-    def _send(self, op: str, args: dict[str, Any], wait_accepted: bool = False) -> RemoteHandle:
+    def _send(self, op: str, args: dict[str, Any], accept_within: float | None = None) -> RemoteHandle:
+        """Send one request; with `accept_within`, wait that many seconds for the driver to accept it."""
         payload = {"id": new_request_id(), "op": op, **{k: v for k, v in args.items() if v is not None}}
         check_request(payload, self.limits)  # the command service checks the same again
         record = encode(payload)
@@ -311,8 +319,8 @@ class RobotClient:
             except CommandSocketError:  # the command service was restarted: one new connection, one retry
                 self._write(frame(record))
             self._handles[handle.id] = handle
-        if wait_accepted:
-            handle.wait_accepted()
+        if accept_within is not None:
+            handle.wait_accepted(accept_within)
         return handle
 
     def _connection(self) -> socket.socket:
