@@ -33,8 +33,8 @@ class RosPeer:
         ns = f"/{robot_id}"
         self.joint_states = self.node.subscription(f"{ns}/joint_states", "sensor_msgs/msg/JointState", DEFAULT)
         self.set_mode = ActionClient(self.node, f"{ns}/wim_rt_driver/set_mode", SET_MODE)
-        self.follow = ActionClient(self.node, f"{ns}/joint_trajectory_controller/follow_joint_trajectory", FJT)
-        self.trajectories = self.node.publisher(f"{ns}/joint_trajectory_controller/joint_trajectory",
+        self.follow = ActionClient(self.node, f"{ns}/arm_controller/follow_joint_trajectory", FJT)
+        self.trajectories = self.node.publisher(f"{ns}/arm_controller/joint_trajectory",
                                                 "trajectory_msgs/msg/JointTrajectory", DEFAULT)
         self._latest_joint_state: Any = None
         self._goal_status: dict[bytes, int] = {}

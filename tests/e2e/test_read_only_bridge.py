@@ -107,7 +107,7 @@ def test_no_command_endpoints_exist(robot: Launch, peer: RosPeer) -> None:
     assert read == set(), f"the read-only bridge reads {sorted(read)}"
     assert not [name for name in written if "_action" in name or name.startswith("rr/")]
     # The same count does see a subscription of the trajectory topic once there is one (here, our own).
-    own = peer.subscribe("joint_trajectory_controller/joint_trajectory", "trajectory_msgs/msg/JointTrajectory",
+    own = peer.subscribe("arm_controller/joint_trajectory", "trajectory_msgs/msg/JointTrajectory",
                          DEFAULT)
     assert wait_for(lambda: peer.trajectories.subscribers == 1, 10) and own.publishers == 1
 

@@ -8,7 +8,7 @@ import re
 import pytest
 
 from plem.errors import ConfigError
-from plem.middleware import robot_bridge
+from plem.middleware import controller_manager, robot_bridge
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.names import (
@@ -133,20 +133,26 @@ def test_invalid_names_raise_config_error(name: str) -> None:
         request_topic(name)
 
 
-#: Endpoints under /{robot_id}/ the bridge creates, as the ROS 2 tools know them.
+#: Endpoints under /{robot_id}/ the bridge creates, as the ROS 2 tools know them; {trajectory} is the trajectory
+#: controller's name from controllers.yaml.
 BRIDGE_ENDPOINTS = {
-    "joint_states", "robot_description", "robot_description_semantic", "rt_raw", "rt_events", "rt_monitor_stats",
-    "joint_trajectory_controller/joint_trajectory", "joint_trajectory_controller/follow_joint_trajectory",
-    "wim_rt_driver/set_mode",
+    "joint_states", "dynamic_joint_states", "robot_description", "robot_description_semantic", "rt_raw", "rt_events",
+    "rt_monitor_stats", "{trajectory}/controller_state", "{trajectory}/joint_trajectory",
+    "{trajectory}/follow_joint_trajectory", "wim_rt_driver/set_mode",
+    *(f"controller_manager/{service}" for service in controller_manager.SERVICES),
 }
 
 
 def test_bridge_endpoint_names_are_valid() -> None:
     """The names robot_bridge.py uses are these, and each is a valid name for a valid robot id."""
     source = inspect.getsource(robot_bridge)
-    used = set(re.findall(r'f"\{ns\}/([^"{]+)"', source)) | set(MONITOR_TOPICS)
+    used = (set(re.findall(r'f"\{ns\}/([^"{]+)"', source)) | set(MONITOR_TOPICS)
+            | {f"{{trajectory}}/{name}" for name in re.findall(r'f"\{trajectory\}/([^"{]+)"', source)}
+            | {f"controller_manager/{service}" for service in controller_manager.SERVICES})
+    assert 'f"{self.namespace}/controller_manager"' in inspect.getsource(controller_manager)
     assert used == BRIDGE_ENDPOINTS
     for robot_id in ("indy", "ur5e_1", "Arm7"):
+        used = {endpoint.replace("{trajectory}", "arm_controller") for endpoint in used}
         for endpoint in used:
             name = f"/{robot_id}/{endpoint}"
             assert check_name(name) == name

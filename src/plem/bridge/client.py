@@ -285,7 +285,11 @@ class RobotClient:
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
-        return Mode(self._send("reset_fault", {}).wait(timeout))
+        return Mode(self.request_reset().wait(timeout))
+
+    def request_reset(self) -> RemoteHandle:
+        """Ask for a fault reset without waiting; the handle's result is the mode reached (HOLD)."""
+        return self._send("reset_fault", {})
 
     def stop(self) -> RemoteHandle:
         """Cancel the running motion with a jerk-limited stop; the arm then holds."""

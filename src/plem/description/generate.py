@@ -47,16 +47,23 @@ def _dump(data: dict[str, Any], header: str) -> str:
     return "".join(f"# {line}\n" for line in header.splitlines()) + body
 
 
+#: ros2_control types of the controllers plem runs.
+TRAJECTORY_TYPE = "joint_trajectory_controller/JointTrajectoryController"
+BROADCASTER_TYPE = "joint_state_broadcaster/JointStateBroadcaster"
+FREE_DRIVE_TYPE = "wim_controller/FreeDriveController"
+
+
 def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:
-    """A joint_trajectory_controller for `joints` and a state broadcaster, at the loop's rate."""
+    """A joint_trajectory_controller for `joints`, a state broadcaster and free drive, at the loop's rate."""
     data = {
         "controller_manager": {"ros__parameters": {
             "update_rate": round(1_000_000 / cycle_time_us),
-            "joint_state_broadcaster": {"type": "joint_state_broadcaster/JointStateBroadcaster"},
-            "arm_controller": {"type": "joint_trajectory_controller/JointTrajectoryController"},
+            "joint_state_broadcaster": {"type": BROADCASTER_TYPE},
+            "arm_controller": {"type": TRAJECTORY_TYPE},
+            "free_drive_controller": {"type": FREE_DRIVE_TYPE},
         }},
         "arm_controller": {"ros__parameters": {
-            "type": "joint_trajectory_controller/JointTrajectoryController",
+            "type": TRAJECTORY_TYPE,
             "joints": list(joints),
             "command_interfaces": ["position"],
             "state_interfaces": ["position", "velocity"],
@@ -67,7 +74,8 @@ def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:
             },
         }},
     }
-    return _dump(data, "Controllers: a joint trajectory controller over every joint in joint_limits.yaml.\n"
+    return _dump(data, "Controllers: a joint trajectory controller over every joint in joint_limits.yaml, the joint\n"
+                       "state broadcaster and free drive (gravity-compensated, damped).\n"
                        "Tolerances in rad; 0.0 disables a check (ros2_control semantics).")
 
 

@@ -40,6 +40,10 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("bridge", "true", "publish the robot on ROS 2 over DDS (topics and actions under /{robot_id}/)"),
     LaunchArgument("bridge_commands", "true", "let ROS 2 command the robot through the bridge (joint_trajectory "
                    "topic, follow_joint_trajectory and set_mode actions); false: topics only, read-only"),
+    LaunchArgument("frame_prefix", "", "prefix of the arm's frame names on /tf and /tf_static; default: "
+                   "{robot_id}/ (frame_prefix:=none for none)"),
+    LaunchArgument("start_enabled", "", "enable the drives and hold, trajectory controller active, once started; "
+                   "default: true on bus:=mock and ethercat_sim, false on ethercat (docs/ros2.md)"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
     LaunchArgument("record", "true", "record the monitoring topics into rosbag2 bags"),

@@ -14,12 +14,12 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
 
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
-from plem.core.config.yaml_document import load_yaml
 from plem.core.paths import BUILTIN_PACKAGES_DIR
+from plem.description.controllers import ControllerSet, read_controllers
 from plem.description.discover import locate_package, package_for_launch
 from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.validate import Stage, ValidationReport, require_valid
@@ -31,6 +31,7 @@ from plem.recording.settings import RecordingSettings
 from plem.robot.config import ARM_SETTINGS, SerialArmConfig
 from plem.robot.models import MODELS
 from plem.robot.resolution import LAUNCH_DEFAULTS, ResolvedConfig, resolve_arm_config
+from plem.robot.robot import arm_joint_names, startup_urdf
 
 T = TypeVar("T")
 
@@ -86,12 +87,35 @@ class RobotPlan:
         text = self.arguments.get("max_consecutive_overruns")
         return int(text) if text else MAX_CONSECUTIVE_OVERRUNS[self.bus]
 
+    @property
+    def frame_prefix(self) -> str:
+        """What the arm's /tf frame names start with: the launch argument ('none': nothing), else `{robot_id}/`."""
+        given = self.arguments.get("frame_prefix", "")
+        return "" if given == "none" else given or f"{self.robot_id}/"
+
+    @property
+    def start_enabled(self) -> bool:
+        """Whether the driver enables the drives once started: the launch argument, else true on the simulated
+        buses, false on EtherCAT (where enabling releases a real arm's brakes)."""
+        given = _flag(self.arguments, "start_enabled") if self.arguments.get("start_enabled") else None
+        return given if given is not None else self.bus != "ethercat"
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The arm's joints in drive order."""
+        urdf, _ = startup_urdf(self.report)
+        return arm_joint_names(self.config, urdf)
+
+    @property
+    def controllers(self) -> ControllerSet:
+        """The controllers of the package's controllers.yaml, or the ones plem generates when it has none."""
+        return read_controllers(self.report.files.controllers, self.joint_names, self.config.cycle_time)
+
     def joint_state_rate(self) -> float:
         """Hz of joint_states: the launch argument, else controllers.yaml's update rate, at most 100 Hz."""
         if self.arguments.get("joint_states_rate"):
             return float(self.arguments["joint_states_rate"])
-        controllers = self.report.files.controllers
-        rate = update_rate(controllers) if controllers is not None else None
+        rate = self.controllers.update_rate if self.report.files.controllers is not None else None
         return min(rate or 1e6 / self.config.cycle_time, DEFAULT_JOINT_STATES_RATE_CAP)
 
     def recording(self) -> RecordingSettings:
@@ -257,15 +281,6 @@ def _collected(errors: list[PlemError], step: Callable[[], T]) -> T | None:
         return None
 
 
-def update_rate(controllers: Path) -> float | None:
-    """controllers.yaml's `controller_manager.ros__parameters.update_rate` in Hz, None when it gives none; a
-    file plem cannot read is a ConfigError (checked at planning, so a component never meets it first)."""
-    value: Any = load_yaml(controllers, "controllers.yaml")
-    for key in ("controller_manager", "ros__parameters", "update_rate"):
-        value = value.get(key) if isinstance(value, dict) else None
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0 else None
-
-
 def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_root: Path | None = None) -> RobotPlan:
     """Check the launch arguments of one robot and resolve its description and configuration.
 
@@ -281,6 +296,12 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
                                "network"))
     record, bridge, bridge_commands = (_boolean(arguments, name, errors)
                                        for name in ("record", "bridge", "bridge_commands"))
+    if "start_enabled" in arguments:
+        _boolean(arguments, "start_enabled", errors)
+    prefix = arguments.get("frame_prefix", "")
+    if prefix.startswith("/") or not all(c.isprintable() and not c.isspace() for c in prefix):
+        errors.append(_problem("frame_prefix", prefix, "a tf frame name prefix: no leading '/', no spaces",
+                               "e.g. frame_prefix:=arm_left/ (or frame_prefix:=none)"))
     _rate(arguments, errors)
     for name in WHOLE_ARGUMENTS:
         _whole(arguments, name, errors)
@@ -304,9 +325,9 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
     dof = None if builtin or report is None else report.dof
     resolved = _collected(errors, lambda: resolve_arm_config(launch_args=config_arguments,
                                                             launch_defaults=LAUNCH_DEFAULTS, dof=dof))
-    controllers = report.files.controllers if report is not None else None
-    if controllers is not None:
-        _collected(errors, lambda: update_rate(controllers))
+    if report is not None and resolved is not None:
+        _collected(errors, lambda: read_controllers(report.files.controllers, arm_joint_names(
+            resolved.config, startup_urdf(report)[0]), resolved.config.cycle_time))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 

@@ -16,9 +16,12 @@ import time
 from plem.bridge.client import connect
 from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
+from plem.middleware.controller_manager import Hardware
 from plem.middleware.node import Node
 from plem.middleware.robot_bridge import RobotBridge
 
+#: The hardware plugin reported for a package whose <ros2_control> block names none.
+HARDWARE_PLUGIN = "hardware/HardwareInterface"
 #: How often the bridge looks for new cycles; rt_raw is published in order, in batches of about this much.
 PUMP_PERIOD_S = 0.001
 LIVENESS_PERIOD_S = 0.5
@@ -30,8 +33,10 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     node = Node()
     client = connect(plan.robot_id, plan.config.dof)
     rate = plan.joint_state_rate()
-    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, commands=plan.bridge_commands,
-                         semantic=plan.report.srdf_xml)
+    block = plan.report.urdf.ros2_control[0] if plan.report.urdf and plan.report.urdf.ros2_control else None
+    hardware = Hardware(block.name if block else plan.robot_name, (block.plugin if block else None) or HARDWARE_PLUGIN)
+    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, plan.controllers, hardware,
+                         commands=plan.bridge_commands, semantic=plan.report.srdf_xml, frame_prefix=plan.frame_prefix)
     commands = _command_thread(bridge, stop) if bridge.commands else None
     announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),
               "joint_state_rate": rate, "commands": bridge.commands})

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from plem.control.limits import ArmLimits
+from plem.control.modes import Mode
 from plem.control.realtime import keep_threads_scheduled
 from plem.control.state import StateBlock
 from plem.errors import PlemError
@@ -118,6 +119,8 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, 
     """
     with driving(plan, realtime_helpers=realtime_helpers) as driver:
         robot = driver.robot
+        if plan.start_enabled:
+            _enable(robot)
         report = robot.loop.report
         announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
                   "joint_names": list(robot.joint_names), "cycle_time_us": plan.config.cycle_time,
@@ -133,6 +136,15 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, 
                                 why="it ended unexpectedly; the arm was stopped smoothly",
                                 how="restart the robot with `plem launch`, and report this with its output")
             driver.commands.keep_running()
+
+
+def _enable(robot: Robot) -> None:
+    """Enable the drives and hold (start_enabled); when they do not enable, say why and stay disabled."""
+    try:
+        robot.set_mode(Mode.HOLD)
+    except PlemError as error:
+        _log.warning("the drives did not enable at start (start_enabled); the arm stays disabled:\n%s",
+                     error.render())
 
 
 def _serve_launched(arguments: dict[str, str], stop: threading.Event) -> None:

@@ -49,6 +49,9 @@ DEFAULT = QosProfile(reliable=True, depth=10)
 SERVICES = QosProfile(reliable=True, depth=10)
 #: A latched topic: the last sample reaches late joiners (robot_description, action status).
 LATCHED = QosProfile(reliable=True, depth=1, transient_local=True)
+#: /tf and /tf_static as tf2's broadcasters publish them.
+TF = QosProfile(reliable=True, depth=100)
+TF_STATIC = QosProfile(reliable=True, depth=1, transient_local=True)
 #: rt_raw: every cycle matters to a recorder, so reliable with a deep history (about 1 s at 1 kHz).
 RT_RAW = QosProfile(reliable=True, depth=1000)
 #: rt_events: reliable, and the last 100 reach a monitor that starts after a fault.

@@ -1,30 +1,44 @@
 """One robot on ROS 2: its shared memory published as topics, ROS commands passed to its RT driver.
 
-Under `/{robot_id}/` it publishes joint_states, robot_description and robot_description_semantic (latched; the
-latter when the package has an SRDF), rt_raw (every cycle),
-rt_events and rt_monitor_stats (10 Hz), and serves joint_trajectory_controller's topic and action and
-the wim_rt_driver/set_mode action. A read-only bridge (`commands=False`) creates none of these command
-endpoints, so nothing on the network can command the arm through it. It only reads shared memory and
-sends commands to the robot's command service through `RobotClient`, so nothing it does (or a slow
-subscriber does to it) can delay the loop; what it could not keep up with is counted in rt_monitor_stats.
+It publishes the arm's frames on /tf and /tf_static as robot_state_publisher would (names prefixed with
+`{robot_id}/` unless `frame_prefix` says otherwise, so several robots never share a frame). Under
+`/{robot_id}/` it publishes joint_states and dynamic_joint_states, robot_description and
+robot_description_semantic (latched; the latter when the package has an SRDF), rt_raw (every cycle),
+rt_events and rt_monitor_stats (10 Hz) and the trajectory controller's controller_state. It serves the
+controller manager's services, the trajectory controller's topic and action under the name controllers.yaml
+gives it, and the wim_rt_driver/set_mode action. A read-only bridge (`commands=False`) creates none of these
+command endpoints (nor the controller manager), so nothing on the network can command the arm through it.
+It only reads shared memory and sends commands to the robot's command service through `RobotClient`, so
+nothing it does (or a slow subscriber does to it) can delay the loop; what it could not keep up with is
+counted in rt_monitor_stats.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+import time
 from typing import Any
 
 from cyclonedds.util import duration
 
-from plem.bridge.client import RobotClient
+from plem.bridge.client import DriverGone, RobotClient
 from plem.control.events import Event
+from plem.description.controllers import ControllerSet
 from plem.errors import PlemError
-from plem.middleware.action import ActionServer
-from plem.middleware.goals import FJT, start_mode_change, start_trajectory, trajectory_from_message
+from plem.middleware.action import ActionServer, Execution
+from plem.middleware.controller_manager import ControllerManager, Hardware
+from plem.middleware.goals import (
+    FJT,
+    rejected_trajectory,
+    start_mode_change,
+    start_trajectory,
+    trajectory_from_message,
+)
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.node import Node, Subscription
-from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW
+from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW, TF, TF_STATIC
+from plem.middleware.transforms import TreeTransforms, tf_message
 from plem.recording.status import read_status
 
 _log = logging.getLogger("plem.bridge")
@@ -36,21 +50,36 @@ class RobotBridge:
     trajectories: Subscription[Any]
     follow: ActionServer
     set_mode: ActionServer
+    manager: ControllerManager
 
     def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float,
-                 commands: bool = True, semantic: str | None = None) -> None:
+                 controllers: ControllerSet, hardware: Hardware, commands: bool = True,
+                 semantic: str | None = None, frame_prefix: str | None = None) -> None:
         self.client = client
         self.node = node
         self.library = node.library
         self.namespace = f"/{client.robot_id}"
         self.commands = commands
+        self.controllers = controllers
         ns = self.namespace
         profiles = {"rt_raw": RT_RAW, "rt_events": EVENTS, "rt_monitor_stats": DEFAULT, "joint_states": DEFAULT}
         self.publishers = {name: node.publisher(f"{ns}/{name}", ros_type, profiles[name])
                            for name, ros_type in MONITOR_TOPICS.items()}
+        trajectory = f"{ns}/{controllers.trajectory.name}"
+        self.controller_state = node.publisher(f"{trajectory}/controller_state",
+                                               "control_msgs/msg/JointTrajectoryControllerState", DEFAULT)
+        self.dynamic_joint_states = node.publisher(f"{ns}/dynamic_joint_states", "control_msgs/msg/DynamicJointState",
+                                                   DEFAULT)
         self.description = node.publisher(f"{ns}/robot_description", "std_msgs/msg/String", LATCHED)
+        self.frames = TreeTransforms(description, f"{client.robot_id}/" if frame_prefix is None else frame_prefix)
+        self.tf = node.publisher("/tf", "tf2_msgs/msg/TFMessage", TF)
+        self.tf_static = node.publisher("/tf_static", "tf2_msgs/msg/TFMessage", TF_STATIC)
+        self.tf_static.publish(tf_message(self.library, self.frames.static(), time.time_ns()))
+        for controller in controllers.unsupported:
+            _log.warning("controllers.yaml declares %s of type %s, which plem does not run; it is listed as "
+                         "unconfigured", controller.name, controller.type)
         if commands:
-            self._command_endpoints()
+            self._command_endpoints(hardware)
         self.description.publish(self.description.message(data=description))
         if semantic is not None:
             self.semantic = node.publisher(f"{ns}/robot_description_semantic", "std_msgs/msg/String", LATCHED)
@@ -58,13 +87,15 @@ class RobotBridge:
         self.feed = MonitorFeed(client, self.library, joint_state_rate)
         self._profiles = profiles
 
-    def _command_endpoints(self) -> None:
-        """joint_trajectory_controller's topic and action and the set_mode action, as ROS 2 names them."""
+    def _command_endpoints(self, hardware: Hardware) -> None:
+        """The controller manager's services, the trajectory controller's topic and action and the set_mode action,
+        as ROS 2 names them."""
         client, node, ns = self.client, self.node, self.namespace
-        self.trajectories = node.subscription(f"{ns}/joint_trajectory_controller/joint_trajectory",
-                                              "trajectory_msgs/msg/JointTrajectory", DEFAULT)
-        self.follow = ActionServer(node, f"{ns}/joint_trajectory_controller/follow_joint_trajectory", FJT,
-                                   lambda goal: start_trajectory(client, self.library, goal))
+        self.manager = ControllerManager(node, ns, client, self.controllers, hardware)
+        trajectory = f"{ns}/{self.controllers.trajectory.name}"
+        self.trajectories = node.subscription(f"{trajectory}/joint_trajectory", "trajectory_msgs/msg/JointTrajectory",
+                                              DEFAULT)
+        self.follow = ActionServer(node, f"{trajectory}/follow_joint_trajectory", FJT, self._on_goal)
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
 
@@ -78,8 +109,39 @@ class RobotBridge:
         self.publishers["rt_raw"].publish_cdr(cdr)
 
     def joint_state(self, message: Any, wall_ns: int) -> None:
-        """Publish on joint_states."""
+        """Publish on joint_states, and from the same sample dynamic_joint_states and controller_state."""
         self.publishers["joint_states"].publish(message)
+        new = self.library.new
+        values = [new("control_msgs/msg/InterfaceValue", interface_names=["position", "velocity", "effort"],
+                      values=[p, v, e]) for p, v, e in zip(message.position, message.velocity, message.effort,
+                                                           strict=True)]
+        self.dynamic_joint_states.publish(new("control_msgs/msg/DynamicJointState", header=message.header,
+                                              joint_names=message.name, interface_values=values))
+        moving = self.frames.moving(dict(zip(message.name, message.position, strict=True)))
+        self.tf.publish(tf_message(self.library, moving, wall_ns))
+        self._controller_state(message)
+
+    def _controller_state(self, message: Any) -> None:
+        """control_msgs/JointTrajectoryControllerState: the command as reference and output, the measurement as
+        feedback, and their difference."""
+        try:
+            state = self.client.state()
+        except DriverGone:
+            return
+        if state is None:
+            return
+        new = self.library.new
+        point = "trajectory_msgs/msg/JointTrajectoryPoint"
+        reference = new(point, positions=state.command_position.tolist(), velocities=state.command_velocity.tolist(),
+                        accelerations=state.command_acceleration.tolist())
+        feedback = new(point, positions=state.position.tolist(), velocities=state.velocity.tolist(),
+                       effort=state.effort.tolist())
+        error = new(point, positions=(state.command_position - state.position).tolist(),
+                    velocities=(state.command_velocity - state.velocity).tolist())
+        self.controller_state.publish(new(
+            "control_msgs/msg/JointTrajectoryControllerState", header=message.header, joint_names=message.name,
+            reference=reference, feedback=feedback, error=error,
+            output=new(point, positions=state.command_position.tolist()), speed_scaling_factor=1.0))
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
         """Publish on rt_events."""
@@ -97,8 +159,10 @@ class RobotBridge:
 
     # -- ROS commands → command service ---------------------------------------------------------------
     def serve_commands(self, stop: threading.Event, period: float = 0.01) -> None:
-        """Take trajectories and action requests until `stop`; runs in its own thread (not when read-only)."""
-        waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services])
+        """Take trajectories, action and service requests until `stop`; runs in its own thread (not when
+        read-only)."""
+        waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services,
+                                     *self.manager.services])
         timeout = duration(seconds=period)
         while not stop.is_set():
             waitset.wait(timeout)
@@ -107,15 +171,24 @@ class RobotBridge:
                     self._on_trajectory(message)
                 self.follow.spin_once()
                 self.set_mode.spin_once()
+                self.manager.spin_once()
             except Exception:  # noqa: BLE001 - one bad request must not end command service for everyone
                 _log.exception("a ROS command could not be handled; serving goes on")
 
+    def _on_goal(self, goal: Any) -> Execution:
+        """A FollowJointTrajectory goal: run it, or end it at once when the trajectory controller is not active."""
+        refused = self.manager.accepts_trajectories()
+        return rejected_trajectory(refused) if refused else start_trajectory(self.client, self.library, goal)
+
     def _on_trajectory(self, message: Any) -> None:
-        """joint_trajectory_controller's topic: a trajectory replaces the running one; an empty one stops."""
+        """The trajectory controller's topic: a trajectory replaces the running one; an empty one stops."""
         try:
             if not message.points:
                 self.client.stop()
                 return
+            refused = self.manager.accepts_trajectories()
+            if refused:
+                raise refused
             self.client.execute_trajectory(trajectory_from_message(message))
         except PlemError as error:
             _log.warning("joint_trajectory refused:\n%s", error.render())
