@@ -52,6 +52,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
         stop.set()
         if commands is not None:
             commands.join(1.0)
+        bridge.close()
         client.close()
         node.close()
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from plem.middleware.names import ActionNames
-from plem.middleware.node import Node
+from plem.middleware.node import Entities, Node
 from plem.middleware.qos import DEFAULT, LATCHED
 
 _log = logging.getLogger("plem.bridge")
@@ -86,6 +86,13 @@ class ActionServer:
     def services(self) -> tuple[Any, ...]:
         """The service servers, for a wait set."""
         return self.send_goal, self.cancel_goal, self.get_result
+
+    def entities(self) -> Entities:
+        """The DDS endpoints behind the action: its three services and two topics."""
+        total = self._feedback.entities() + self._status.entities()
+        for service in self.services:
+            total = total + service.entities()
+        return total
 
     def spin_once(self) -> None:
         """Answer waiting requests, poll running goals, publish feedback and status changes."""

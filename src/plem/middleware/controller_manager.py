@@ -31,7 +31,7 @@ from plem.errors import PlemError
 from plem.ipc.requests import error_from_json
 from plem.middleware.node import Node, ServiceServer
 
-_log = logging.getLogger("plem.bridge")
+_log = logging.getLogger("plem.bridge.controller_manager")
 
 STRICT = 2
 #: lifecycle_msgs/State ids and labels, as ros2_control reports hardware components in.

@@ -11,6 +11,7 @@ import itertools
 import threading
 import time
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 from uuid import UUID
 
@@ -35,6 +36,17 @@ _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
 REPLY_WAIT_S = 5.0
 #: What rmw_cyclonedds announces for a participant; ROS 2 graph tools list only participants that carry it.
 PARTICIPANT_USER_DATA = b"enclave=/;"
+
+
+@dataclass(frozen=True)
+class Entities:
+    """The GUIDs of DDS readers and writers that one ROS endpoint (or a node's set of them) consists of."""
+
+    readers: tuple[UUID, ...] = ()
+    writers: tuple[UUID, ...] = ()
+
+    def __add__(self, other: Entities) -> Entities:
+        return Entities(self.readers + other.readers, self.writers + other.writers)
 
 
 class Publisher(Generic[M]):
@@ -67,6 +79,10 @@ class Publisher(Generic[M]):
             self.dropped += 1
         return written
 
+    def entities(self) -> Entities:
+        """The DDS endpoints behind it, as a ROS node lists them."""
+        return Entities(writers=(self.writer.guid,))
+
     @property
     def subscribers(self) -> int:
         """Readers currently matched with this publisher."""
@@ -86,6 +102,10 @@ class Subscription(Generic[M]):
     def take(self, limit: int = 256) -> list[M]:
         """Every message waiting (up to `limit`), oldest first."""
         return [sample for sample in self.reader.take(N=limit) if sample.sample_info.valid_data]
+
+    def entities(self) -> Entities:
+        """The DDS endpoints behind it, as a ROS node lists them."""
+        return Entities(readers=(self.reader.guid,))
 
     @property
     def publishers(self) -> int:
@@ -116,6 +136,10 @@ class ServiceServer:
     def take(self) -> list[Any]:
         """Waiting requests; each keeps rmw's header (`rmw_guid`, `rmw_seq`) for its reply."""
         return self.requests.take()
+
+    def entities(self) -> Entities:
+        """The DDS endpoints behind it: the request reader and the reply writer."""
+        return self.requests.entities() + self._replies.entities()
 
     def reply(self, request: Any, **fields: Any) -> None:
         """Answer `request`, now or (see the class) as soon as its client can receive the answer."""

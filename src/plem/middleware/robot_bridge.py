@@ -23,10 +23,11 @@ from typing import Any
 from cyclonedds.util import duration
 
 from plem.bridge.client import DriverGone, RobotClient
-from plem.control.events import Event
+from plem.control.events import Event, EventKind
+from plem.control.trajectory import ErrorCode
 from plem.description.controllers import ControllerSet
 from plem.errors import PlemError
-from plem.middleware.action import ActionServer, Execution
+from plem.middleware.action import ABORTED, ActionServer, Execution
 from plem.middleware.controller_manager import ControllerManager, Hardware
 from plem.middleware.goals import (
     FJT,
@@ -37,11 +38,41 @@ from plem.middleware.goals import (
 )
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.node import Node, Subscription
+from plem.middleware.node_graph import NodeGraph, RosoutHandler
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW, TF, TF_STATIC
 from plem.middleware.transforms import TreeTransforms, tf_message
 from plem.recording.status import read_status
 
 _log = logging.getLogger("plem.bridge")
+_trajectory_log = logging.getLogger("plem.bridge.trajectory")
+_manager_log = logging.getLogger("plem.bridge.controller_manager")
+#: FollowJointTrajectory codes of goals refused before they ran (the driver reports aborts of running ones).
+REFUSAL_CODES = (int(ErrorCode.INVALID_GOAL), int(ErrorCode.INVALID_JOINTS))
+#: Longest reason of an rt_events entry the bridge writes, as the driver's event records allow.
+EVENT_REASON_CHARACTERS = 600
+
+
+class _Reported:
+    """A trajectory goal whose refusal is also logged (to /rosout) and published on rt_events."""
+
+    def __init__(self, execution: Execution, bridge: RobotBridge) -> None:
+        self.execution = execution
+        self.bridge = bridge
+        self._reported = False
+
+    def poll(self) -> tuple[Any | None, tuple[int, Any] | None]:
+        """The execution's feedback and end, reporting a refusal once."""
+        feedback, end = self.execution.poll()
+        if end is not None and not self._reported:
+            self._reported = True
+            status, result = end
+            if status == ABORTED and result["error_code"] in REFUSAL_CODES:
+                self.bridge.report_refusal("follow_joint_trajectory", result["error_string"])
+        return feedback, end
+
+    def cancel(self) -> bool:
+        """Cancel the execution."""
+        return self.execution.cancel()
 
 
 class RobotBridge:
@@ -86,6 +117,34 @@ class RobotBridge:
             self.semantic.publish(self.semantic.message(data=semantic))
         self.feed = MonitorFeed(client, self.library, joint_state_rate)
         self._profiles = profiles
+        self.graph = self._announce_nodes(semantic is not None)
+
+    def _announce_nodes(self, semantic: bool) -> NodeGraph:
+        """Present the endpoints as the nodes of a ros2_control robot (docs/ros2.md lists them) and send each
+        node's log to /rosout."""
+        graph, ns, controllers = NodeGraph(self.node), self.namespace, self.controllers
+        self._handlers: list[tuple[logging.Logger, logging.Handler]] = []
+        broadcaster = controllers.by_role("broadcaster")
+        graph.add(ns, broadcaster.name if broadcaster else "joint_state_broadcaster",
+                  self.publishers["joint_states"], self.dynamic_joint_states)
+        graph.add(ns, "robot_state_publisher", self.description, self.tf, self.tf_static,
+                  *([self.semantic] if semantic else []))
+        driver = graph.add(ns, "wim_rt_driver", *(self.publishers[name] for name in ("rt_raw", "rt_events",
+                                                                                 "rt_monitor_stats")))
+        trajectory = graph.add(ns, controllers.trajectory.name, self.controller_state)
+        free_drive = controllers.by_role("free_drive")
+        if free_drive is not None:
+            graph.add(ns, free_drive.name)
+        if self.commands:
+            manager = graph.add(ns, "controller_manager", *self.manager.services)
+            trajectory.endpoints += [self.trajectories, self.follow]
+            driver.endpoints.append(self.set_mode)
+            for logger, graph_node in ((_manager_log, manager), (_trajectory_log, trajectory)):
+                handler = RosoutHandler(graph, graph_node)
+                logger.addHandler(handler)
+                self._handlers.append((logger, handler))
+        graph.announce()
+        return graph
 
     def _command_endpoints(self, hardware: Hardware) -> None:
         """The controller manager's services, the trajectory controller's topic and action and the set_mode action,
@@ -98,6 +157,12 @@ class RobotBridge:
         self.follow = ActionServer(node, f"{trajectory}/follow_joint_trajectory", FJT, self._on_goal)
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
+
+    def close(self) -> None:
+        """Stop sending log records to /rosout (before the node closes)."""
+        for logger, handler in self._handlers:
+            logger.removeHandler(handler)
+        self._handlers.clear()
 
     # -- shared memory → topics -----------------------------------------------------------------------
     def pump(self) -> int:
@@ -178,7 +243,26 @@ class RobotBridge:
     def _on_goal(self, goal: Any) -> Execution:
         """A FollowJointTrajectory goal: run it, or end it at once when the trajectory controller is not active."""
         refused = self.manager.accepts_trajectories()
-        return rejected_trajectory(refused) if refused else start_trajectory(self.client, self.library, goal)
+        return _Reported(rejected_trajectory(refused) if refused else
+                         start_trajectory(self.client, self.library, goal), self)
+
+    def report_refusal(self, source: str, text: str) -> None:
+        """A ROS command refused: a WARNING on /rosout (under the trajectory controller's node) and a
+        command_rejected entry on rt_events."""
+        _trajectory_log.warning("%s refused: %s", source, text)
+        header = self.library.new("std_msgs/msg/Header", stamp=self.library.stamp())
+        state = self._mode_name()
+        self.publishers["rt_events"].publish(self.library.new(
+            MONITOR_TOPICS["rt_events"], header=header, kind=EventKind.COMMAND_REJECTED.value, cause=source,
+            reason=text.splitlines()[0].removeprefix("ERROR: ")[:EVENT_REASON_CHARACTERS], mode=state,
+            previous_mode=""))
+
+    def _mode_name(self) -> str:
+        try:
+            state = self.client.state()
+        except DriverGone:
+            return ""
+        return "" if state is None else str(state.mode)
 
     def _on_trajectory(self, message: Any) -> None:
         """The trajectory controller's topic: a trajectory replaces the running one; an empty one stops."""
@@ -191,4 +275,4 @@ class RobotBridge:
                 raise refused
             self.client.execute_trajectory(trajectory_from_message(message))
         except PlemError as error:
-            _log.warning("joint_trajectory refused:\n%s", error.render())
+            self.report_refusal("joint_trajectory", error.render())
