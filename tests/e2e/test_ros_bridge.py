@@ -26,6 +26,7 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.middleware.action import ABORTED, CANCEL_NONE, CANCELED, SUCCEEDED
 from plem.middleware.discovery import DiscoverySettings
+from plem.middleware.node_graph import ROSOUT_QOS
 from tests.conftest import fresh_domain
 from tests.e2e.launched import (
     Launch,
@@ -307,6 +308,20 @@ def test_goal_outside_the_position_limits_is_aborted_as_invalid_goal(holding: Ro
     assert (status, result.error_code) == (ABORTED, -1), result.error_string  # INVALID_GOAL
     assert "position limits" in result.error_string and "WHAT:" in result.error_string, result.error_string
     assert np.allclose(peer.position(), start, atol=1e-4)
+
+
+def test_a_refused_goal_reaches_rosout_and_rt_events(holding: RosPeer):
+    peer = holding
+    events = peer.rt_events()
+    rosout = peer.node.subscription("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
+    goal_id = peer.send_trajectory(peer.trajectory([(shifted(peer.position(), 0, 10.0), 3.0)]))
+    assert peer.follow_goal(goal_id, 5)[0] == ABORTED
+    logger = f"{peer.robot_id}.arm_controller"
+    logged = wait_for(lambda: [m for m in rosout.take() if m.name == logger and "position limits" in m.msg], 10)
+    assert logged and logged[0].level == 30 and "follow_joint_trajectory refused" in logged[0].msg
+    rejected = wait_for(lambda: [e for e in events.take() if e.kind == "command_rejected"
+                                 and e.cause == "follow_joint_trajectory"], 10)
+    assert rejected and "position limits" in rejected[-1].reason
 
 
 def test_canceled_goal_stops_the_arm_which_then_holds(holding: RosPeer, client: RobotClient):

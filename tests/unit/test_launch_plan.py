@@ -162,6 +162,31 @@ def test_overrun_fault_threshold_defaults_by_bus_and_follows_its_argument():
     assert MAX_CONSECUTIVE_OVERRUNS["ethercat"] < MAX_CONSECUTIVE_OVERRUNS["mock"]
 
 
+def test_start_enabled_defaults_by_bus_and_follows_its_argument():
+    assert plan_robot({"bus": "mock"}).start_enabled is True
+    assert plan_robot({"bus": "ethercat_sim"}).start_enabled is True
+    assert plan_robot({"bus": "mock", "start_enabled": "false"}).start_enabled is False
+    with pytest.raises(ConfigError) as caught:
+        plan_robot({"bus": "mock", "record": "false", "start_enabled": "maybe"})
+    assert "start_enabled:=" in caught.value.summary and "true or false" in caught.value.what
+
+
+def test_frame_prefix_defaults_to_the_robot_id_and_none_means_no_prefix():
+    assert plan_robot({"bus": "mock", "robot_id": "arm_left"}).frame_prefix == "arm_left/"
+    assert plan_robot({"bus": "mock", "frame_prefix": "left/"}).frame_prefix == "left/"
+    assert plan_robot({"bus": "mock", "frame_prefix": "none"}).frame_prefix == ""
+    for bad in ("/world/", "a b"):
+        with pytest.raises(ConfigError) as caught:
+            plan_robot({"bus": "mock", "record": "false", "frame_prefix": bad})
+        assert "frame_prefix:=" in caught.value.summary and "frame_prefix:=arm_left/" in caught.value.how
+
+
+def test_the_plan_reads_the_controllers_of_the_package_or_the_generated_ones():
+    plan = plan_robot({"bus": "mock"})
+    assert plan.controllers.trajectory.name == "arm_controller"
+    assert plan.controllers.trajectory.joints == plan.joint_names
+
+
 @pytest.mark.parametrize("text, why", [
     ("/proc/nope", "/proc/nope: No such file or directory"),
     ("/proc", "/proc/arm: No such file or directory"),
