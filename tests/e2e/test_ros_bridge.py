@@ -423,3 +423,27 @@ def test_killing_the_bridge_mid_motion_leaves_the_arm_and_the_launch_running(rob
         assert launch.process.poll() is None, launch.describe()
         assert "stopping everything" not in launch.output
         assert launch.stop() == 0, launch.describe()
+
+
+# -- parameters --------------------------------------------------------------------------------------
+def test_parameters_answer_as_ros2_param_asks(peer: RosPeer):
+    ns = f"/{peer.robot_id}"
+
+    def call(node: str, service: str, kind: str, **fields: Any) -> Any:
+        client = peer.node.client(f"{ns}/{node}/{service}", f"rcl_interfaces/srv/{kind}")
+        assert wait_for(lambda: client.ready, 10), f"{node}/{service} not found"
+        return client.call(10, **fields)
+
+    [rate] = call("controller_manager", "get_parameters", "GetParameters", names=["update_rate"]).values
+    assert (rate.type, rate.integer_value) == (2, 1000)
+    [joints] = call("arm_controller", "get_parameters", "GetParameters", names=["joints"]).values
+    assert joints.type == 9 and list(joints.string_array_value) == list(JOINT_NAMES)
+    listed = call("controller_manager", "list_parameters", "ListParameters", prefixes=[], depth=0).result
+    assert {"update_rate", "arm_controller.type"} <= set(listed.names)
+    [missing] = call("robot_state_publisher", "get_parameters", "GetParameters", names=["no_such"]).values
+    assert missing.type == 0
+    new = peer.library.new
+    parameter = new("rcl_interfaces/msg/Parameter", name="update_rate",
+                    value=new("rcl_interfaces/msg/ParameterValue", type=2, integer_value=10))
+    [result] = call("controller_manager", "set_parameters", "SetParameters", parameters=[parameter]).results
+    assert not result.successful and "read-only" in result.reason and "plem launch" in result.reason

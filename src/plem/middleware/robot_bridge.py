@@ -39,6 +39,7 @@ from plem.middleware.goals import (
 from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.node import Node, Subscription
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
+from plem.middleware.parameters import ParameterServices, ParameterValue
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW, TF, TF_STATIC
 from plem.middleware.transforms import TreeTransforms, tf_message
 from plem.recording.status import read_status
@@ -48,6 +49,9 @@ _trajectory_log = logging.getLogger("plem.bridge.trajectory")
 _manager_log = logging.getLogger("plem.bridge.controller_manager")
 #: FollowJointTrajectory codes of goals refused before they ran (the driver reports aborts of running ones).
 REFUSAL_CODES = (int(ErrorCode.INVALID_GOAL), int(ErrorCode.INVALID_JOINTS))
+#: Where a parameter is changed, said when `ros2 param set` is refused.
+PARAMETERS_HOW = "change it in the description package (controllers.yaml, the URDF) or the launch arguments and " \
+                 "restart the robot with plem launch"
 #: Longest reason of an rt_events entry the bridge writes, as the driver's event records allow.
 EVENT_REASON_CHARACTERS = 600
 
@@ -82,6 +86,7 @@ class RobotBridge:
     follow: ActionServer
     set_mode: ActionServer
     manager: ControllerManager
+    parameter_services: list[ParameterServices]
 
     def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float,
                  controllers: ControllerSet, hardware: Hardware, commands: bool = True,
@@ -117,6 +122,12 @@ class RobotBridge:
             self.semantic.publish(self.semantic.message(data=semantic))
         self.feed = MonitorFeed(client, self.library, joint_state_rate)
         self._profiles = profiles
+        publisher: dict[str, ParameterValue] = {"robot_description": description,
+                                                "frame_prefix": self.frames.frame_prefix,
+                                                "publish_frequency": float(joint_state_rate)}
+        driver: dict[str, ParameterValue] = {"robot_id": client.robot_id,
+                                             "cycle_time_us": round(client.cycle_time_s * 1e6)}
+        self._parameters = {"robot_state_publisher": publisher, "wim_rt_driver": driver}
         self.graph = self._announce_nodes(semantic is not None)
 
     def _announce_nodes(self, semantic: bool) -> NodeGraph:
@@ -139,12 +150,29 @@ class RobotBridge:
             manager = graph.add(ns, "controller_manager", *self.manager.services)
             trajectory.endpoints += [self.trajectories, self.follow]
             driver.endpoints.append(self.set_mode)
+            self.parameter_services = [ParameterServices(self.node, f"{ns}/{graph_node.name}",
+                                                         self._node_parameters(graph_node.name), PARAMETERS_HOW)
+                                       for graph_node in graph.nodes]
+            for graph_node, parameters in zip(graph.nodes, self.parameter_services, strict=True):
+                graph_node.endpoints.append(parameters)
             for logger, graph_node in ((_manager_log, manager), (_trajectory_log, trajectory)):
                 handler = RosoutHandler(graph, graph_node)
                 logger.addHandler(handler)
                 self._handlers.append((logger, handler))
         graph.announce()
         return graph
+
+    def _node_parameters(self, name: str) -> dict[str, ParameterValue]:
+        """The read-only parameters `ros2 param` shows for one of the bridge's nodes."""
+        controllers = self.controllers
+        if name == "controller_manager":
+            rate = controllers.update_rate or round(1.0 / self.client.cycle_time_s)
+            return {"update_rate": int(rate), **{f"{c.name}.type": c.type for c in controllers.controllers}}
+        controller = controllers.named(name)
+        if controller is not None:
+            return {"joints": list(controller.joints), "command_interfaces": list(controller.command_interfaces),
+                    "state_interfaces": list(controller.state_interfaces)}
+        return dict(self._parameters.get(name, {}))
 
     def _command_endpoints(self, hardware: Hardware) -> None:
         """The controller manager's services, the trajectory controller's topic and action and the set_mode action,
@@ -226,8 +254,9 @@ class RobotBridge:
     def serve_commands(self, stop: threading.Event, period: float = 0.01) -> None:
         """Take trajectories, action and service requests until `stop`; runs in its own thread (not when
         read-only)."""
+        parameters = [server for node in self.parameter_services for server in node.services]
         waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services,
-                                     *self.manager.services])
+                                     *self.manager.services, *parameters])
         timeout = duration(seconds=period)
         while not stop.is_set():
             waitset.wait(timeout)
@@ -237,6 +266,8 @@ class RobotBridge:
                 self.follow.spin_once()
                 self.set_mode.spin_once()
                 self.manager.spin_once()
+                for node_parameters in self.parameter_services:
+                    node_parameters.spin_once()
             except Exception:  # noqa: BLE001 - one bad request must not end command service for everyone
                 _log.exception("a ROS command could not be handled; serving goes on")
 

@@ -155,6 +155,7 @@ class TreeTransforms:
     """
 
     def __init__(self, urdf_text: str, frame_prefix: str = "") -> None:
+        self.frame_prefix = frame_prefix
         root = parse_xml(urdf_text, _SOURCE)
         # Only <robot>'s own <joint> children: <ros2_control> and <transmission> hold <joint> elements too.
         # robot_state_publisher sends each topic's transforms in joint-name order.
