@@ -43,6 +43,16 @@ CST = int(OperationMode.CYCLIC_SYNC_TORQUE)
 #: A goal time tolerance beyond this many cycles (or infinite) waits this long: about 3 years at 1 kHz.
 MAX_SETTLE_CYCLES = 1 << 47
 
+#: How to get a robot holding, in each interface a user may command it from.
+HOLD_HOW = ("hold first: set_mode('hold') in Python, `plem mode hold`, or on ROS the wim_rt_driver/set_mode action "
+            "or controller_manager/switch_controller activating the trajectory controller")
+#: How to stop a motion before changing mode, in each interface.
+STOP_HOW = ("stop the motion (stop() in Python, `plem mode hold`, or cancel the goal on ROS), wait until the arm is "
+            "still, then retry")
+#: How to clear a fault, in each interface.
+RESET_HOW = ("clear the fault first: reset_fault() in Python, `plem reset`, or on ROS "
+             "controller_manager/set_hardware_component_state with target state active")
+
 
 def _center_and_half(low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Midpoint and half-width of each range; an unlimited joint gets centre 0 and half-width inf."""
@@ -412,8 +422,7 @@ class ArmRuntime:
                                   what="the robot holding (HOLD) or moving (TRAJECTORY)",
                                   why=f"the robot is in {self.mode.name}" + (f": {self.fault_reason}"
                                                                              if self.mode is Mode.FAULT else ""),
-                                  how="set_mode('hold') first" if self.mode is not Mode.FAULT
-                                  else "reset_fault() first")
+                                  how=HOLD_HOW if self.mode is not Mode.FAULT else RESET_HOW)
         if command.basis is not self.basis or (command.activation_cycle is not None
                                                and self.cycle_count != command.activation_cycle):
             stale = CommandRejected("the motion was planned from an outdated state",
@@ -478,7 +487,7 @@ class ArmRuntime:
                                   what=f"the arm standing still (|v| < {self.settings.standstill_velocity} rad/s)",
                                   why=f"{joint} moves at {np.max(np.abs(self.velocity)):.3g} rad/s"
                                   if moving.any() else "a motion is still running",
-                                  how="stop() and wait until the arm is still, then retry")
+                                  how=STOP_HOW)
 
     def _start_enable(self, target: Mode, handle: CommandHandle | None, *, after_reset: bool = False) -> None:
         """Ask the drives for operation enabled; after a fault reset, only once no drive is in FAULT any more."""
