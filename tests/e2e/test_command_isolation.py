@@ -272,7 +272,8 @@ def test_another_user_in_shm_group_may_watch_but_cannot_command_or_block(tmp_pat
         try:
             assert read_line(outsider, 30) == "watching True\n", outsider.stderr.read() if outsider.poll() else ""
             answer = read_line(outsider, 30)
-            assert answer.startswith("refused cannot reach the command service"), answer
+            assert answer.startswith("refused cannot reach the command service"), \
+                answer or (outsider.stderr.read() if outsider.poll() is not None else "no answer within 30 s")
             assert client.set_mode("hold", timeout=5) is Mode.HOLD
             assert client.set_mode("idle", timeout=5) is Mode.IDLE
         finally:

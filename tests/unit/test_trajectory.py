@@ -261,11 +261,13 @@ def test_invalid_trajectories_are_rejected_saying_where(points, names, start, su
     assert TrajectoryResult.rejected(error.value).error_code == ErrorCode.INVALID_GOAL
 
 
-def test_a_first_point_at_time_zero_may_differ_from_the_start_by_rounding_only():
+def test_a_first_point_at_time_zero_may_differ_from_the_start_as_a_measured_state_does():
+    """A client's current state comes from joint_states: within 0.01 rad the point is taken as the start."""
     start = np.array(GOOD)
-    build([point(start + 1e-10, 0.0)], start=(start, REST, REST))
+    spline = build([point(start + 0.004, 0.0), point(start + 0.1, 2.0, REST, REST)], start=(start, REST, REST))
+    assert np.array_equal(spline.state_at(0.0)[0], start)
     with pytest.raises(CommandRejected, match="not where the arm is"):
-        build([point(start + 1e-8, 0.0)], start=(start, REST, REST))
+        build([point(start + 0.02, 0.0)], start=(start, REST, REST))
 
 
 # ---------------------------------------------------------------------------------------------------------------

@@ -62,6 +62,9 @@ COMMANDS: dict[str, CommandSource] = {
     "config": CommandSource("plem.cli.config"),
     "profile": CommandSource("plem.cli.profile"),
     "topic": CommandSource("plem.cli.topic"),
+    "service": CommandSource("plem.cli.service"),
+    "action": CommandSource("plem.cli.action"),
+    "node": CommandSource("plem.cli.node"),
     "bag": CommandSource("plem.cli.bag"),
     "ethercat": CommandSource("plem.cli.ethercat"),
 }

@@ -26,8 +26,10 @@ from plem.errors import CommandRejected
 if TYPE_CHECKING:
     from plem.control.trajectory import JointTrajectory, TrajectoryPoint
 
-#: A first point at time 0 must sit this close to the start positions (rad).
-START_MATCH = 1e-9
+#: A first point at time 0 must sit this close to the start positions (rad): the current state a client read
+#: from joint_states differs from the command by the tracking error and the encoder's resolution. MoveIt's
+#: trajectory execution allows the same by default (allowed_start_tolerance).
+START_TOLERANCE = 0.01
 #: The last point's velocities and accelerations must be this close to zero.
 AT_REST = 1e-6
 #: Relative slack on every limit, for rounding in the polynomial evaluation.
@@ -150,11 +152,11 @@ def _check_ends(states: np.ndarray, first_time: float, start: np.ndarray, joint_
     """A first point at time 0 must be where the arm is; the last point must be at rest."""
     if first_time == 0.0:
         offset = np.abs(states[0, 0] - start[0])
-        if offset.max() > START_MATCH:
+        if offset.max() > START_TOLERANCE:
             j = int(offset.argmax())
             raise CommandRejected(
                 "point 0 has time_from_start 0 but is not where the arm is",
-                what=f"a point at time 0 equal to the current positions (within {START_MATCH:g} rad)",
+                what=f"a point at time 0 at the current positions (within {START_TOLERANCE:g} rad)",
                 why=f"{joint_names[j]} is at {start[0, j]:.9g} rad, point 0 asks for {states[0, 0, j]:.9g} rad",
                 how="give point 0 a time_from_start > 0 so the arm can get there, or start at the current positions")
     for k, field in ((1, "velocities"), (2, "accelerations")):
@@ -218,7 +220,9 @@ def read_waypoints(trajectory: JointTrajectory, limits: ArmLimits, start_positio
         has_a.append(point.accelerations is not None)
     states = np.array(rows)  # (points, 3, dof): positions, velocities, accelerations in arm order
     _check_ends(states, times[0], start, limits.joint_names)
-    if times[0] > 0.0:
+    if times[0] == 0.0:
+        states[0, 0] = start[0]  # the arm starts where it is, not a jump of up to START_TOLERANCE away
+    else:
         times, states = [0.0, *times], np.concatenate([start[None], states])
         has_v, has_a = [True, *has_v], [True, *has_a]
     return Waypoints(limits.joint_names, np.array(times), states, np.array(has_v), np.array(has_a), start,

@@ -35,6 +35,9 @@ class QosProfile:
             policies.append(Policy.DurabilityService(0, Policy.History.KeepLast(self.depth), -1, -1, -1))
         if user_data:
             policies.append(Policy.Userdata(user_data))
+        # Match peers by the types' layout, as rmw does: field names are not on the wire, and a peer whose
+        # generated code names a field differently (e.g. rmw's request header) must still be heard.
+        policies.append(Policy.TypeConsistency.AllowTypeCoercion(ignore_member_names=True))
         return Qos(*policies)
 
     def describe(self) -> str:
