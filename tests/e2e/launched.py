@@ -15,14 +15,14 @@ import sysconfig
 import textwrap
 import time
 import uuid
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import plem
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.recording.status import status_path
-from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID
+from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID, fresh_domain
 from tests.e2e.cli import plem_executable
 
 READY_LINE = "Ctrl-C stops the arm"
@@ -74,6 +74,24 @@ def process_gone(pid: int) -> bool:
 def process_reaped(pid: int) -> bool:
     """True when `pid` is gone entirely, not even a zombie (its owner check in plem counts zombies as alive)."""
     return not Path(f"/proc/{pid}").exists()
+
+
+def wait_for(produce: Callable[[], Any], timeout: float, period: float = 0.01) -> Any:
+    """The first truthy value `produce` returns within `timeout`, else None."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = produce()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            return None
+        time.sleep(period)
+
+
+def ros_environment(home: Path, domain: int | None = None) -> dict[str, str]:
+    """A launch environment on a domain of its own, discovery on this host only."""
+    domain = fresh_domain() if domain is None else domain
+    return clean_environment(home, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
 
 
 def wait_until(condition, timeout: float, period: float = 0.02) -> bool:

@@ -16,12 +16,11 @@ The ROS 2 names on the wire:
   `/a/act/_action/{feedback,status}`.
 """
 
-from __future__ import annotations
-
+# No postponed annotations here: Cyclone DDS reads the structs' field annotations as the IDL types they name.
 import itertools
 import time
 import uuid
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,6 +33,8 @@ from cyclonedds.qos import Policy, Qos
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
+
+from tests.e2e.launched import wait_for
 
 # ====================================================================================================
 # Message types (ROS 2 Jazzy), nested types first
@@ -206,6 +207,9 @@ class HardwareComponentState(IdlStruct, typename="controller_manager_msgs::msg::
 
 # Requests and replies: rmw_cyclonedds's header (client_guid, sequence_number), then the part's own fields.
 # A part with no fields of its own has rosidl's placeholder member, as every empty ROS 2 message does.
+# The header's member names are not on the wire. A ROS 2 node never compares them (rmw_cyclonedds announces no
+# XTypes type information), but these structs do carry type information (the Python binding always sends it),
+# so a server whose request readers compare member names does not match this peer's requests.
 @dataclass
 class ListControllersRequest(IdlStruct, typename="controller_manager_msgs::srv::dds_::ListControllers_Request_"):
     client_guid: types.uint64 = 0
@@ -456,11 +460,21 @@ class Profile:
     reliable: bool = True
 
     def qos(self) -> Qos:
-        """The Cyclone DDS QoS of this profile."""
+        """The Cyclone DDS QoS of this profile, for a writer."""
         return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)) if self.reliable
                    else Policy.Reliability.BestEffort,
                    Policy.Durability.TransientLocal if self.transient_local else Policy.Durability.Volatile,
                    Policy.History.KeepLast(self.depth))
+
+    def reader_qos(self) -> Qos:
+        """The Cyclone DDS QoS of this profile for a reader, which compares no member names with a writer's type.
+
+        A ROS 2 node compares none: rmw_cyclonedds's endpoints announce no XTypes type information, so its
+        readers and writers match on the DDS type name. Names are not on the wire, and those of the request
+        header are given by no ROS 2 definition."""
+        return Qos(*self.qos(), Policy.TypeConsistency.AllowTypeCoercion(
+            ignore_sequence_bounds=True, ignore_string_bounds=True, ignore_member_names=True,
+            prevent_type_widening=False, force_type_validation=False))
 
 
 #: rmw_qos_profile_default and rmw_qos_profile_services_default.
@@ -498,18 +512,6 @@ def take(reader: DataReader[Any], limit: int = 256) -> list[Any]:
     return [sample for sample in reader.take(N=limit) if sample.sample_info.valid_data]
 
 
-def wait_for(produce: Callable[[], Any], timeout: float, period: float = 0.01) -> Any:
-    """The first truthy value `produce` returns within `timeout`, else None."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = produce()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            return None
-        time.sleep(period)
-
-
 def to_duration(seconds: float) -> Duration:
     """builtin_interfaces/Duration of `seconds` (not negative)."""
     whole = int(seconds)
@@ -543,7 +545,7 @@ class PublicPeer:
 
     def reader(self, dds_topic: str, struct: type, profile: Profile) -> DataReader[Any]:
         """A reader on a DDS topic given by its wire name."""
-        return DataReader(self.participant, self._topic(dds_topic, struct), profile.qos())
+        return DataReader(self.participant, self._topic(dds_topic, struct), profile.reader_qos())
 
     def writer(self, dds_topic: str, struct: type, profile: Profile) -> DataWriter[Any]:
         """A writer on a DDS topic given by its wire name."""
@@ -598,13 +600,23 @@ class ServiceClient:
         self._early: dict[int, Any] = {}
 
     @property
+    def requests_matched(self) -> bool:
+        """A server's request reader is matched with this client's request writer."""
+        return self._requests.get_publication_matched_status().current_count > 0
+
+    @property
+    def replies_matched(self) -> bool:
+        """A server's reply writer is matched with this client's reply reader."""
+        return self._replies.get_subscription_matched_status().current_count > 0
+
+    @property
     def ready(self) -> bool:
         """A server's request reader and reply writer are both matched."""
-        return (self._requests.get_publication_matched_status().current_count > 0
-                and self._replies.get_subscription_matched_status().current_count > 0)
+        return self.requests_matched and self.replies_matched
 
-    def call(self, timeout: float = 5.0, **fields: Any) -> Any:
-        """Send one request and wait for its reply; TimeoutError when none arrives within `timeout`."""
+    def call(self, timeout: float = 5.0, /, **fields: Any) -> Any:
+        """Send one request with the part's `fields` and wait for its reply; TimeoutError when none arrives within
+        `timeout` (positional, so that a request may have a field of that name)."""
         sequence = next(self._sequence)
         self._requests.write(self.request_type(client_guid=self.guid, sequence_number=sequence, **fields))
         deadline = time.monotonic() + timeout

@@ -9,13 +9,14 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from plem.middleware.action import TERMINAL, ActionClient
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.node import Node, Subscription
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW
+from tests.e2e.launched import wait_for
 
 FJT = "control_msgs/action/FollowJointTrajectory"
 SET_MODE = "plem_msgs/action/SetMode"
@@ -132,18 +133,6 @@ class RosPeer:
 
 def last(items: Sequence[Any]) -> Any:
     return items[-1] if items else None
-
-
-def wait_for(produce: Callable[[], Any], timeout: float, period: float = 0.01) -> Any:
-    """The first truthy value `produce` returns within `timeout`, else None."""
-    deadline = time.monotonic() + timeout
-    while True:
-        value = produce()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            return None
-        time.sleep(period)
 
 
 def shifted(position: Sequence[float], joint: int, distance: float) -> list[float]:

@@ -27,14 +27,13 @@ from plem.control.modes import Mode
 from plem.middleware.action import ABORTED, CANCEL_NONE, CANCELED, SUCCEEDED
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.node_graph import ROSOUT_QOS
-from tests.conftest import fresh_domain
 from tests.e2e.launched import (
     Launch,
-    clean_environment,
     launched,
     new_robot_id,
     process_gone,
     python_client,
+    ros_environment,
     wait_until,
 )
 from tests.e2e.ros_peer import JOINT_NAMES, RosPeer, shifted, wait_for
@@ -58,12 +57,6 @@ _BRIDGE_LINE = re.compile(r"^  bridge +running, pid (\d+), topics and actions un
 
 
 # -- fixtures ----------------------------------------------------------------------------------------
-def ros_environment(home: Path, domain: int | None = None) -> dict[str, str]:
-    """A launch environment on a domain of its own, discovery on this host only."""
-    domain = fresh_domain() if domain is None else domain
-    return clean_environment(home, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(domain))
-
-
 @pytest.fixture(scope="module")
 def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
     directory = tmp_path_factory.mktemp("ros_bridge")
