@@ -219,7 +219,8 @@ def test_a_cubic_trajectory_gets_accelerations_and_keeps_its_timing():
     points = [point(np.full(6, 0.2 * k), k, np.full(6, 0.0 if k == 5 else 0.2)) for k in range(1, 6)]
     timed = fit(points)
     assert timed.motion.duration == pytest.approx(5.0)
-    assert "jerk limit" in timed.note()
+    assert "jerk limit" in timed.reason
+    assert timed.note() == "smoothed at the points to stay within the limits; 5.000 s as asked"
 
 
 def test_a_moveit_trapezoid_is_slowed_only_a_little():
@@ -265,6 +266,6 @@ def test_dense_positions_only_points_are_judged_by_what_changes_within_a_cycle()
     ramp = 10 * u**3 - 15 * u**4 + 6 * u**5
     points = [point(np.linspace(0.2, 1.5, 6) * r, t) for r, t in zip(ramp, u, strict=True)]
     timed = fit(points)
-    assert "steps adding up to" in timed.change and "points after it, made within one 1 ms cycle" in timed.change
+    assert "steps adding up to" in timed.reason and "points after it, made within one 1 ms cycle" in timed.reason
     assert timed.slowdown > 1.0
     assert_within(timed, LIMITS, HOME, points, np.arange(6))

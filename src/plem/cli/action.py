@@ -13,18 +13,10 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plem.cli.output import print_warnings
+from plem.cli.ros_arguments import LIST_TIMEOUT_S, MAX_SECONDS, interface_type, ros_name, seconds
+from plem.cli.ros_messages import message_fields, message_from_yaml, to_yaml
 from plem.cli.service import wait_for_server
-from plem.cli.topic import (
-    LIST_TIMEOUT_S,
-    MAX_SECONDS,
-    WAKE_S,
-    interface_type,
-    message_fields,
-    message_from_yaml,
-    ros_name,
-    seconds,
-    to_yaml,
-)
+from plem.cli.topic import WAKE_S
 from plem.errors import PlemError
 
 if TYPE_CHECKING:
@@ -140,10 +132,10 @@ def send_goal(
     if not accepted:
         raise PlemError("Goal was rejected.", what=f"{name} to accept the goal", why="the action server rejected it",
                         how="check the goal's fields and the action server's log")
-    typer.echo(f"Goal accepted with ID: {goal_id.hex()}\n")
-    result = _Result(client, goal_id)
-    waitset = node.waitset([client.feedback])
-    try:
+    try:   # from here on, Ctrl-C cancels the goal
+        typer.echo(f"Goal accepted with ID: {goal_id.hex()}\n")
+        result = _Result(client, goal_id)
+        waitset = node.waitset([client.feedback])
         while not result.done.is_set():
             waitset.wait(int(WAKE_S * 1e9))
             _take_feedback(client, goal_id, feedback)

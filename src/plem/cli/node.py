@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from plem.cli.output import print_warnings
-from plem.cli.topic import LIST_TIMEOUT_S, not_found, ros_name, seconds
+from plem.cli.ros_arguments import LIST_TIMEOUT_S, not_found, ros_name, seconds
 
 if TYPE_CHECKING:
     from plem.middleware.graph import Endpoint, Graph, NodeInfo

@@ -14,18 +14,8 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from plem.cli.output import print_warnings
-from plem.cli.topic import (
-    LIST_TIMEOUT_S,
-    interface_type,
-    message_fields,
-    message_from_yaml,
-    message_repr,
-    not_found,
-    ros_name,
-    seconds,
-    to_yaml,
-    wrong_type,
-)
+from plem.cli.ros_arguments import LIST_TIMEOUT_S, interface_type, not_found, ros_name, seconds, wrong_type
+from plem.cli.ros_messages import message_fields, message_from_yaml, message_repr, to_yaml
 from plem.errors import PlemError
 
 if TYPE_CHECKING:

@@ -3,33 +3,34 @@
 Discovery settings come from ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE, as for `ros2 topic`.
 The middleware (Cyclone DDS, the interface library) is imported inside the commands so other commands
 start fast.
-
-The helpers `plem service`, `plem action` and `plem node` share live here too: option validation, names and
-types given on the command line, messages filled from YAML and messages printed as YAML.
 """
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import difflib
 import math
-import sys
 import time
 from collections import deque
-from collections.abc import Iterable
 from enum import StrEnum
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
 from plem.cli.output import print_warnings
-from plem.errors import ConfigError, PlemError, UsageError
+from plem.cli.ros_arguments import (
+    LIST_TIMEOUT_S,
+    ListTimeout,
+    interface_type,
+    listed,
+    not_found,
+    ros_name,
+    seconds,
+)
+from plem.cli.ros_messages import message_from_yaml, message_repr, to_yaml
+from plem.errors import PlemError, UsageError
 
 if TYPE_CHECKING:
     from plem.middleware.graph import Endpoint, Graph
     from plem.middleware.node import Node, Subscription
-    from plem.middleware.types import InterfaceLibrary
 
 app = typer.Typer(help="Inspect and publish ROS 2 topics on the DDS domain (no ROS install needed).",
                   no_args_is_help=True)
@@ -44,33 +45,8 @@ ECHO_DEPTH = 10
 PUB_DEPTH = 10
 #: How long `pub --once` or `--times` waits, after its last message, for the subscribers to acknowledge it.
 ACK_WAIT_S = 2.0
-#: Discovery window of the commands that list what exists (`list`, `info`).
-LIST_TIMEOUT_S = 1.5
-
-#: Longest `--timeout` or `--duration` (30 days): DDS waits are counted in int64 nanoseconds.
-MAX_SECONDS = 30 * 24 * 3600
 #: Highest `--rate`: one message a microsecond.
 MAX_RATE = 1e6
-
-#: The field rosidl adds to an empty message; ROS 2 tools neither show it nor take it.
-PLACEHOLDER = "structure_needs_at_least_one_member"
-#: The request header rmw puts in front of a service part's fields (see plem.middleware.types.REQUEST_HEADER).
-REQUEST_HEADER = ("rmw_guid", "rmw_seq")
-_INTEGERS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64}
-_UNSIGNED = {"uint8": 8, "byte": 8, "char": 8, "uint16": 16, "uint32": 32, "uint64": 64}
-_FLOAT32_MAX = 3.4028234663852886e38
-#: The interface kinds a TYPE argument names, and the part of the type that holds what the command fills in.
-_KINDS = {"msg": ("message", ""), "srv": ("service", "_Request"), "action": ("action", "_Goal")}
-
-
-def seconds(value: float | None, param: typer.CallbackParam) -> float | None:
-    """A `--timeout`/`--duration` as given; NaN, infinite, negative or huge seconds are a usage error naming it."""
-    if value is not None and not 0 <= value <= MAX_SECONDS:   # false for NaN too
-        flag = param.opts[0]
-        raise UsageError(f"{flag} must be a number of seconds from 0 to {MAX_SECONDS}",
-                         what=f"{flag} SECONDS: a finite number from 0 to {MAX_SECONDS} (30 days)",
-                         why=f"{flag} is {value}", how=f"give {flag} a number of seconds, e.g. {flag} 5")
-    return value
 
 
 def _rate(value: float, param: typer.CallbackParam) -> float:
@@ -86,7 +62,6 @@ def _rate(value: float, param: typer.CallbackParam) -> float:
 Topic = Annotated[str, typer.Argument(help="ROS 2 topic, e.g. /indy/joint_states.")]
 Timeout = Annotated[float, typer.Option("--timeout", callback=seconds,
                                         help="Seconds to wait for a publisher of the topic.")]
-ListTimeout = Annotated[float, typer.Option("--timeout", callback=seconds, help="Seconds of discovery.")]
 
 
 class Reliability(StrEnum):
@@ -101,274 +76,6 @@ class Durability(StrEnum):
 
     volatile = "volatile"
     transient_local = "transient_local"
-
-
-# -- names and types given on the command line -----------------------------------------------------------
-def ros_name(name: str, kind: str) -> str:
-    """The absolute ROS 2 name of a TOPIC, SERVICE, ACTION or NODE argument (a leading '/' may be left out)."""
-    from plem.middleware import names
-
-    try:
-        return names.check_name(name if name.startswith("/") else f"/{name}")
-    except ConfigError as error:
-        raise UsageError(f"{kind} '{name}' is not a valid ROS 2 name", what=error.what, why=error.why,
-                         how=f"give the {kind}'s absolute name, e.g. /indy/joint_states; list them with "
-                             f"`plem {kind} list`") from None
-
-
-def interface_type(library: InterfaceLibrary, given: str, kind: str) -> str:
-    """The full name (`pkg/KIND/Name`) of a TYPE argument of `kind` msg, srv or action; `pkg/Name` may leave the
-    kind out. A malformed name, one of another kind or one the library does not know is a usage error."""
-    label, part = _KINDS[kind]
-    tokens = given.split("/")
-    if len(tokens) == 2:
-        tokens.insert(1, kind)
-    ros_type = "/".join(tokens)
-    if len(tokens) != 3 or tokens[1] != kind or not all(tokens):
-        raise UsageError(f"'{given}' is not a ROS 2 {label} type", what=f"a {label} type as pkg/{kind}/Name",
-                         why=f"got '{given}'",
-                         how=f"e.g. {_example(kind)}; `plem {_command(kind)} list -t` shows each one's type")
-    if not library.known(ros_type + part):
-        package = tokens[0]
-        same_package = sorted({known.removesuffix(part) for known in library.store.fielddefs
-                               if known.startswith(f"{package}/{kind}/") and known.endswith(part)})
-        if same_package:
-            why = f"{package} has no {label} {tokens[2]}; its {label}s: {_listed(same_package)}"
-        else:
-            packages = sorted({known.split("/")[0] for known in library.store.fielddefs if f"/{kind}/" in known})
-            why = f"no package {package} with {label}s; packages with {label}s: {', '.join(packages)}"
-        raise UsageError(f"{label} type {ros_type} is not known to plem",
-                         what=f"a {label} type of plem's interface library", why=why,
-                         how=f"check the spelling, or add the .{kind} definition under "
-                             f"src/plem/middleware/interfaces/{package}/{kind}/")
-    return ros_type
-
-
-def _example(kind: str) -> str:
-    return {"msg": "std_msgs/msg/String", "srv": "controller_manager_msgs/srv/ListControllers",
-            "action": "plem_msgs/action/SetMode"}[kind]
-
-
-def _command(kind: str) -> str:
-    return {"msg": "topic", "srv": "service", "action": "action"}[kind]
-
-
-def _listed(items: list[str], limit: int = 10) -> str:
-    return ", ".join(items[:limit]) + (", ..." if len(items) > limit else "") if items else "none"
-
-
-def not_found(kind: str, name: str, node: Node, timeout: float, seen: Iterable[str]) -> PlemError:
-    """The error for a topic, service, action or node that discovery did not show: what exists, what is close."""
-    from plem.middleware.graph import hidden
-
-    known = sorted(seen if hidden(name) else (item for item in seen if not hidden(item)))
-    close = difflib.get_close_matches(name, known, n=3)
-    why = f"none announced itself within {timeout} s ({node.settings.describe()}); {kind}s seen: {_listed(known)}"
-    return PlemError(f"unknown {kind} {name} on ROS_DOMAIN_ID={node.domain_id}",
-                     what=f"a {kind} {name} on the domain",
-                     why=why + (f"; did you mean {' or '.join(close)}?" if close else ""),
-                     how=f"list them with `plem {kind} list`, use the robot's ROS_DOMAIN_ID and "
-                         "ROS_AUTOMATIC_DISCOVERY_RANGE, or wait longer with --timeout")
-
-
-def wrong_type(kind: str, name: str, given: str, announced: list[str]) -> PlemError:
-    """The error for a service or action whose endpoints announce another type than the one given."""
-    return PlemError(f"{kind} {name} is not of type {given}", what=f"TYPE as the {kind}'s type",
-                     why=f"{name} announces {', '.join(announced)}",
-                     how=f"give {announced[0]}; `plem {kind} list -t` shows each {kind}'s type")
-
-
-# -- messages from YAML --------------------------------------------------------------------------------------
-def message_from_yaml(library: InterfaceLibrary, ros_type: str, text: str, argument: str) -> Any:
-    """A message of `ros_type` filled from the YAML mapping `text` (the command line's `argument`, e.g. VALUES).
-
-    Nested mappings fill nested messages (builtin_interfaces Time and Duration as `{sec: , nanosec: }`), lists
-    fill arrays and sequences; fields left out keep their zero value. Malformed YAML, an unknown field, a value
-    of the wrong type or out of the field's range is a usage error naming the field's path.
-    """
-    import yaml
-
-    try:
-        values = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or type(error).__name__
-        raise UsageError(f"{argument} is not valid YAML", what=f"{argument} as a YAML mapping, e.g. "
-                         f"\"{_prototype(library, ros_type)}\"", why=f"{problem}{where} of {text!r}",
-                         how=f"quote {argument} for the shell and close every bracket and quote") from None
-    return _Filler(library, ros_type, argument).message(ros_type, values, "")
-
-
-@dataclasses.dataclass(frozen=True)
-class _Filler:
-    """Fills one message of `root` from YAML values; errors name `argument` and the path of the field."""
-
-    library: InterfaceLibrary
-    root: str
-    argument: str
-
-    def error(self, path: str, why: str, how: str) -> UsageError:
-        where = f"field {path}" if path else "the top level"
-        return UsageError(f"{self.argument} does not fit {self.root} at {where}",
-                          what=f"{self.argument} as YAML with the fields of {self.root}, e.g. "
-                               f"\"{_prototype(self.library, self.root)}\"", why=why, how=how)
-
-    def message(self, ros_type: str, values: Any, path: str) -> Any:
-        fields = self.fields(ros_type)
-        if values is None:
-            values = {}
-        if not isinstance(values, dict):
-            raise self.error(path, f"{path or self.argument} is a {ros_type} message, got {_kind(values)}",
-                             f"give {path or self.argument} as a mapping of its fields, e.g. "
-                             f"{_prototype(self.library, ros_type)}")
-        filled = {}
-        for key, value in values.items():
-            if key not in fields:
-                close = difflib.get_close_matches(str(key), list(fields), n=1)
-                listed = ", ".join(f"{name} ({_spec_text(spec)})" for name, spec in fields.items())
-                raise self.error(_join(path, str(key)), f"{ros_type} has no field {key!r}"
-                                 + (f" (did you mean {close[0]!r}?)" if close else ""),
-                                 f"use its fields: {listed}" if listed else f"{ros_type} has no fields: give {{}}")
-            filled[key] = self.value(fields[key], value, _join(path, key))
-        return self.library.new(ros_type, **filled)
-
-    def fields(self, ros_type: str) -> dict[str, Any]:
-        return {name: spec for name, spec in self.library.store.fielddefs[ros_type][1] if name != PLACEHOLDER}
-
-    def value(self, spec: tuple[Any, Any], value: Any, path: str) -> Any:
-        from rosbags.interfaces import Nodetype
-
-        node, detail = spec
-        if node == Nodetype.BASE:
-            return self.base(detail[0], detail[1], value, path)
-        if node == Nodetype.NAME:
-            return self.message(detail, value, path)
-        element, size = detail
-        if not isinstance(value, list):
-            raise self.error(path, f"{path} is {_spec_text(spec)}, got {_kind(value)}",
-                             f"give {path} as a list, e.g. {path}: [...]")
-        if node == Nodetype.ARRAY and len(value) != size:
-            raise self.error(path, f"{path} is {_spec_text(spec)}: exactly {size} items, got {len(value)}",
-                             f"give {path} {size} items")
-        if node != Nodetype.ARRAY and size and len(value) > size:
-            raise self.error(path, f"{path} is {_spec_text(spec)}: at most {size} items, got {len(value)}",
-                             f"give {path} at most {size} items")
-        return [self.value(element, item, f"{path}[{index}]") for index, item in enumerate(value)]
-
-    def base(self, base: str, bound: int, value: Any, path: str) -> Any:
-        if base == "bool":
-            if isinstance(value, bool):
-                return value
-            raise self.error(path, f"{path} is bool, got {_kind(value)}", f"give {path} true or false")
-        if base == "string":
-            if not isinstance(value, str):
-                raise self.error(path, f"{path} is a string, got {_kind(value)}",
-                                 f"give {path} a string; quote a number or boolean to make it one, e.g. "
-                                 f"'{value}'" if isinstance(value, (int, float)) else f"give {path} a string")
-            if bound and len(value) > bound:
-                raise self.error(path, f"{path} is string<={bound}, got {len(value)} characters",
-                                 f"shorten {path} to at most {bound} characters")
-            return value
-        if base in _INTEGERS or base in _UNSIGNED:
-            bits = _INTEGERS.get(base) or _UNSIGNED[base]
-            low, high = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if base in _INTEGERS else (0, (1 << bits) - 1)
-            if isinstance(value, int) and not isinstance(value, bool) and low <= value <= high:
-                return value
-            got = f"{value}, out of range" if isinstance(value, int) and not isinstance(value, bool) else _kind(value)
-            raise self.error(path, f"{path} is {base}, got {got}", f"give {path} a whole number from {low} to {high}")
-        if isinstance(value, str):   # YAML reads 1e-3 (no '.') as a string; ros2 converts it too
-            with contextlib.suppress(ValueError):
-                value = float(value)
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            if base == "float32" and math.isfinite(value) and abs(value) > _FLOAT32_MAX:
-                raise self.error(path, f"{path} is float32, got {value}, out of range",
-                                 f"give {path} a number within ±{_FLOAT32_MAX:.7g}")
-            return float(value)
-        raise self.error(path, f"{path} is {base}, got {_kind(value)}", f"give {path} a number, e.g. 0.5")
-
-
-def _join(path: str, key: str) -> str:
-    return f"{path}.{key}" if path else key
-
-
-def _kind(value: Any) -> str:
-    """How a YAML value reads in an error: 'a string "a"', 'a list [1, 2]', ..."""
-    import json
-
-    kinds = ((bool, "a boolean"), (int, "an integer"), (float, "a number"), (str, "a string"), (list, "a list"),
-             (dict, "a mapping"))
-    if value is None:
-        return "nothing (null)"
-    kind = next((text for kind, text in kinds if isinstance(value, kind)), type(value).__name__)
-    return f"{kind} {json.dumps(value, default=str)}"
-
-
-def _spec_text(spec: tuple[Any, Any]) -> str:
-    """A field's type as a .msg file writes it: float64, string<=10, pkg/msg/Name, float64[3], int32[]..."""
-    from rosbags.interfaces import Nodetype
-
-    node, detail = spec
-    if node == Nodetype.BASE:
-        return f"{detail[0]}<={detail[1]}" if detail[1] else str(detail[0])
-    if node == Nodetype.NAME:
-        return str(detail)
-    element, size = detail
-    if node == Nodetype.ARRAY:
-        return f"{_spec_text(element)}[{size}]"
-    return f"{_spec_text(element)}[<={size}]" if size else f"{_spec_text(element)}[]"
-
-
-def _prototype(library: InterfaceLibrary, ros_type: str) -> str:
-    """A message of `ros_type` with its zero values, as one line of YAML (what ros2 completes VALUES with)."""
-    import yaml
-
-    return yaml.safe_dump(plain(library.new(ros_type), False), default_flow_style=True, sort_keys=False,
-                          width=sys.maxsize).strip()
-
-
-def message_fields(message: Any) -> dict[str, Any]:
-    """A message's fields by name, to build a request or goal that carries them."""
-    return {field.name: getattr(message, field.name) for field in dataclasses.fields(message)}
-
-
-# -- messages printed ----------------------------------------------------------------------------------------
-def plain(value: Any, no_arr: bool = False) -> Any:
-    """A message as dicts, lists and scalars in field order; with `no_arr`, sequences as their length.
-
-    The placeholder field of empty messages and the request header of service parts are left out.
-    """
-    if dataclasses.is_dataclass(value):
-        return {field.name: plain(getattr(value, field.name), no_arr) for field in dataclasses.fields(value)
-                if field.name != PLACEHOLDER and field.name not in REQUEST_HEADER}
-    if isinstance(value, (list, tuple, bytes)):
-        return f"<sequence length: {len(value)}>" if no_arr else [plain(item, no_arr) for item in value]
-    return value
-
-
-def to_yaml(message: Any, no_arr: bool = False, indent: int = 0) -> str:
-    """The message as block-style YAML, each line indented by `indent` spaces (no trailing newline)."""
-    import yaml
-
-    text = yaml.safe_dump(plain(message, no_arr), sort_keys=False, default_flow_style=False, allow_unicode=True,
-                          width=sys.maxsize).rstrip("\n")
-    return "\n".join(" " * indent + line for line in text.splitlines())
-
-
-def message_repr(value: Any) -> str:
-    """A message as rclpy prints one: `std_msgs.msg.String(data='hello')`, nested messages alike."""
-    from plem.middleware import names
-
-    if dataclasses.is_dataclass(value):
-        dds_name = getattr(type(value), "__idl_typename__", type(value).__name__)
-        python_name = (names.ros_type_name(dds_name) or dds_name).replace("/", ".")
-        fields = ", ".join(f"{field.name}={message_repr(getattr(value, field.name))}"
-                           for field in dataclasses.fields(value)
-                           if field.name != PLACEHOLDER and field.name not in REQUEST_HEADER)
-        return f"{python_name}({fields})"
-    if isinstance(value, (list, tuple, bytes)):
-        return f"[{', '.join(message_repr(item) for item in value)}]"
-    return repr(value)
 
 
 # -- list ------------------------------------------------------------------------------------------------------
@@ -459,7 +166,7 @@ def _no_publisher(name: str, node: Node, timeout: float, seen: list[str]) -> Ple
     return PlemError(f"no publisher of {name} on ROS_DOMAIN_ID={node.domain_id}",
                      what=f"a ROS 2 node or plem robot publishing {name}",
                      why=f"none announced itself within {timeout} s ({node.settings.describe()}); "
-                         f"topics with publishers: {_listed(seen)}",
+                         f"topics with publishers: {listed(seen)}",
                      how="check the name with `plem topic list`, use the publisher's ROS_DOMAIN_ID and "
                          "ROS_AUTOMATIC_DISCOVERY_RANGE, or wait longer with --timeout")
 

@@ -4,8 +4,8 @@ ROS 2 tools learn which nodes exist, and which readers and writers belong to eac
 `ros_discovery_info` topic: every participant publishes its nodes there with the GIDs of their endpoints
 (rmw_dds_common's ParticipantEntitiesInfo, ROS 2 Jazzy layout: 16-byte GIDs, which are the DDS GUIDs).
 plem's bridge is one DDS participant that presents the nodes a ros2_control robot has, so `ros2 node list`,
-`ros2 node info` and rqt find them. Every node also has a /rosout writer (rcl_interfaces/msg/Log), where the
-bridge's warnings and refusals appear under the node's logger name.
+`ros2 node info` and rqt find them. Every node also has its own /rosout writer (rcl_interfaces/msg/Log), where
+the bridge's warnings and refusals appear under the node's logger name.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from plem.middleware.node import Entities, Node
+from plem.middleware.node import Entities, Node, Publisher
 from plem.middleware.qos import QosProfile
 
 #: rmw's graph topic: no `rt/` prefix, the newest announcement reaches late joiners.
@@ -38,10 +38,11 @@ class HasEntities(Protocol):
 
 @dataclass
 class GraphNode:
-    """One ROS node: its namespace, name and the endpoints that belong to it."""
+    """One ROS node: its namespace, name, its own /rosout writer and the endpoints that belong to it."""
 
     namespace: str
     name: str
+    rosout: Publisher[Any]
     endpoints: list[HasEntities] = field(default_factory=list)
 
     @property
@@ -58,12 +59,13 @@ class NodeGraph:
         library = node.library
         self._announcer = node.publisher_of(DISCOVERY_TOPIC, library.message(DISCOVERY_TYPE), DISCOVERY_QOS,
                                             node.type_user_data(DISCOVERY_TYPE))
-        self.rosout = node.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
         self.nodes: list[GraphNode] = []
 
     def add(self, namespace: str, name: str, *endpoints: HasEntities) -> GraphNode:
-        """A node with `endpoints` (more may be added to its list before `announce`)."""
-        graph_node = GraphNode(namespace, name, list(endpoints))
+        """A node with `endpoints` (more may be added to its list before `announce`) and a /rosout writer of its
+        own, as every rcl node has."""
+        rosout = self.node.publisher("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
+        graph_node = GraphNode(namespace, name, rosout, [rosout, *endpoints])
         self.nodes.append(graph_node)
         return graph_node
 
@@ -76,7 +78,7 @@ class NodeGraph:
 
         infos = []
         for graph_node in self.nodes:
-            total = self.rosout.entities()
+            total = Entities()
             for endpoint in graph_node.endpoints:
                 total = total + endpoint.entities()
             infos.append(new("rmw_dds_common/msg/NodeEntitiesInfo", node_namespace=graph_node.namespace,
@@ -86,7 +88,7 @@ class NodeGraph:
 
     def log(self, graph_node: GraphNode, level: int, message: str) -> None:
         """One rcl_interfaces/msg/Log on /rosout under the node's logger name."""
-        self.rosout.publish(self.node.library.new(
+        graph_node.rosout.publish(self.node.library.new(
             "rcl_interfaces/msg/Log", stamp=self.node.library.stamp(), level=LEVELS.get(level, 30),
             name=graph_node.logger, msg=message, file="", function="", line=0))
 

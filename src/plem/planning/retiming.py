@@ -61,11 +61,12 @@ PACE_SHARE = 0.1
 
 @dataclass(frozen=True)
 class Timed:
-    """The motion to run for a trajectory, and how it differs from what was sent ('' when it does not)."""
+    """The motion to run for a trajectory, how it differs from what was sent ('' when it does not) and why."""
 
     motion: Spline
     requested_s: float
     change: str = ""
+    reason: str = ""  # the first limit the trajectory broke as sent
 
     @property
     def slowdown(self) -> float:
@@ -73,12 +74,14 @@ class Timed:
         return self.motion.duration / self.requested_s if self.requested_s > 0.0 else 1.0
 
     def note(self) -> str:
-        """One sentence for the result and the event log: what was changed, the timing, and why."""
+        """One sentence for the result and the event log: what was changed and the timing; why, when the motion
+        took longer than asked (a trajectory only smoothed keeps its timing, and the reason is a detail)."""
         if not self.change:
             return ""
-        timing = (f"{self.motion.duration:.3f} s instead of {self.requested_s:.3f} s ({self.slowdown:.2f}x as long)"
-                  if self.slowdown > 1.0 + 1e-6 else f"{self.motion.duration:.3f} s as asked")
-        return f"{self.change}; {timing}"
+        if self.slowdown <= 1.0 + 1e-6:
+            return f"{self.change}; {self.motion.duration:.3f} s as asked"
+        return (f"{self.change}; {self.motion.duration:.3f} s instead of {self.requested_s:.3f} s "
+                f"({self.slowdown:.2f}x as long): as sent, {self.reason}")
 
 
 def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartState, cycle_time_s: float) -> Timed:
@@ -100,7 +103,7 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
     smooth = _smoothest(waypoints, limits, cycle_time_s)
     if smooth is not None:
         motion, how = smooth
-        return Timed(motion, requested, f"{how} to stay within the limits (as sent, {reason})")
+        return Timed(motion, requested, f"{how} to stay within the limits", reason)
     if _moving(waypoints.start) and len(waypoints.times) > 2:
         rest = _from_rest_at_first_point(waypoints)
         smooth = _smoothest(rest, limits, cycle_time_s)
@@ -110,9 +113,9 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
                                          (smooth[0].knots, smooth[0].coefficients, list(range(1, len(rest.times))))],
                              _final_state(smooth[0]), limits, cycle_time_s)
             return Timed(joined, requested, f"brought to rest at the first point, then {smooth[1]}, to stay within "
-                                            f"the limits (as sent, {reason})")
+                                            "the limits", reason)
     return Timed(_stopping_at_points(waypoints, limits, cycle_time_s), requested,
-                 f"stopped at every point to stay on the path within the limits (as sent, {reason})")
+                 "stopped at every point to stay on the path within the limits", reason)
 
 
 def _final_state(motion: PolynomialMotion) -> np.ndarray:
