@@ -50,7 +50,7 @@ def test_every_cycle_reaches_the_stream_in_order(served):
         assert stream.dropped == 0
         assert all(s.latency_ns >= 0 for s in samples) and any(s.compute_ns > 0 for s in samples)
         state = client.state()
-        assert state.cycle >= samples[-1].cycle and state.mode is Mode.IDLE
+        assert state.cycle >= samples[-1].cycle and state.mode is Mode.HOLD  # bus:=mock starts enabled
 
 
 def test_a_motion_is_answered_and_shows_in_events_and_stats(served):
