@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from plem.control.commands import CommandHandle
 from plem.control.free_drive import FreeDriveController, default_damping
 from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
@@ -176,3 +177,14 @@ def test_damping_is_capped_by_joint_inertia_for_stability(indy7):
     inertia = arm.inertia_diagonal(np.zeros(6))
     assert np.all(damping * 0.001 / inertia <= 0.2 + 1e-12)
     assert damping[1] > damping[5]
+
+
+def test_a_stale_rejection_is_left_to_the_caller_to_plan_again_and_others_are_raised():
+    stale = CommandHandle("move_joints")
+    stale.reject(CommandRejected("planned from an outdated state", what="w", why="y", how="h"), stale=True)
+    stale.wait_accepted(0)   # returns: the robot's methods re-plan on `stale`
+    assert stale.stale and stale.rejection is not None
+    refused = CommandHandle("move_joints")
+    refused.reject(CommandRejected("outside the position limits", what="w", why="y", how="h"))
+    with pytest.raises(CommandRejected, match="outside the position limits"):
+        refused.wait_accepted(0)

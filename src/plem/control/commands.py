@@ -74,7 +74,8 @@ class CommandHandle:
         return self._accepted.is_set()
 
     def wait_accepted(self, timeout: float | None) -> None:
-        """Block until the loop took or refused the command; raises the rejection."""
+        """Block until the loop took or refused the command; raises the rejection, except a stale one, which the
+        caller plans again (see `stale`)."""
         if self._pump is not None:
             self._pump(self._accepted.is_set, timeout)
         if not self._accepted.wait(timeout):
@@ -82,7 +83,7 @@ class CommandHandle:
                                  what=f"the loop to accept the command within {timeout} s",
                                  why="the loop is not running or is stalled",
                                  how="start the robot (robot.start()) and check its status")
-        if self.rejection is not None:
+        if self.rejection is not None and not self.stale:
             raise self.rejection
 
     def wait(self, timeout: float | None = None) -> Any:

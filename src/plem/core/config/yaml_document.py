@@ -147,6 +147,20 @@ def _check_shape(text: str, path: Path) -> None:
     One pass over the parser's events, which libyaml produces without recursion, so neither limit can be
     reached before it is checked.
     """
+    try:
+        _count_values(text, path)
+    except yaml.MarkedYAMLError as exc:
+        # libyaml 0.2.6 (PyYAML 6.0.4) scans ahead and stops at its own depth limit before the parser hands
+        # over the 65th level: the same problem, said the same way.
+        if "nesting depth" not in (exc.problem or ""):
+            raise
+        mark = exc.problem_mark
+        raise _too_big(path, mark.line + 1 if mark else 1, f"nesting at most {MAX_YAML_DEPTH} deep",
+                       f"collections nest more than {MAX_YAML_DEPTH} deep here") from None
+
+
+def _count_values(text: str, path: Path) -> None:
+    """The pass of `_check_shape` over the parser's events."""
     sizes: dict[str, int] = {}
     open_values: list[tuple[int, str | None]] = [(0, None)]   # values inside each open collection, its anchor
     for event in yaml.parse(text, Loader=_Loader):
