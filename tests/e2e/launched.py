@@ -239,6 +239,20 @@ def python_client(code: str, *args: str, env: dict[str, str] | None = None) -> s
 
 
 def read_line(process: subprocess.Popen, timeout: float) -> str:
-    """The next stdout line of `process`, or '' when it ended or said nothing within `timeout`."""
-    readable, _, _ = select.select([process.stdout], [], [], timeout)
-    return process.stdout.readline() if readable else ""
+    """The next stdout line of `process`, or '' when it ended or said nothing within `timeout`.
+
+    The pipe is read a byte at a time: a buffered readline may take the next line into its buffer too, where
+    select no longer sees it, and the next call would wait for a line that has already arrived.
+    """
+    fd = process.stdout.fileno()
+    deadline = time.monotonic() + timeout
+    line = bytearray()
+    while not line.endswith(b"\n"):
+        remaining = deadline - time.monotonic()
+        if remaining <= 0 or not select.select([fd], [], [], remaining)[0]:
+            return ""
+        byte = os.read(fd, 1)
+        if not byte:
+            break
+        line += byte
+    return line.decode()
