@@ -6,6 +6,7 @@ One renderer serves the CLI and the logs, so a message reads the same wherever i
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from enum import IntEnum
 from typing import Any
 
 
@@ -106,3 +107,41 @@ class CommandRejected(PlemError):
 
 class RobotFault(PlemError):
     """The robot is in FAULT (or faulted while a command ran); the message carries the decoded reason."""
+
+
+class MoveItCode(IntEnum):
+    """moveit_msgs/MoveItErrorCodes values, which planning results carry on every surface."""
+
+    SUCCESS = 1
+    FAILURE = 99999
+    PLANNING_FAILED = -1
+    INVALID_MOTION_PLAN = -2
+    CONTROL_FAILED = -4
+    TIMED_OUT = -6
+    PREEMPTED = -7
+    START_STATE_IN_COLLISION = -10
+    GOAL_IN_COLLISION = -12
+    GOAL_CONSTRAINTS_VIOLATED = -14
+    INVALID_GROUP_NAME = -15
+    INVALID_GOAL_CONSTRAINTS = -16
+    INVALID_ROBOT_STATE = -17
+    INVALID_LINK_NAME = -18
+    INVALID_OBJECT_NAME = -19
+    FRAME_TRANSFORM_FAILURE = -21
+    START_STATE_INVALID = -26
+    GOAL_STATE_INVALID = -27
+    UNRECOGNIZED_GOAL_TYPE = -28
+    NO_IK_SOLUTION = -31
+
+
+class PlanningError(PlemError):
+    """A planning request that cannot be served as asked; `code` is MoveIt's MoveItErrorCodes value for it."""
+
+    def __init__(self, summary: str, *, what: str, why: str, how: str,
+                 code: MoveItCode = MoveItCode.PLANNING_FAILED) -> None:
+        super().__init__(summary, what=what, why=why, how=how)
+        self.code = code
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form, with the MoveIt error code."""
+        return {**super().to_dict(), "code": int(self.code)}

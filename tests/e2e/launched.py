@@ -109,7 +109,10 @@ class Launch:
 
     def __init__(self, arguments: Sequence[str], robot_ids: Sequence[str], directory: Path,
                  env: dict[str, str], command_prefix: Sequence[str] = ()) -> None:
-        self.arguments = list(arguments)
+        # Without planner:= the planner stays off: it costs a second of CPU per launch, and only the planning
+        # tests (which pass planner:=true) use it.
+        planner = [] if any(argument.startswith("planner:=") for argument in arguments) else ["planner:=false"]
+        self.arguments = [*arguments, *planner]
         self.robot_ids = list(robot_ids)
         self.env = env
         directory.mkdir(parents=True, exist_ok=True)
@@ -203,13 +206,20 @@ def launched(arguments: Sequence[str], robot_ids: Sequence[str], directory: Path
 
 
 @contextlib.contextmanager
-def launched_robot(tmp_path_factory: Any, *arguments: str) -> Iterator[Launch]:
-    """One simulated arm launched with `arguments` for a module's tests, in a temp folder of its own."""
+def launched_robot(tmp_path_factory: Any, *arguments: str, ros: bool = False) -> Iterator[Launch]:
+    """One simulated arm launched with `arguments` for a module's tests, in a temp folder of its own; with `ros`,
+    on a DDS domain of its own (see `ros_environment` and `join_domain`)."""
     directory = tmp_path_factory.mktemp("launch")
     robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}", *arguments], [robot_id], directory,
-                  clean_environment(directory / "plem_home")) as launch:
+    environment = (ros_environment if ros else clean_environment)(directory / "plem_home")
+    with launched(["bus:=mock", f"robot_id:={robot_id}", *arguments], [robot_id], directory, environment) as launch:
         yield launch
+
+
+def join_domain(monkeypatch: Any, launch: Launch) -> None:
+    """This process joins the launch's DDS domain, as a ROS 2 user's shell would."""
+    for name in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID"):
+        monkeypatch.setenv(name, launch.env[name])
 
 
 def system_python() -> str | None:

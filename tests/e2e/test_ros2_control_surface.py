@@ -17,7 +17,7 @@ import pytest
 
 from plem.bridge import connect
 from plem.control.modes import Mode
-from tests.e2e.launched import Launch, launched, new_robot_id, ros_environment
+from tests.e2e.launched import Launch, join_domain, launched_robot
 from tests.e2e.public_peer import (
     PRIMARY_STATE_ACTIVE,
     PRIMARY_STATE_INACTIVE,
@@ -103,18 +103,13 @@ class Robot:
 # -- fixtures ----------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def launch(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    directory = tmp_path_factory.mktemp("ros2_control")
-    robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], directory,
-                  ros_environment(directory / "plem_home")) as running:
+    with launched_robot(tmp_path_factory, ros=True) as running:
         yield running
 
 
 @pytest.fixture(autouse=True)
 def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, launch: Launch) -> None:
-    """This process joins the launch's domain, as a ROS 2 user's shell would."""
-    for name in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID"):
-        monkeypatch.setenv(name, launch.env[name])
+    join_domain(monkeypatch, launch)
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,9 @@ from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.node_graph import ROSOUT_QOS
 from tests.e2e.launched import (
     Launch,
+    join_domain,
     launched,
+    launched_robot,
     new_robot_id,
     process_gone,
     python_client,
@@ -59,18 +61,13 @@ _BRIDGE_LINE = re.compile(r"^  bridge +running, pid (\d+), topics and actions un
 # -- fixtures ----------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    directory = tmp_path_factory.mktemp("ros_bridge")
-    robot_id = new_robot_id()
-    with launched(["bus:=mock", f"robot_id:={robot_id}"], [robot_id], directory,
-                  ros_environment(directory / "plem_home")) as launch:
-        yield launch
+    with launched_robot(tmp_path_factory, ros=True) as running:
+        yield running
 
 
 @pytest.fixture(autouse=True)
 def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, robot: Launch) -> None:
-    """This process joins the launch's domain, as a ROS 2 user's shell would."""
-    for name in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_DOMAIN_ID"):
-        monkeypatch.setenv(name, robot.env[name])
+    join_domain(monkeypatch, robot)
 
 
 @pytest.fixture(scope="module")

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-import random
 import re
 import struct
 import subprocess
@@ -12,17 +10,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rosbags.interfaces import Nodetype
 
-from plem.middleware.types import library
-
-LIB = library()
-STORE = LIB.store
+from tests.wire_values import ACTION_PARTS, LIB, Filler, constants_of, fields_of, plain_of, reference_bytes, to_plem
 
 FJT = "control_msgs/action/FollowJointTrajectory"
 SET_MODE = "plem_msgs/action/SetMode"
-ACTION_PARTS = ("Goal", "Result", "Feedback", "SendGoal_Request", "SendGoal_Response", "GetResult_Request",
-                "GetResult_Response", "FeedbackMessage")
 SERVICE_PARTS = [f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS if "_Re" in part] + [
     "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response"]
 PLEM_MSGS = [f"plem_msgs/msg/{name}" for name in ("RtRaw", "RtEvent", "RtMonitorStats", "TimingStats", "QueueStats")]
@@ -33,116 +25,6 @@ WIRE_TYPES = [
     "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response", "action_msgs/msg/GoalStatusArray",
 ]
 SEEDS = range(5)  # seeds 0 and 3: every sequence empty; others: empty and non-empty mixed
-
-_INTS = {"int8": 8, "int16": 16, "int32": 32, "int64": 64}
-_UINTS = {"uint8": 8, "byte": 8, "char": 8, "uint16": 16, "uint32": 32, "uint64": 64}
-_DTYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "int8": np.int8, "uint8": np.uint8,
-           "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32, "int64": np.int64,
-           "uint64": np.uint64, "float32": np.float32, "float64": np.float64}
-_STRINGS = ("", "joint_1", "ünïcødé ☃ 日本語 😀", "tab\tand\nnewline", "x" * 37)
-_ALPHABET = "abcXYZ019_/ -äöüßéçñ€☃日本語中文Ωπ😀🤖"
-
-
-# -- a deterministic filler: ROS type -> nested plain values (dicts, lists, Python scalars) ----------------
-class Filler:
-    """Pseudo-random field values by ROS base type, with extremes, negatives and non-ASCII strings."""
-
-    def __init__(self, seed: int, zero: bool = False) -> None:
-        self.rng = random.Random(seed)
-        self.empty = zero or seed % 3 == 0
-        self.zero = zero
-
-    def message(self, ros_type: str, depth: int = 0) -> dict[str, Any]:
-        return {name: self.value(spec, depth) for name, spec in STORE.fielddefs[ros_type][1]}
-
-    def value(self, spec: tuple[Any, Any], depth: int) -> Any:
-        node, detail = spec
-        if node == Nodetype.BASE:
-            return self.base(*detail)
-        if node == Nodetype.NAME:
-            return self.message(detail, depth + 1)
-        element, size = detail
-        if node == Nodetype.ARRAY:
-            count = size
-        else:
-            count = 0 if self.empty else self.rng.randint(0, 3 if depth < 4 else 1)
-            count = min(count, size) if size else count
-        return [self.value(element, depth + 1) for _ in range(count)]
-
-    def base(self, base: str, bound: int) -> Any:
-        rng = self.rng
-        if self.zero:
-            return {"bool": False, "string": "", "float32": 0.0, "float64": 0.0}.get(base, 0)
-        if base == "bool":
-            return rng.random() < 0.5
-        if base in _INTS or base in _UINTS:
-            low, high = (-(1 << (_INTS[base] - 1)), (1 << (_INTS[base] - 1)) - 1) if base in _INTS \
-                else (0, (1 << _UINTS[base]) - 1)
-            return rng.choice((low, high, 0, max(low, -1), 1, rng.randint(low, high), rng.randint(low, high)))
-        if base == "float32":   # values float32 holds exactly
-            return rng.choice((0.0, -0.0, math.inf, -math.inf, 3.4028234663852886e38, -1.5,
-                               rng.randint(-(1 << 20), 1 << 20) / 64))
-        if base == "float64":
-            return rng.choice((0.0, -0.0, math.inf, -math.inf, 5e-324, -1.7976931348623157e308,
-                               rng.uniform(-1e6, 1e6), rng.uniform(-1e-6, 1e-6)))
-        if base == "string":
-            text = rng.choice(_STRINGS) if rng.random() < 0.5 else \
-                "".join(rng.choice(_ALPHABET) for _ in range(rng.randint(1, 12)))
-            return text[:bound] if bound else text
-        raise AssertionError(f"no values for base type {base}")
-
-
-# -- plain values -> plem struct / rosbags message, and back ----------------------------------------------
-def to_plem(ros_type: str, plain: dict[str, Any], with_header: bool = False, **header: int) -> Any:
-    struct_ = LIB.service_part(ros_type) if with_header else LIB.message(ros_type)
-    fields = {name: _plem_value(spec, plain[name]) for name, spec in STORE.fielddefs[ros_type][1]}
-    return struct_(**header, **fields)
-
-
-def _plem_value(spec: tuple[Any, Any], value: Any) -> Any:
-    node, detail = spec
-    if node == Nodetype.BASE:
-        return value
-    if node == Nodetype.NAME:
-        return to_plem(detail, value)
-    return [_plem_value(detail[0], item) for item in value]
-
-
-def to_rosbags(ros_type: str, plain: dict[str, Any]) -> Any:
-    fields = {name: _rosbags_value(spec, plain[name]) for name, spec in STORE.fielddefs[ros_type][1]}
-    return STORE.types[ros_type](**fields)
-
-
-def _rosbags_value(spec: tuple[Any, Any], value: Any) -> Any:
-    node, detail = spec
-    if node == Nodetype.BASE:
-        return value
-    if node == Nodetype.NAME:
-        return to_rosbags(detail, value)
-    (element_node, element), _ = detail
-    if element_node == Nodetype.BASE and element[0] != "string":   # rosbags wants numpy arrays of numbers
-        return np.array(value, dtype=_DTYPES[element[0]])
-    return [_rosbags_value(detail[0], item) for item in value]
-
-
-def plain_of(ros_type: str, message: Any) -> dict[str, Any]:
-    """A plem struct's content as plain values (bytes of uint8 arrays as lists of ints)."""
-    return {name: _plain(spec, getattr(message, name)) for name, spec in STORE.fielddefs[ros_type][1]}
-
-
-def _plain(spec: tuple[Any, Any], value: Any) -> Any:
-    node, detail = spec
-    if node == Nodetype.BASE:
-        return value
-    if node == Nodetype.NAME:
-        return plain_of(detail, value)
-    if isinstance(value, (bytes, bytearray)):
-        return list(value)
-    return [_plain(detail[0], item) for item in value]
-
-
-def reference_bytes(ros_type: str, plain: dict[str, Any]) -> bytes:
-    return bytes(STORE.serialize_cdr(to_rosbags(ros_type, plain), ros_type))
 
 
 # -- CDR equality ------------------------------------------------------------------------------------------
@@ -218,24 +100,6 @@ def test_send_goal_request_and_get_result_reply_layout() -> None:
 
 
 # -- the definitions plem ships for standard packages match upstream -----------------------------------------
-def _type_text(spec: tuple[Any, Any]) -> str:
-    node, detail = spec
-    if node == Nodetype.BASE:
-        return detail[0] + (f"<={detail[1]}" if detail[1] else "")
-    if node == Nodetype.NAME:
-        return detail
-    element, size = detail
-    return f"{_type_text(element)}[{size if node == Nodetype.ARRAY else ''}]"
-
-
-def fields_of(ros_type: str) -> list[tuple[str, str]]:
-    return [(name, _type_text(spec)) for name, spec in STORE.fielddefs[ros_type][1]]
-
-
-def constants_of(ros_type: str) -> list[tuple[str, str, Any]]:
-    return list(STORE.fielddefs[ros_type][0])
-
-
 _JTP, _MJTP = "trajectory_msgs/msg/JointTrajectoryPoint", "trajectory_msgs/msg/MultiDOFJointTrajectoryPoint"
 #: control_msgs (Jazzy, 5.x) and action_msgs as ROS 2 publishes them.
 UPSTREAM = {

@@ -19,6 +19,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
+from plem.bridge.planning import PlanningCalls
 from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
@@ -154,8 +155,8 @@ class RemoteHandle:
         return result_from_json(reply["result"])
 
 
-class RobotClient:
-    """A connection to one robot's shared memory (see `connect`)."""
+class RobotClient(PlanningCalls):
+    """A connection to one robot's shared memory (see `connect`), and through it to its planner."""
 
     def __init__(self, channels: RobotChannels) -> None:
         self.channels = channels
@@ -174,6 +175,7 @@ class RobotClient:
         """Drop the command connection and unmap the robot's shared memory (the robot runs on)."""
         with self._lock:
             self._disconnect()
+        self._close_planner()
         self.channels.close()
 
     def __enter__(self) -> RobotClient:

@@ -1,4 +1,4 @@
-"""`plem state`, `plem move`, `plem mode`, `plem reset`: watch and command a launched robot."""
+"""`plem state`, `plem mode`, `plem reset`: watch a launched robot and change its mode."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from plem.cli.output import OutputFormat, new_table, print_json, stdout
-from plem.errors import UsageError
 
 if TYPE_CHECKING:
     from rich.console import RenderableType
@@ -28,7 +27,8 @@ RobotId = Annotated[str | None, typer.Option(
 WATCH_PERIOD_S = 0.1
 
 
-def _connect(robot_id: str | None) -> RobotClient:
+def connect_robot(robot_id: str | None) -> RobotClient:
+    """A client of the robot `--robot-id` names (default: $PLEM_ROBOT_ID, else indy)."""
     from plem.bridge.client import connect
 
     return connect(robot_id)
@@ -118,7 +118,7 @@ def state(
     output_format: Annotated[OutputFormat, typer.Option("--format", help="Output format.")] = OutputFormat.text,
 ) -> None:
     """Print the robot's joint state and its fault (from shared memory; never disturbs the loop)."""
-    with _connect(robot_id) as client, _quiet_when_stdout_closes():
+    with connect_robot(robot_id) as client, _quiet_when_stdout_closes():
         current = client.live_state()
         if not watch:
             if output_format is OutputFormat.json:
@@ -133,48 +133,19 @@ def state(
                 _watch_live(client, current)
 
 
-def _target(client: RobotClient, text: str) -> list[float]:
-    poses = client.channels.state.poses
-    if text in poses:
-        return poses[text]
-    try:
-        return [float(value) for value in text.split(",")]
-    except ValueError:
-        raise UsageError(f"cannot read target {text!r}", what=f"a named pose ({', '.join(poses)}) or "
-                         f"{client.dof} joint positions in rad, comma-separated",
-                         why=f"{text!r} is neither", how="e.g. --to home or --to 0,0,-1.57,0,-1.57,0") from None
-
-
-def move(
-    to: Annotated[str, typer.Option("--to", help="A named pose (home, or the SRDF's group states) or q1,q2,... rad.")],
-    speed_scale: Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, (0, 1].")] = 0.5,
-    robot_id: RobotId = None,
-    timeout: Annotated[float, typer.Option("--timeout", help="Seconds to wait for the motion.")] = 60.0,
-) -> None:
-    """Move the arm to a pose (enables the drives first if they are off) and wait until it arrives."""
-    from plem.control.modes import Mode
-
-    with _connect(robot_id) as client:
-        target = _target(client, to)
-        if client.live_state().mode in (Mode.IDLE, Mode.FREE_DRIVE):
-            client.set_mode("hold")
-        result = client.move_joints(target, speed_scale).wait(timeout)
-        stdout.print(f"{client.robot_id}: {result.message}", markup=False)
-
-
 def mode(
     name: Annotated[str, typer.Argument(help="free_drive, hold or idle.")],
     robot_id: RobotId = None,
 ) -> None:
     """Change the robot's mode and wait until it took effect."""
-    with _connect(robot_id) as client:
+    with connect_robot(robot_id) as client:
         reached = client.set_mode(name)
         stdout.print(f"{client.robot_id}: mode {reached.name.lower()}", markup=False)
 
 
 def reset(robot_id: RobotId = None) -> None:
     """Clear a fault: reset the drives, enable them and hold where the arm is (without a fault: nothing to do)."""
-    with _connect(robot_id) as client:
+    with connect_robot(robot_id) as client:
         current = client.live_state()
         if not current.faulted:
             stdout.print(f"{client.robot_id}: no fault to clear; mode {current.mode.name.lower()}", markup=False)

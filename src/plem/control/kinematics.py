@@ -104,8 +104,28 @@ class ArmDynamics:
 
     def forward_kinematics(self, q: np.ndarray) -> pin.SE3:
         """Pose of the tip frame in the base frame at `q` (a copy the caller may keep)."""
+        return self.frame_placement(q, self._tip_id)
+
+    def frame_placement(self, q: np.ndarray, frame: int) -> pin.SE3:
+        """Pose of frame number `frame` (a link, joint or tool frame) in the root frame at `q` (a copy)."""
         pin.framesForwardKinematics(self.model, self.data, self._load(self._q, q))
-        return self.data.oMf[self._tip_id].copy()
+        return self.data.oMf[frame].copy()
+
+    def to_model_order(self, values: Sequence[float] | np.ndarray) -> np.ndarray:
+        """A new configuration vector in pinocchio's order from values in the arm's joint order."""
+        q = np.empty(self.model.nq)
+        q[self._order] = values
+        return q
+
+    def to_arm_order(self, q: np.ndarray) -> np.ndarray:
+        """A new vector in the arm's joint order from a configuration in pinocchio's order."""
+        values: np.ndarray = np.asarray(q, dtype=float)[self._order]
+        return values.copy()
+
+    @property
+    def model_indices(self) -> np.ndarray:
+        """For each arm joint, its index in pinocchio's configuration vector."""
+        return self._order.copy()
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """6×dof Jacobian of the tip frame, in the world-aligned frame at the tip (columns in joint order)."""

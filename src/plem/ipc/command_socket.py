@@ -1,4 +1,5 @@
-"""The command socket `/dev/shm/{robot_id}_commands`: how clients reach a robot's command service.
+"""The command socket `/dev/shm/{robot_id}_commands`: how clients reach a robot's command service (and, at
+`/dev/shm/{robot_id}_planner`, its planner).
 
 A Unix stream socket, one connection per client, carrying length-prefixed JSON frames. The kernel keeps
 clients apart: a client that stops reading or stalls holds up only its own connection, and no lock is
@@ -25,15 +26,17 @@ _LENGTH = struct.Struct("<I")
 _CREDENTIALS = struct.Struct("3i")  # pid, uid, gid
 #: Largest frame either side accepts: one request of the largest size, with room for its framing.
 MAX_FRAME_BYTES = MAX_REQUEST_BYTES + 1024
+#: The services a robot serves on sockets, by the suffix of their socket's name, with their names in messages.
+SERVICES = {"commands": "command service", "planner": "planner"}
 
 
 class CommandSocketError(PlemError):
     """The command socket is missing, foreign, busy or broken."""
 
 
-def socket_path(robot_id: str) -> Path:
-    """The socket of a robot's command service, beside its shared memory."""
-    return SHM_DIRECTORY / f"{robot_id}_commands"
+def socket_path(robot_id: str, service: str = "commands") -> Path:
+    """The socket of a robot's command service (or another of SERVICES), beside its shared memory."""
+    return SHM_DIRECTORY / f"{robot_id}_{service}"
 
 
 def peer_credentials(connection: socket.socket) -> tuple[int, int, int]:
@@ -76,18 +79,19 @@ class FrameReader:
         return frames
 
 
-def listen(robot_id: str, backlog: int = 16) -> socket.socket:
+def listen(robot_id: str, backlog: int = 16, service: str = "commands") -> socket.socket:
     """Bind the robot's socket, owner-only and non-blocking; a live one is refused, a stale own one replaced."""
-    path = socket_path(robot_id)
-    _clear_stale(path, robot_id)
+    path = socket_path(robot_id, service)
+    title = SERVICES[service]
+    _clear_stale(path, robot_id, title)
     server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     previous = os.umask(0o177)  # the socket file is created 0600: only the owner (and root) may connect
     try:
         server.bind(os.fspath(path))
     except OSError as error:
         server.close()
-        raise CommandSocketError(f"cannot create the command socket of robot '{robot_id}'",
-                                 what=f"{path} free for this robot's command service",
+        raise CommandSocketError(f"cannot create the {title} socket of robot '{robot_id}'",
+                                 what=f"{path} free for this robot's {title}",
                                  why=f"{error.strerror}", how=f"remove {path} or use another robot_id:=") from None
     finally:
         os.umask(previous)
@@ -96,7 +100,7 @@ def listen(robot_id: str, backlog: int = 16) -> socket.socket:
     return server
 
 
-def _clear_stale(path: Path, robot_id: str) -> None:
+def _clear_stale(path: Path, robot_id: str, title: str) -> None:
     """Remove a socket left by a dead service of this user; anything else at the name is an error."""
     try:
         info = path.lstat()
@@ -104,7 +108,7 @@ def _clear_stale(path: Path, robot_id: str) -> None:
         return
     if not stat.S_ISSOCK(info.st_mode) or info.st_uid != os.geteuid():
         kind = "socket" if stat.S_ISSOCK(info.st_mode) else "file that is not a socket"
-        raise CommandSocketError(f"the command socket name of robot '{robot_id}' is taken",
+        raise CommandSocketError(f"the {title} socket name of robot '{robot_id}' is taken",
                                  what=f"{path} free, or a socket of this user",
                                  why=f"it is a {kind} owned by {user_name(info.st_uid)}",
                                  how=f"remove it as its owner or root (rm {path}), or use another robot_id:=")
@@ -118,14 +122,14 @@ def _clear_stale(path: Path, robot_id: str) -> None:
         return
     finally:
         probe.close()
-    raise CommandSocketError(f"robot '{robot_id}' already has a command service",
-                             what=f"one command service per robot_id; {path} must be free",
+    raise CommandSocketError(f"robot '{robot_id}' already has a {title}",
+                             what=f"one {title} per robot_id; {path} must be free",
                              why=f"a process answers on {path}", how="stop that robot first, or use another robot_id:=")
 
 
-def remove_own_socket(robot_id: str) -> None:
+def remove_own_socket(robot_id: str, service: str = "commands") -> None:
     """Remove the robot's socket if this user created it; another user's is left alone."""
-    path = socket_path(robot_id)
+    path = socket_path(robot_id, service)
     try:
         if path.lstat().st_uid == os.geteuid():
             path.unlink(missing_ok=True)
@@ -133,9 +137,11 @@ def remove_own_socket(robot_id: str) -> None:
         pass
 
 
-def connect(robot_id: str) -> socket.socket:
-    """A non-blocking connection to the robot's command service, checked to be run by this user or root."""
-    path = socket_path(robot_id)
+def connect(robot_id: str, service: str = "commands") -> socket.socket:
+    """A non-blocking connection to the robot's command service (or another of SERVICES), checked to be run by
+    this user or root."""
+    path = socket_path(robot_id, service)
+    title = SERVICES[service]
     connection = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         connection.connect(os.fspath(path))
@@ -143,17 +149,19 @@ def connect(robot_id: str) -> socket.socket:
         connection.close()
         denied = error.errno in (errno.EACCES, errno.EPERM)
         raise CommandSocketError(
-            f"cannot reach the command service of robot '{robot_id}'",
-            what=f"a command service listening on {path}",
+            f"cannot reach the {title} of robot '{robot_id}'",
+            what=f"a {title} listening on {path}",
             why=(f"{path} belongs to another user: commands are taken from the user that launched the robot "
                  "and root" if denied else f"{error.strerror}: the robot is not running or is starting"),
             how="command the robot as the user that launched it" if denied
-            else "start the robot with `plem launch` (bus:=mock for the simulated arm) and check robot_id") from None
+            else "start the robot with `plem launch` (bus:=mock for the simulated arm) and check robot_id"
+            + ("; the planner runs when the description package has an SRDF" if service == "planner" else "")
+        ) from None
     pid, uid, _ = peer_credentials(connection)
     if not trusted(uid):
         connection.close()
         raise CommandSocketError(f"robot '{robot_id}' is served by another user's process",
-                                 what="a command service run by you or by root",
+                                 what=f"a {title} run by you or by root",
                                  why=f"process {pid} of {user_name(uid)} answers on {path}",
                                  how=f"stop that process (or remove {path} as root) and launch the robot again, "
                                      "or use another robot_id:=")

@@ -46,6 +46,9 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
                    "default: true on bus:=mock and ethercat_sim, false on ethercat (docs/ros2.md)"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
+    LaunchArgument("planner", "true", "start the motion planner when the package has an SRDF (IK, collision "
+                   "checking, OMPL; MoveIt's services under /{robot_id}/)"),
+    LaunchArgument("scene", "", "YAML file of collision objects the planner starts with (docs/planning.md)"),
     LaunchArgument("record", "true", "record the monitoring topics into rosbag2 bags"),
     LaunchArgument("bag_dir", "~/bags/rt_monitoring", "directory of the bags"),
     LaunchArgument("retention_minutes", "60", "delete bags older than this (a circular buffer)"),

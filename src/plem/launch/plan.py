@@ -25,6 +25,7 @@ from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
 from plem.launch.arguments import DEFAULTS, model_default
+from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
 from plem.recording.problems import refuse_unusable, write_problem
 from plem.recording.settings import RecordingSettings
@@ -70,6 +71,18 @@ class RobotPlan:
     report: ValidationReport
     description: ResolvedDescription | None = None
     bridge_commands: bool = True
+    #: planner:= as given; the planner starts only when it is true and the package has an SRDF.
+    planner_wanted: bool = True
+
+    @property
+    def has_srdf(self) -> bool:
+        """Whether the description package has an SRDF (the spec's condition for planning)."""
+        return self.report.srdf is not None
+
+    @property
+    def planner(self) -> bool:
+        """Whether the launch starts this robot's planner."""
+        return self.planner_wanted and self.has_srdf
 
     @property
     def config(self) -> SerialArmConfig:
@@ -294,8 +307,10 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
         errors.append(_problem("bus", bus, f"one of {', '.join(BUSES)}",
                                "use bus:=mock for the simulated arm, bus:=ethercat_sim for the virtual EtherCAT "
                                "network"))
-    record, bridge, bridge_commands = (_boolean(arguments, name, errors)
-                                       for name in ("record", "bridge", "bridge_commands"))
+    record, bridge, bridge_commands, planner = (_boolean(arguments, name, errors)
+                                                for name in ("record", "bridge", "bridge_commands", "planner"))
+    if arguments.get("scene"):
+        _collected(errors, lambda: read_scene_file(Path(arguments["scene"])))
     if "start_enabled" in arguments:
         _boolean(arguments, "start_enabled", errors)
     prefix = arguments.get("frame_prefix", "")
@@ -335,7 +350,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
         _interface_from_etherlab(resolved)
     robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
     plan = RobotPlan(arguments, resolved, package, arguments.get("urdf_file"), arguments.get("srdf_file"), bus,
-                     robot_name, record, bridge, group, report, None, bridge_commands)
+                     robot_name, record, bridge, group, report, None, bridge_commands, planner)
     if generate:
         plan.generate_files(temp_root)
     return plan

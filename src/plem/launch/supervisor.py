@@ -33,10 +33,8 @@ READY_TIMEOUT_S = 120.0
 STOP_TIMEOUT_S = 20.0
 STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
-#: Components of later releases: listed in the summary, never faked.
-NOT_BUILT = {"planner": "motion planner"}
 MODULES = {"ethercat_sim": "plem.launch.ethercat_sim", "rt_driver": "plem.launch.rt_driver",
-           "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder"}
+           "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder", "planner": "plem.launch.planner"}
 
 
 class LaunchFailed(PlemError):
@@ -125,15 +123,22 @@ class Supervisor:
                 return
             plan.arguments["eth_interface"] = self.children[-1].ready["interface"]
         self._start(plan, "rt_driver", critical=True)
-        if self.components.get("bridge", True) and plan.bridge and not self.stop_requested.is_set():
-            self._start(plan, "bridge", critical=False)
-        if self.components.get("recorder", True) and plan.record and not self.stop_requested.is_set():
-            self._start(plan, "recorder", critical=False)
+        if self.stop_requested.is_set():
+            return
+        # One after the other: starting Python processes together would take the cores from the driver and
+        # the drives it is enabling.
+        wanted = {"bridge": plan.bridge, "recorder": plan.record, "planner": plan.planner}
+        for name, on in wanted.items():
+            if on and self.components.get(name, True) and not self.stop_requested.is_set():
+                self._start(plan, name, critical=False)
 
     def _start(self, plan: RobotPlan, component: str, critical: bool) -> None:
-        """Start one component (`python -m plem.launch.<module>`) and wait for its readiness line."""
+        """Start one component as `python -m plem.launch.<module> '<launch arguments>'`; wait for its readiness."""
         env = {**child_environment(plan), "PLEM_LAUNCH_PID": str(os.getpid())}
-        process = subprocess.Popen([sys.executable, "-m", MODULES[component], json.dumps(plan.arguments)],
+        arguments = plan.arguments
+        if component == "planner" and not self.components.get("bridge", True):
+            arguments = {**arguments, "bridge": "false"}  # no DDS when the launch file leaves the bridge out
+        process = subprocess.Popen([sys.executable, "-m", MODULES[component], json.dumps(arguments)],
                                    stdout=subprocess.PIPE, text=True, env=env, start_new_session=True)
         child = Child(plan.robot_id, component, process, critical=critical)
         self.children.append(child)
@@ -191,8 +196,7 @@ class Supervisor:
                          f"behind {sim.ready['interface']} (the virtual EtherCAT network)")
             self.say(f"  bridge        {self._bridge_status(children.get('bridge'))}")
             self.say(f"  recorder      {self._recorder_status(children.get('recorder'))}")
-            for component, title in NOT_BUILT.items():
-                self.say(f"  {component:<13} {self._component_status(plan, component, title)}")
+            self.say(f"  planner       {self._planner_status(plan, children.get('planner'))}")
         if not RT_KERNEL_FLAG.exists():
             self.say(f"kernel: not PREEMPT_RT ({RT_KERNEL_FLAG} is absent), so nothing bounds how late the loop "
                      "wakes: expect overruns while the machine is busy (docs/runtime.md, Timing)")
@@ -217,12 +221,16 @@ class Supervisor:
             return self._off("recorder", "record")
         return f"recording, pid {child.process.pid}, into {child.ready['directory']} ({child.ready['settings']})"
 
-    def _component_status(self, plan: RobotPlan, component: str, title: str) -> str:
-        if not self.components.get(component, True):
-            return "disabled by the launch file"
-        if component == "planner" and plan.description is not None and not plan.description.planner_enabled:
-            return "not started: no SRDF"
-        return f"unavailable: the {title} is not part of this plem version"
+    def _planner_status(self, plan: RobotPlan, child: Child | None) -> str:
+        if child is None:
+            if not plan.has_srdf:
+                return "not started: no SRDF (add srdf/NAME.srdf to plan motions)"
+            return self._off("planner", "planner")
+        ready = child.ready
+        objects = f", {ready['objects']} scene objects" if ready["objects"] else ""
+        ros = f"MoveIt's services under {ready['namespace']}/" if ready.get("namespace") else "no ROS (bridge:=false)"
+        return (f"running, pid {child.process.pid}, groups {', '.join(ready['groups'])}{objects}, {ros} "
+                f"(plem move --to-pose, plem plan)")
 
     # -- watch -------------------------------------------------------------------------------------
     def _watch(self) -> int:

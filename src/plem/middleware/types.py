@@ -1,17 +1,20 @@
 """ROS 2 interface types as Cyclone DDS structs, built at run time from their .msg/.srv/.action definitions.
 
 Standard definitions come from the `rosbags` type store (ROS 2 Jazzy); the few it lacks and plem's own
-`plem_msgs` ship as definition files in `interfaces/`. Each ROS type becomes a Cyclone DDS struct whose
-DDS type name follows the ROS 2 rule (`pkg::msg::dds_::Name_`), so its CDR bytes are the ones a ROS 2
-node sends and expects. Service parts carry the request header rmw_cyclonedds puts in front of their
-fields (the client writer's 64-bit id and a sequence number).
+`plem_msgs` ship as definition files in `interfaces/`. MoveIt's packages there are parsed only when one of
+their types is first asked for, so processes that never serve MoveIt do not pay for them. Each ROS type
+becomes a Cyclone DDS struct whose DDS type name follows the ROS 2 rule (`pkg::msg::dds_::Name_`), so its
+CDR bytes are the ones a ROS 2 node sends and expects. Service parts carry the request header rmw_cyclonedds
+puts in front of their fields (the client writer's 64-bit id and a sequence number).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import threading
 import time
 import types
+from collections.abc import Iterable, Iterator
 from functools import cache
 from pathlib import Path
 from typing import Any
@@ -26,6 +29,8 @@ from plem.middleware.names import dds_type_name
 
 INTERFACES = Path(__file__).with_name("interfaces")
 PLEM_MSGS = INTERFACES / "plem_msgs"
+#: Packages in `interfaces/` parsed when one of their types is first asked for, not when the library loads.
+ON_DEMAND = frozenset({"moveit_msgs", "octomap_msgs", "object_recognition_msgs"})
 
 #: Fields rmw_cyclonedds writes before a request's or reply's own fields.
 REQUEST_HEADER = ("rmw_guid", "rmw_seq")
@@ -86,22 +91,39 @@ def _idl_type(constructor: type, *parameters: Any) -> Any:
     return constructor[parameters]  # type: ignore[index]  # cyclonedds subscripts plain classes (__class_getitem__)
 
 
-def _load_store() -> Typestore:
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for path in sorted(INTERFACES.glob("*/*/*.*")):
+def _register(store: Typestore, paths: Iterable[Path]) -> list[str]:
+    """Parse definition files into the store in one registration; the ROS types they define."""
+    parsed: dict[str, Any] = {}
+    for path in paths:
         for ros_type, text in _definitions(path).items():
-            store.register(_parse(ros_type, text))
-    return store
+            parsed.update(_parse(ros_type, text))
+    store.register(parsed)
+    return list(parsed)
+
+
+def _referenced(fields: Iterable[tuple[str, tuple[Any, Any]]]) -> Iterator[str]:
+    """The message types a type's fields hold, directly or as array and sequence elements."""
+    for _, (node, detail) in fields:
+        while node in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            node, detail = detail[0]
+        if node == Nodetype.NAME:
+            yield detail
 
 
 class InterfaceLibrary:
     """Every ROS 2 type plem speaks, as rosbags definitions and as Cyclone DDS structs."""
 
     def __init__(self) -> None:
-        self.store = _load_store()
+        self.store = get_typestore(Stores.ROS2_JAZZY)
+        paths = sorted(INTERFACES.glob("*/*/*.*"))
+        self._pending = {package: [path for path in paths if path.parent.parent.name == package]
+                         for package in ON_DEMAND}
+        self._loading = threading.RLock()
+        _register(self.store, [path for path in paths if path.parent.parent.name not in ON_DEMAND])
 
     def known(self, ros_type: str) -> bool:
         """Whether `ros_type` (e.g. `std_msgs/msg/String`) has a definition here."""
+        self._require(ros_type)
         return ros_type in self.store.fielddefs
 
     def message(self, ros_type: str) -> type[IdlStruct]:
@@ -123,10 +145,22 @@ class InterfaceLibrary:
 
     def type_hash(self, ros_type: str) -> str:
         """The type's RIHS01 hash, as ROS 2 Iron and later announce it."""
+        self._require(ros_type)
         return self.store.hash_rihs01(ros_type)
+
+    def _require(self, ros_type: str) -> None:
+        """Parse the on-demand package `ros_type` belongs to, and those its types use, if not done yet."""
+        with self._loading:
+            paths = self._pending.pop(ros_type.split("/", 1)[0], None)
+            if paths is None:
+                return
+            for defined in _register(self.store, paths):
+                for used in _referenced(self.store.fielddefs[defined][1]):
+                    self._require(used)
 
     @cache  # noqa: B019 - one library per process; its structs live as long as it does
     def _struct(self, ros_type: str, with_header: bool) -> type[IdlStruct]:
+        self._require(ros_type)
         constants, fields = self.store.fielddefs[ros_type]
         annotations: dict[str, Any] = {}
         defaults: dict[str, Any] = {}

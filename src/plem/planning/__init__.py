@@ -1,5 +1,13 @@
-"""Motion planning: time parameterisation within the joint limits, shared by trajectories and plans."""
+"""Motion planning: inverse kinematics, collision checking, OMPL paths and time parameterisation within the limits.
 
-from plem.planning.retiming import Timed, fit_to_limits
+The names here are plain data and the re-timing every trajectory gets; the planner itself
+(`plem.planning.planner.Planner`, with pinocchio, coal and OMPL) is imported where it runs.
+"""
 
-__all__ = ["Timed", "fit_to_limits"]
+from plem.planning.goals import JointGoal, NamedGoal, Plan, PlanOptions, PoseGoal
+from plem.planning.poses import Pose
+from plem.planning.retiming import Timed, along_straight_lines, fit_to_limits
+from plem.planning.scene import Box, Cylinder, Mesh, PlanningScene, SceneObject, Sphere
+
+__all__ = ["Box", "Cylinder", "JointGoal", "Mesh", "NamedGoal", "Plan", "PlanOptions", "PlanningScene", "Pose",
+           "PoseGoal", "SceneObject", "Sphere", "Timed", "along_straight_lines", "fit_to_limits"]

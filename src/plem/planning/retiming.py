@@ -90,9 +90,7 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
     Refused (CommandRejected) only for what no timing can fix: malformed points, unknown joints, a point
     outside the position limits, or an arm moving so that it cannot reach the first point within them.
     """
-    waypoints = read_waypoints(trajectory, limits, *start)
-    for index, knot in enumerate(waypoints.point_knots):
-        limits.check_positions(waypoints.states[knot, 0], f"point {index}")
+    waypoints = _checked_waypoints(trajectory, limits, start)
     requested = float(waypoints.times[-1])
     as_sent = Spline.through(waypoints)
     try:
@@ -116,6 +114,21 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
                                             "the limits", reason)
     return Timed(_stopping_at_points(waypoints, limits, cycle_time_s), requested,
                  "stopped at every point to stay on the path within the limits", reason)
+
+
+def along_straight_lines(trajectory: JointTrajectory, limits: ArmLimits, start: StartState, cycle_time_s: float
+                         ) -> Spline:
+    """The motion that follows the straight joint-space lines between the points exactly, at rest at each one
+    (the last layer of `fit_to_limits`), for a caller that needs the lines themselves, such as a planned path."""
+    return _stopping_at_points(_checked_waypoints(trajectory, limits, start), limits, cycle_time_s)
+
+
+def _checked_waypoints(trajectory: JointTrajectory, limits: ArmLimits, start: StartState) -> Waypoints:
+    """The trajectory's knots, every point within the position limits (else CommandRejected)."""
+    waypoints = read_waypoints(trajectory, limits, *start)
+    for index, knot in enumerate(waypoints.point_knots):
+        limits.check_positions(waypoints.states[knot, 0], f"point {index}")
+    return waypoints
 
 
 def _final_state(motion: PolynomialMotion) -> np.ndarray:

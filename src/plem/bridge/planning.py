@@ -1,0 +1,225 @@
+"""A client's link to its robot's planner process: plans, IK, FK and the planning scene.
+
+Requests and answers travel as JSON frames on `/dev/shm/{robot_id}_planner`, one request at a time per
+client. Errors come back as PlanningError with MoveIt's error code. Plans are executed by the client
+itself through the robot's command path, never by the planner.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from plem.control.trajectory import TrajectoryTolerances
+from plem.errors import MoveItCode, PlanningError
+from plem.ipc import command_socket
+from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
+from plem.ipc.requests import new_request_id
+from plem.planning.goals import Goal, JointGoal, NamedGoal, Plan, PlanOptions, PoseGoal
+from plem.planning.poses import Pose
+from plem.planning.protocol import goal_json, options_json, plan_from_json
+from plem.planning.scene import PlanningScene, SceneObject
+
+#: Largest answer accepted from the planner (a long plan's points).
+MAX_ANSWER_BYTES = 64 << 20
+#: Time an answer may take beyond the planning time asked for.
+ANSWER_MARGIN_S = 30.0
+
+
+class PlannerLink:
+    """A blocking connection to a robot's planner; thread-safe (requests are serialised)."""
+
+    def __init__(self, robot_id: str) -> None:
+        self.robot_id = robot_id
+        self._socket: socket.socket | None = None
+        self._reader = FrameReader(MAX_ANSWER_BYTES)
+        self._lock = threading.Lock()
+
+    def request(self, op: str, wait_s: float = ANSWER_MARGIN_S, **args: Any) -> Any:
+        """Send one request and wait for its answer's result; its error is raised as PlanningError."""
+        request_id = new_request_id()
+        with self._lock:
+            try:
+                connection = self._connection()
+            except CommandSocketError as error:
+                raise PlanningError(f"robot '{self.robot_id}' has no planner running", what=error.what,
+                                    why=error.why, how=error.how, code=MoveItCode.FAILURE) from None
+            try:
+                connection.sendall(frame(json.dumps({"id": request_id, "op": op, **args}).encode()))
+                answer = self._answer(connection, request_id, wait_s)
+            except (OSError, CommandSocketError) as error:
+                self._close()
+                raise PlanningError("the planner did not answer", what=f"an answer within {wait_s:.0f} s",
+                                    why=f"{type(error).__name__}: {error}"[:300],
+                                    how="check the launch's output for the planner's state; plem launch restarts "
+                                        "nothing by itself: relaunch the robot if the planner stopped",
+                                    code=MoveItCode.FAILURE) from None
+        if answer.get("error") is not None:
+            raise _error(answer["error"])
+        return answer.get("result")
+
+    def close(self) -> None:
+        """Drop the connection (the planner runs on)."""
+        with self._lock:
+            self._close()
+
+    def _connection(self) -> socket.socket:
+        if self._socket is None:
+            self._socket = command_socket.connect(self.robot_id, service="planner")
+            self._socket.setblocking(True)
+            self._reader = FrameReader(MAX_ANSWER_BYTES)
+        return self._socket
+
+    def _answer(self, connection: socket.socket, request_id: str, timeout_s: float) -> dict[str, Any]:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f"no answer within {timeout_s:.0f} s")
+            connection.settimeout(remaining)
+            data = connection.recv(1 << 20)
+            if not data:
+                raise ConnectionResetError("the planner closed the connection")
+            for payload in self._reader.feed(data):
+                answer: dict[str, Any] = json.loads(payload)
+                if answer.get("id") == request_id:
+                    return answer
+
+    def _close(self) -> None:
+        if self._socket is not None:
+            self._socket.close()
+            self._socket = None
+
+
+def _error(value: Mapping[str, Any]) -> PlanningError:
+    try:
+        code = MoveItCode(int(value.get("code", MoveItCode.FAILURE)))
+    except ValueError:
+        code = MoveItCode.FAILURE
+    return PlanningError(str(value.get("summary", "planning failed")), what=str(value.get("what", "")),
+                         why=str(value.get("why", "")), how=str(value.get("how", "")), code=code)
+
+
+def goal_of(target: Goal | Pose | str | Sequence[float] | Mapping[str, float], joint_names: Sequence[str],
+            frame: str = "") -> Goal:
+    """What a user passes as a target, as a goal: a pose (in `frame`), a named state, positions in joint order or
+    by name."""
+    if isinstance(target, JointGoal | NamedGoal | PoseGoal):
+        return target
+    if isinstance(target, Pose):
+        return PoseGoal(target, frame)
+    if isinstance(target, str):
+        return NamedGoal(target)
+    if isinstance(target, Mapping):
+        return JointGoal({str(name): float(value) for name, value in target.items()})
+    values = [float(value) for value in target]
+    if len(values) != len(joint_names):
+        raise PlanningError(f"{len(values)} positions for {len(joint_names)} joints",
+                            what=f"one position per joint ({', '.join(joint_names)})", why=f"got {len(values)}",
+                            how="give every joint's position, or a dict of the joints to move",
+                            code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    return JointGoal(dict(zip(joint_names, values, strict=True)))
+
+
+class PlanningCalls:
+    """The planner's calls on a robot client: plans, moves through the planner, IK, FK and the scene.
+
+    Mixed into `RobotClient`; needs its `robot_id`, `joint_names` and `execute_trajectory`.
+    """
+
+    robot_id: str
+    joint_names: tuple[str, ...]
+    _planner_link: PlannerLink | None = None
+
+    def _planner(self) -> PlannerLink:
+        if self._planner_link is None:
+            self._planner_link = PlannerLink(self.robot_id)
+        return self._planner_link
+
+    def _close_planner(self) -> None:
+        if self._planner_link is not None:
+            self._planner_link.close()
+
+    def plan(self, target: Goal | Pose | str | Sequence[float] | Mapping[str, float], *,
+             start: Sequence[float] | None = None, frame: str = "", options: PlanOptions | None = None) -> Plan:
+        """A collision-free, timed and checked plan to `target` (a Pose, a named state such as 'home', positions in
+        joint order or by name) from `start` (default: where the arm is); nothing moves."""
+        goal = goal_of(target, self.joint_names, frame)
+        options = options or PlanOptions()
+        result = self._planner().request("plan", options.timeout_s + ANSWER_MARGIN_S, goal=goal_json(goal),
+                                         options=options_json(options),
+                                         start=None if start is None else [float(v) for v in start])
+        return plan_from_json(result)
+
+    def move_to(self, target: Goal | Pose | str | Sequence[float] | Mapping[str, float], *, frame: str = "",
+                options: PlanOptions | None = None, tolerances: TrajectoryTolerances | None = None) -> Any:
+        """Plan to `target` from where the arm is and run the plan through the robot's command path; returns the
+        accepted motion's handle (`.wait()` for its result)."""
+        plan = self.plan(target, frame=frame, options=options)
+        return self.execute_trajectory(plan.trajectory, tolerances)  # type: ignore[attr-defined]
+
+    def cartesian_path(self, waypoints: Sequence[Pose], *, frame: str = "", link: str = "", max_step: float = 0.01,
+                       jump_threshold: float = 0.0, start: Sequence[float] | None = None,
+                       options: PlanOptions | None = None) -> Plan:
+        """A plan moving `link` (the group's tip) along straight lines through `waypoints`; its `fraction` says how
+        much of the way it covers (MoveIt's compute_cartesian_path)."""
+        options = options or PlanOptions()
+        result = self._planner().request(
+            "cartesian", options.timeout_s + ANSWER_MARGIN_S, waypoints=[pose.to_json() for pose in waypoints],
+            frame=frame, link=link, max_step=max_step, jump_threshold=jump_threshold,
+            options=options_json(options), start=None if start is None else [float(v) for v in start])
+        return plan_from_json(result)
+
+    def compute_ik(self, pose: Pose, *, frame: str = "", seed: Sequence[float] | None = None, group: str = "",
+                   link: str = "", timeout: float | None = None, avoid_collisions: bool = True,
+                   position_only: bool = False) -> list[float]:
+        """Joint positions putting `link` (the group's tip) at `pose`, nearest `seed` (default: where the arm is)."""
+        result: list[float] = self._planner().request(
+            "ik", (timeout or 0.0) + ANSWER_MARGIN_S, pose=pose.to_json(), frame=frame, group=group, link=link,
+            seed=None if seed is None else [float(v) for v in seed], timeout_s=timeout,
+            avoid_collisions=avoid_collisions, position_only=position_only)
+        return result
+
+    def compute_fk(self, positions: Sequence[float] | None = None, links: Sequence[str] = ()) -> dict[str, Pose]:
+        """The pose of each link (default: the group's tip) in the root frame at `positions` (default: now)."""
+        result = self._planner().request("fk", positions=None if positions is None else [float(v) for v in positions],
+                                         links=list(links))
+        return {link: Pose.from_json(value) for link, value in result.items()}
+
+    def contacts(self, positions: Sequence[float] | None = None) -> list[tuple[str, str]]:
+        """Every colliding pair (links and scene objects) at `positions` (default: now)."""
+        result = self._planner().request("contacts",
+                                         positions=None if positions is None else [float(v) for v in positions])
+        return [(a, b) for a, b in result]
+
+    def planning_scene(self) -> PlanningScene:
+        """The planner's scene: its world and attached objects."""
+        return PlanningScene.from_json(self._planner().request("scene", action="get"))
+
+    def add_objects(self, *objects: SceneObject) -> None:
+        """Add objects to the scene (an existing name is replaced)."""
+        self._planner().request("scene", action="add", objects=[item.to_json() for item in objects])
+
+    def move_object(self, name: str, pose: Pose) -> None:
+        """Move a world object to `pose` (in its frame) or an attached one relative to its link."""
+        self._planner().request("scene", action="move", name=name, pose=pose.to_json())
+
+    def remove_object(self, name: str) -> None:
+        """Remove an object from the scene."""
+        self._planner().request("scene", action="remove", name=name)
+
+    def attach_object(self, name: str, link: str = "", touch_links: Sequence[str] = ()) -> None:
+        """Attach a world object to `link` (the group's tip) where it is now; it then moves with the link."""
+        self._planner().request("scene", action="attach", name=name, link=link, touch_links=list(touch_links))
+
+    def detach_object(self, name: str) -> None:
+        """Leave an attached object in the world where it is now."""
+        self._planner().request("scene", action="detach", name=name)
+
+    def clear_scene(self) -> None:
+        """Remove every object."""
+        self._planner().request("scene", action="clear")

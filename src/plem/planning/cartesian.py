@@ -1,0 +1,75 @@
+"""Cartesian straight-line paths: the tool moved along lines between poses, as far as the arm can follow.
+
+Positions interpolate linearly and orientations by slerp, in steps of at most `max_step` metres (or the
+same share of the rotation, at 1 rad per metre). Every step is solved by IK from the previous state and must
+be collision-free, with a collision-free straight joint-space move from the previous state. The path stops
+at the first step that fails, and the fraction of the way it covers is reported, as MoveIt's
+compute_cartesian_path does. A jump threshold, when above 0, also stops it at a joint-space step larger
+than that many times the mean step (a flip to another IK branch).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from plem.errors import MoveItCode, PlanningError
+
+#: Rotation (rad) counted as one metre of travel when the step count is chosen.
+RADIANS_PER_METRE = 1.0
+#: Largest joint step (rad) between collision checks of the move from one Cartesian step to the next.
+CHECK_STEP = 0.02
+#: Most steps a request may ask for (path length over max_step), which bounds its cost.
+MAX_STEPS = 100_000
+
+
+def cartesian_states(start: np.ndarray, waypoints: Sequence[pin.SE3], placement: Callable[[np.ndarray], pin.SE3],
+                     solve: Callable[[pin.SE3, np.ndarray], np.ndarray | None], max_step: float,
+                     jump_threshold: float, is_free: Callable[[np.ndarray], bool]) -> tuple[np.ndarray, float]:
+    """Joint states along the lines from the tool's pose at `start` through `waypoints`, and the fraction of the
+    way covered. `placement(q)` is the tool's pose, `solve(pose, seed)` IK from a seed (None on failure)."""
+    if not (max_step > 0.0 and np.isfinite(max_step)):
+        raise PlanningError("max_step must be above 0", what="a step length in metres above 0 (e.g. 0.01)",
+                            why=f"max_step is {max_step}", how="set max_step, e.g. 0.01",
+                            code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    poses = [placement(start), *waypoints]
+    lengths = [_length(a, b) for a, b in zip(poses[:-1], poses[1:], strict=True)]
+    total = sum(lengths)
+    counts = [max(int(np.ceil(length / max_step)), 1) for length in lengths]
+    if sum(counts) > MAX_STEPS:
+        raise PlanningError("the Cartesian path has too many steps", what=f"at most {MAX_STEPS} steps",
+                            why=f"{total:.3f} m in steps of {max_step} m is {sum(counts)} steps",
+                            how="use a larger max_step", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    states = [start]
+    covered = 0.0
+    for begin, end, length, count in zip(poses[:-1], poses[1:], lengths, counts, strict=True):
+        for k in range(1, count + 1):
+            q = solve(pin.SE3.Interpolate(begin, end, k / count), states[-1])
+            if q is None or not is_free(q) or not _move_free(states[-1], q, is_free) or _jumps(states, q,
+                                                                                             jump_threshold):
+                return np.array(states), covered / total if total > 0 else 0.0
+            states.append(q)
+            covered += length / count
+    return np.array(states), 1.0
+
+
+def _length(a: pin.SE3, b: pin.SE3) -> float:
+    """Travel between two poses: distance plus rotation at RADIANS_PER_METRE."""
+    return float(np.linalg.norm(b.translation - a.translation)
+                 + np.linalg.norm(pin.log3(a.rotation.T @ b.rotation)) / RADIANS_PER_METRE)
+
+
+def _move_free(a: np.ndarray, b: np.ndarray, is_free: Callable[[np.ndarray], bool]) -> bool:
+    """Whether the straight joint-space move from `a` to `b` is free, checked every CHECK_STEP rad."""
+    count = int(np.ceil(np.abs(b - a).max() / CHECK_STEP))
+    return all(is_free(a + (b - a) * k / count) for k in range(1, count))
+
+
+def _jumps(states: list[np.ndarray], q: np.ndarray, threshold: float) -> bool:
+    """Whether the step to `q` is over `threshold` times the mean step so far (never when threshold is 0)."""
+    if threshold <= 0.0 or len(states) < 2:
+        return False
+    steps = np.linalg.norm(np.diff(np.array(states), axis=0), axis=1)
+    return bool(np.linalg.norm(q - states[-1]) > threshold * steps.mean())
