@@ -5,20 +5,23 @@ with the test suite's tests/third_party.py)
 
 Problems (benchmarks/planning_problems.json, made by --generate with a fixed seed and shipped with this
 file): for each arm (indy7, indyrp2, UR5, Panda) and each scene, 18 start/goal pairs of collision-free
-configurations whose straight joint-space line collides, so every problem needs a detour:
+configurations with every link above the base's plane (the arm stands on a table) whose straight
+joint-space line collides, so every problem needs a detour:
   table     a table top just below the base, and a box on it in front of the arm;
   shelf     a shelf in front: two boards and a back wall;
   passage   a wall in front with a narrow gap to pass through.
 Figures per arm and scene, over the pairs:
-  success       share solved within 5 s;
+  success       share solved within 5 s: by plem's planner layer, by bare OMPL, and by the whole plan;
   median / p95  planning time (ms): plem = `plem.planning.paths.plan_path` (RRTConnect, simplification);
                 bare = the same through OMPL's SimpleSetup directly, the same validity function
                 (`CollisionChecker.is_free` of an instance of its own) and check resolution, in the same run,
                 alternating; ratio = plem over bare (the planner layer's overhead);
   total         plem's whole `Planner.plan` (median, ms): goal checks, planning, time parameterisation and the
                 dense re-check of the timed motion;
-  length        joint-space path length (rad, median), and the timed motion's duration (s, median) over the
-                bound from the limits (`plem.planning.parameterisation.duration_bound`).
+  length        joint-space path length (rad, median);
+  duration/bound  the path timed within the limits (straight lines, at rest at each corner) over the bound from
+                the limits (`plem.planning.parameterisation.duration_bound`), median; ms/state: time to
+                parameterise, per path state.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 from ompl import base as ob
 from ompl import geometric as og
 
@@ -37,7 +41,7 @@ from plem.control.limits import ArmLimits
 from plem.description.validate import validate_package
 from plem.planning.collision import CollisionChecker
 from plem.planning.goals import JointGoal, PlanOptions
-from plem.planning.parameterisation import duration_bound
+from plem.planning.parameterisation import duration_bound, parameterise, planning_limits
 from plem.planning.paths import CHECK_STEP, SIMPLIFY_SHARE, plan_path
 from plem.planning.planner import Planner
 from plem.planning.poses import Pose
@@ -106,7 +110,7 @@ def generate(planners: dict[str, Planner]) -> dict[str, object]:
             pairs: list[list[list[float]]] = []
             while len(pairs) < PAIRS:
                 start, goal = rng.uniform(lower, upper), rng.uniform(lower, upper)
-                if planner.contacts(start) or planner.contacts(goal):
+                if planner.contacts(start) or planner.contacts(goal) or under(planner, start) or under(planner, goal):
                     continue
                 line = [start + (goal - start) * s for s in np.linspace(0, 1, 60)]
                 if any(planner.contacts(q) for q in line):
@@ -114,6 +118,12 @@ def generate(planners: dict[str, Planner]) -> dict[str, object]:
             per_scene[scene_name] = pairs
         problems[name] = per_scene
     return problems
+
+
+def under(planner: Planner, positions: np.ndarray) -> bool:
+    """Whether a link is below the base's plane: under the table the arm stands on, which no path can reach."""
+    links = [frame.name for frame in planner.arm.model.frames if frame.type == pin.FrameType.BODY]
+    return any(pose.position[2] < 0.0 for pose in planner.fk(positions, links).values())
 
 
 def set_scene(planner: Planner, objects: list[SceneObject]) -> None:
@@ -156,8 +166,9 @@ def bare(checker: CollisionChecker, planner: Planner, start: np.ndarray, goal: n
     return time.perf_counter() - began
 
 
-def layer(planner: Planner, start: np.ndarray, goal: np.ndarray) -> float | None:
-    """Planning time (s) of plem's path layer on the same problem (the planner's own validity function)."""
+def layer(planner: Planner, start: np.ndarray, goal: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """Planning time (s) of plem's path layer on the same problem (the planner's own validity function), and the
+    path's states."""
     is_free = planner.collisions.is_free
     order = planner.arm.model_indices
     q = np.empty(len(start))
@@ -168,10 +179,11 @@ def layer(planner: Planner, start: np.ndarray, goal: np.ndarray) -> float | None
 
     began = time.perf_counter()
     try:
-        plan_path(planner.limits.min_position, planner.limits.max_position, free, start, [goal], "", TIMEOUT_S)
+        path = plan_path(planner.limits.min_position, planner.limits.max_position, free, start, [goal], "",
+                         TIMEOUT_S)
     except Exception:  # noqa: BLE001 - a failure counts against the success rate
         return None
-    return time.perf_counter() - began
+    return time.perf_counter() - began, path.states
 
 
 def percentile(values: list[float], share: float) -> float:
@@ -190,8 +202,8 @@ def main() -> None:
         if args.generate or not PROBLEMS.exists():
             PROBLEMS.write_text(json.dumps(generate(planners)))
         problems = json.loads(PROBLEMS.read_text())
-        print(f"{'arm':<8} {'scene':<8} {'pairs':>5} {'success':>8} {'plem ms':>9} {'p95':>7} {'bare ms':>8} "
-              f"{'p95':>7} {'ratio':>6} {'total ms':>9} {'length':>7} {'duration/bound':>15}")
+        print(f"{'arm':<8} {'scene':<8} {'pairs':>5} {'success':>14} {'plem ms':>9} {'p95':>7} {'bare ms':>8} "
+              f"{'p95':>7} {'ratio':>6} {'total ms':>9} {'length':>7} {'duration/bound':>15} {'ms/state':>9}")
         ratios = []
         for name, planner in planners.items():
             for scene_name, objects in scenes(reach(planner)).items():
@@ -199,13 +211,17 @@ def main() -> None:
                 checker = CollisionChecker(planner.arm.model, planner.urdf_xml, planner.disabled_pairs)
                 checker.set_scene(planner.scene)
                 pairs = problems[name][scene_name][: 3 if args.quick else PAIRS]
-                plem_times, bare_times, totals, lengths, stretch = [], [], [], [], []
+                plem_times, bare_times, totals, lengths, stretch, per_state = [], [], [], [], [], []
                 for start_list, goal_list in pairs:
                     start, goal = np.array(start_list), np.array(goal_list)
                     ours = layer(planner, start, goal)
                     theirs = bare(checker, planner, start, goal)
                     if ours is not None:
-                        plem_times.append(ours)
+                        plem_times.append(ours[0])
+                        began = time.perf_counter()
+                        motion = parameterise(ours[1], planning_limits(planner.limits), CYCLE, straight=True)
+                        per_state.append((time.perf_counter() - began) / len(ours[1]))
+                        stretch.append(motion.duration / duration_bound(ours[1], planner.limits))
                     if theirs is not None:
                         bare_times.append(theirs)
                     try:
@@ -215,15 +231,14 @@ def main() -> None:
                         continue
                     totals.append(plan.planning_time_s)
                     lengths.append(plan.path_length)
-                    states = np.array([p.positions for p in plan.trajectory.points])
-                    stretch.append(plan.duration_s / duration_bound(states, planner.limits))
                 ratio = statistics.median(plem_times) / statistics.median(bare_times)
                 ratios.append(ratio)
-                print(f"{name:<8} {scene_name:<8} {len(pairs):>5} {len(totals) / len(pairs):>8.0%} "
+                shares = "/".join(f"{len(found) / len(pairs):.0%}" for found in (plem_times, bare_times, totals))
+                print(f"{name:<8} {scene_name:<8} {len(pairs):>5} {shares:>14} "
                       f"{statistics.median(plem_times) * 1e3:>9.1f} {percentile(plem_times, 95) * 1e3:>7.1f} "
                       f"{statistics.median(bare_times) * 1e3:>8.1f} {percentile(bare_times, 95) * 1e3:>7.1f} "
                       f"{ratio:>6.2f} {statistics.median(totals) * 1e3:>9.1f} {statistics.median(lengths):>7.2f} "
-                      f"{statistics.median(stretch):>15.2f}")
+                      f"{statistics.median(stretch):>15.2f} {statistics.median(per_state) * 1e3:>9.2f}")
         print(f"planner layer over bare OMPL: median ratio {statistics.median(ratios):.2f} "
               f"({min(ratios):.2f}-{max(ratios):.2f} over arms and scenes)")
 

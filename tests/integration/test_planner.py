@@ -24,6 +24,7 @@ from plem.planning.planner import Planner, placement_of
 from plem.planning.poses import Pose
 from plem.planning.retiming import fit_to_limits
 from plem.planning.scene import Box, PlanningScene, SceneObject
+from tests.integration.robot_fixtures import simulated_robot
 from tests.third_party import ARMS, wrap
 
 CYCLE_S = 0.001
@@ -219,3 +220,23 @@ def test_pose_goals_are_in_the_frame_given(indy7: Arm) -> None:
     q = planner.ik(in_link3, home, frame="link3", avoid_collisions=False)
     np.testing.assert_allclose(indy7.tool(q).position, in_link0.position, atol=1e-5)
     np.testing.assert_allclose(placement_of(in_link0).translation, in_link0.position)
+
+
+def test_the_in_process_robot_plans_with_the_same_calls() -> None:
+    """`Robot` answers plan/move_to/compute_ik/compute_fk/scene calls with a planner of its own process."""
+    with simulated_robot() as robot:
+        robot.set_mode("hold")
+        plan = robot.plan("home")
+        assert plan.planner == "RRTConnect" and plan.trajectory.points
+        assert robot.execute_trajectory(plan.trajectory).wait(30).succeeded
+        np.testing.assert_allclose(robot.live_state().position, plan.trajectory.points[-1].positions, atol=1e-3)
+        tool = robot.compute_fk(links=["tcp"])["tcp"]
+        lower = Pose((tool.position[0], tool.position[1], tool.position[2] - 0.1), tool.orientation)
+        robot.add_objects(SceneObject("shelf", Box((0.3, 0.3, 0.02)), Pose((tool.position[0], tool.position[1],
+                                                                             tool.position[2] - 0.3))))
+        assert [item.name for item in robot.planning_scene().objects()] == ["shelf"]
+        assert robot.move_to(lower).wait(30).succeeded
+        np.testing.assert_allclose(robot.compute_fk(links=["tcp"])["tcp"].position, lower.position, atol=1e-3)
+        with pytest.raises(PlanningError) as caught:
+            robot.plan(Pose((tool.position[0], tool.position[1], tool.position[2] - 0.3), tool.orientation))
+        assert caught.value.code == MoveItCode.NO_IK_SOLUTION and "shelf" in caught.value.why

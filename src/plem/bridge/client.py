@@ -19,7 +19,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 
-from plem.bridge.planning import PlanningCalls
+from plem.bridge.planning import PlannerLink, PlanningCalls
 from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
@@ -170,6 +170,13 @@ class RobotClient(PlanningCalls):
         self._frames = FrameReader()
         self._handles: dict[str, RemoteHandle] = {}
         self._lock = threading.RLock()
+
+    def _new_planner_link(self) -> PlannerLink:
+        """The robot's planner process, on its socket."""
+        return PlannerLink(self.robot_id)
+
+    def _planning_joints(self) -> tuple[str, ...]:
+        return self.joint_names
 
     def close(self) -> None:
         """Drop the command connection and unmap the robot's shared memory (the robot runs on)."""

@@ -11,8 +11,8 @@ import json
 import socket
 import threading
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import MoveItCode, PlanningError
@@ -23,6 +23,9 @@ from plem.planning.goals import Goal, JointGoal, NamedGoal, Plan, PlanOptions, P
 from plem.planning.poses import Pose
 from plem.planning.protocol import goal_json, options_json, plan_from_json
 from plem.planning.scene import PlanningScene, SceneObject
+
+if TYPE_CHECKING:
+    from plem.planning.service import PlannerService
 
 #: Largest answer accepted from the planner (a long plan's points).
 MAX_ANSWER_BYTES = 64 << 20
@@ -95,6 +98,27 @@ class PlannerLink:
             self._socket = None
 
 
+class LocalPlannerLink:
+    """The planner in this process, for the in-process `Robot`: the same requests as `PlannerLink`, answered by
+    a `PlannerService` built on first use (loading pinocchio, coal and OMPL only when planning is asked for)."""
+
+    def __init__(self, build: Callable[[], PlannerService]) -> None:
+        self._build = build
+        self._service: PlannerService | None = None
+
+    def request(self, op: str, wait_s: float = ANSWER_MARGIN_S, **args: Any) -> Any:
+        """Answer one request here; its error is raised as PlanningError."""
+        if self._service is None:
+            self._service = self._build()
+        answer = self._service.handle({"op": op, **args})
+        if answer.get("error") is not None:
+            raise _error(answer["error"])
+        return answer.get("result")
+
+    def close(self) -> None:
+        """Nothing to close: the planner lives as long as its robot."""
+
+
 def _error(value: Mapping[str, Any]) -> PlanningError:
     try:
         code = MoveItCode(int(value.get("code", MoveItCode.FAILURE)))
@@ -128,17 +152,24 @@ def goal_of(target: Goal | Pose | str | Sequence[float] | Mapping[str, float], j
 class PlanningCalls:
     """The planner's calls on a robot client: plans, moves through the planner, IK, FK and the scene.
 
-    Mixed into `RobotClient`; needs its `robot_id`, `joint_names` and `execute_trajectory`.
+    Mixed into `RobotClient` and the in-process `Robot`, which say where their planner is and give
+    `execute_trajectory`.
     """
 
-    robot_id: str
-    joint_names: tuple[str, ...]
-    _planner_link: PlannerLink | None = None
+    _planner_link: PlannerLink | LocalPlannerLink | None = None
 
-    def _planner(self) -> PlannerLink:
+    def _planner(self) -> PlannerLink | LocalPlannerLink:
         if self._planner_link is None:
-            self._planner_link = PlannerLink(self.robot_id)
+            self._planner_link = self._new_planner_link()
         return self._planner_link
+
+    def _new_planner_link(self) -> PlannerLink | LocalPlannerLink:
+        """The link to this robot's planner (a process of its own, or in this one)."""
+        raise NotImplementedError
+
+    def _planning_joints(self) -> tuple[str, ...]:
+        """The arm's joints in order, for positions given as a list."""
+        raise NotImplementedError
 
     def _close_planner(self) -> None:
         if self._planner_link is not None:
@@ -148,7 +179,7 @@ class PlanningCalls:
              start: Sequence[float] | None = None, frame: str = "", options: PlanOptions | None = None) -> Plan:
         """A collision-free, timed and checked plan to `target` (a Pose, a named state such as 'home', positions in
         joint order or by name) from `start` (default: where the arm is); nothing moves."""
-        goal = goal_of(target, self.joint_names, frame)
+        goal = goal_of(target, self._planning_joints(), frame)
         options = options or PlanOptions()
         result = self._planner().request("plan", options.timeout_s + ANSWER_MARGIN_S, goal=goal_json(goal),
                                          options=options_json(options),

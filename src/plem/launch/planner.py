@@ -15,7 +15,7 @@ import sys
 import threading
 from pathlib import Path
 
-from plem.bridge.client import connect
+from plem.bridge.client import RobotClient, connect
 from plem.control.limits import ArmLimits
 from plem.ipc.command_socket import listen, remove_own_socket, socket_path
 from plem.launch.component import announce, run_component
@@ -41,10 +41,10 @@ def build_planner(plan: RobotPlan, limits: ArmLimits) -> Planner:
     return planner
 
 
-def moveit_services(plan: RobotPlan, service: PlannerService) -> MoveItServices:
+def moveit_services(plan: RobotPlan, service: PlannerService, client: RobotClient) -> MoveItServices:
     """MoveIt's services and action for a launched robot, on a DDS participant of their own."""
     robot_model = plan.report.urdf.name if plan.report.urdf is not None else plan.robot_name
-    return MoveItServices(Node(), service, f"/{plan.robot_id}",
+    return MoveItServices(Node(), service, client, f"/{plan.robot_id}",
                           trajectory_controller=plan.controllers.trajectory.name, robot_model=robot_model)
 
 
@@ -54,7 +54,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     client = connect(plan.robot_id, plan.config.dof)
     planner = build_planner(plan, client.limits)
     service = PlannerService(planner, client)
-    moveit = moveit_services(plan, service) if plan.bridge else None
+    moveit = moveit_services(plan, service, client) if plan.bridge else None
     server = listen(plan.robot_id, service="planner")
     threads = [threading.Thread(target=service.serve, args=(server, stop), name="plem-planner", daemon=True)]
     if moveit is not None:

@@ -197,6 +197,8 @@ class Supervisor:
             self.say(f"  bridge        {self._bridge_status(children.get('bridge'))}")
             self.say(f"  recorder      {self._recorder_status(children.get('recorder'))}")
             self.say(f"  planner       {self._planner_status(plan, children.get('planner'))}")
+            for warning in children["planner"].ready.get("warnings", []) if "planner" in children else []:
+                self.say(f"  warning: {warning}")
         if not RT_KERNEL_FLAG.exists():
             self.say(f"kernel: not PREEMPT_RT ({RT_KERNEL_FLAG} is absent), so nothing bounds how late the loop "
                      "wakes: expect overruns while the machine is busy (docs/runtime.md, Timing)")

@@ -32,6 +32,7 @@ from typing import Any
 
 from cyclonedds.util import duration
 
+from plem.bridge.client import RobotClient
 from plem.errors import MoveItCode, PlanningError, PlemError
 from plem.middleware.action import CANCELED, SUCCEEDED, ActionServer, Execution
 from plem.middleware.goals import Finished, TrajectoryGoal, rejected_trajectory, trajectory_from_message
@@ -117,11 +118,12 @@ class _SceneExtras:
 class MoveItServices:
     """MoveIt's planning services and execute_trajectory action for one robot, under `namespace`."""
 
-    def __init__(self, node: Node, service: PlannerService, namespace: str, *, trajectory_controller: str,
-                 robot_model: str) -> None:
+    def __init__(self, node: Node, service: PlannerService, client: RobotClient, namespace: str, *,
+                 trajectory_controller: str, robot_model: str) -> None:
         self.node = node
         self.library = node.library
         self.service = service
+        self.client = client
         self.namespace = namespace
         self.trajectory_controller = trajectory_controller
         self.robot_model = robot_model
@@ -192,7 +194,7 @@ class MoveItServices:
 
     def _current(self) -> list[float]:
         """The arm's joint positions now, in its joint order."""
-        return [float(value) for value in self.service.robot.live_state().position]
+        return [float(value) for value in self.client.live_state().position]
 
     def _frame(self, planner: Planner, link: str = "") -> str:
         """The tf frame of a link (the root link for ''), as headers name frames."""
@@ -351,7 +353,7 @@ class MoveItServices:
             if goal.trajectory.multi_dof_joint_trajectory.points:
                 raise refused("multi_dof_joint_trajectory", "the arm has no multi-DOF joints",
                               "leave trajectory.multi_dof_joint_trajectory empty", MoveItCode.CONTROL_FAILED)
-            client = self.service.robot
+            client = self.client
             trajectory = trajectory_from_message(goal.trajectory.joint_trajectory)
             return _Execution(TrajectoryGoal(client, client.execute_trajectory(trajectory), self.library),
                               self.library)

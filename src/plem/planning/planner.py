@@ -364,7 +364,7 @@ class Planner:
         if not solutions:
             assert best is not None  # the loop ran at least once and found nothing
             raise self._no_solution(group, goal.link or group.tip_link, best, attempts, budget)
-        return solutions
+        return sorted(solutions, key=lambda q: float(np.abs(q - q_start).max()))  # the nearest first
 
     def _no_solution(self, group: PlanningGroup, link: str, best: IkResult, attempts: int, budget: float
                      ) -> PlanningError:

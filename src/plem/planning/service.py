@@ -13,9 +13,9 @@ import logging
 import socket
 import threading
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
-from plem.bridge.client import RobotClient
+from plem.control.state import JointState
 from plem.errors import MoveItCode, PlanningError, PlemError
 from plem.ipc.command_socket import CommandSocketError, FrameReader, frame, peer_credentials, trusted
 from plem.planning.planner import Planner
@@ -30,10 +30,18 @@ _log = logging.getLogger("plem.planner")
 T = TypeVar("T")
 
 
+class ArmState(Protocol):
+    """Where the planner reads the arm's state: a robot client, or the in-process robot."""
+
+    def live_state(self) -> JointState:
+        """The latest cycle's state."""
+        ...
+
+
 class PlannerService:
     """Answers planning requests (JSON objects with an 'op') for one robot."""
 
-    def __init__(self, planner: Planner, robot: RobotClient) -> None:
+    def __init__(self, planner: Planner, robot: ArmState) -> None:
         self.planner = planner
         self.robot = robot
         self._lock = threading.Lock()

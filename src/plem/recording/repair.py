@@ -126,8 +126,9 @@ def _rebuild(directory: Path, file: Path, workspace: Path) -> RepairReport:
     """Write what `file` holds into a new bag, built in `workspace`, that replaces `directory` once it reads back."""
     storage = "mcap" if file.suffix == ".mcap" else "sqlite3"
     channels, messages = (recover_mcap if storage == "mcap" else recover_sqlite3)(file)
-    store = library().store
-    unknown = sorted({msgtype for _, msgtype in channels.values() if msgtype not in store.fielddefs})
+    interfaces = library()
+    unknown = sorted({msgtype for _, msgtype in channels.values() if not interfaces.known(msgtype)})
+    store = interfaces.store
     if unknown:
         raise RepairError(f"{directory} holds types plem does not know", what="plem's recorded types",
                           why=f"unknown: {', '.join(unknown)}", how="repair it with the tool that wrote it")

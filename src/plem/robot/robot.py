@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from plem.bridge.planning import LocalPlannerLink, PlanningCalls
 from plem.control.commands import Command, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
@@ -29,7 +30,7 @@ from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.description.drives import drive_parameters
-from plem.errors import CommandRejected, ConfigError, PlemError
+from plem.errors import CommandRejected, ConfigError, MoveItCode, PlanningError, PlemError, RobotFault
 from plem.fieldbus.bus import BusSetup, IBus
 from plem.ipc.request_bounds import point_count
 from plem.planning import fit_to_limits
@@ -39,6 +40,7 @@ from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 if TYPE_CHECKING:
     from plem.description.model import UrdfModel
     from plem.description.validate import ValidationReport
+    from plem.planning.service import PlannerService
 
 PREEMPTION_LEAD_S = 0.02
 PLAN_ATTEMPTS = 5
@@ -74,11 +76,12 @@ def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]
     return tuple(model.joint_names) if model else tuple(j.name for j in urdf.actuated_joints)
 
 
-class Robot:
-    """A built arm: bus opened, limits and dynamics loaded, loop ready to run."""
+class Robot(PlanningCalls):
+    """A built arm: bus opened, limits and dynamics loaded, loop ready to run; with an SRDF, plans in this process."""
 
     def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop,
-                 description_package: str, dynamics: ArmDynamics) -> None:
+                 description_package: str, dynamics: ArmDynamics, report: ValidationReport | None = None) -> None:
+        self.report = report
         self.config = config
         self.bus = bus
         self.runtime = runtime
@@ -210,6 +213,32 @@ class Robot:
     def state(self) -> JointState | None:
         """The latest published state (None before the first cycle)."""
         return self.runtime.state_block.read()
+
+    def live_state(self) -> JointState:
+        """The latest published state; RobotFault before the first cycle (as the client raises DriverGone)."""
+        state = self.state()
+        if state is None:
+            raise RobotFault("the arm has no state yet", what="a running loop (robot.start())",
+                             why="no cycle has run", how="call robot.start() (or use `with Robot...build()`) first")
+        return state
+
+    def _planning_joints(self) -> tuple[str, ...]:
+        return self.joint_names
+
+    def _new_planner_link(self) -> LocalPlannerLink:
+        """The planner runs in this process, built from the robot's description package on first use."""
+        def build() -> PlannerService:
+            from plem.planning.planner import Planner
+            from plem.planning.service import PlannerService
+
+            if self.report is None:
+                raise PlanningError("this robot has no description report to plan with",
+                                    what="a robot built with Robot.builder(...).build()", why="it was built by hand",
+                                    how="build the robot with Robot.builder(config).build()",
+                                    code=MoveItCode.FAILURE)
+            planner = Planner.for_package(self.report, self.joint_names, self.limits, self.runtime.dt)
+            return PlannerService(planner, self)
+        return LocalPlannerLink(build)
 
     def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
         """Block until a state newer than `after_cycle` is published."""
@@ -435,7 +464,7 @@ class RobotBuilder:
                          on_overrun_report=report_overruns,
                          on_warning=lambda text: _warn(runtime, text),
                          after_cycle=self.cycle_observer(state_block) if self.cycle_observer else None)
-        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(urdf_xml, joint_names))
+        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(urdf_xml, joint_names), report)
 
     def _bus(self, config: SerialArmConfig) -> IBus:
         bus = self.bus or config.custom_bus
