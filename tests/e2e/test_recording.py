@@ -84,7 +84,7 @@ def test_every_cycle_is_recorded_and_reads_back_with_embedded_definitions(tmp_pa
     assert log.count("segment_opened") == log.count("segment_closed") == len(segments(bags / robot_id))
 
 
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("seed", [0, *(pytest.param(seed, marks=pytest.mark.slow) for seed in (1, 2))])
 def test_a_killed_recorder_leaves_repairable_bags_and_a_running_robot(tmp_path: Path, seed: int):
     robot_id, bags = new_robot_id(), tmp_path / "bags"
     arguments = ["bus:=mock", f"robot_id:={robot_id}", f"bag_dir:={bags}", "bag_segment_seconds:=1", "bridge:=false"]

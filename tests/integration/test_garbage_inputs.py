@@ -217,6 +217,7 @@ def test_random_yaml_structures(tmp_path_factory, target, data):
     check(validate_with(tmp_path_factory, target, content), target, content)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target", YAML_TARGETS)
 @THOROUGH
 @given(data=st.data())
@@ -225,12 +226,14 @@ def test_perturbed_yaml(tmp_path_factory, target, data):
     validate_with(tmp_path_factory, target, data.draw(perturbed_yaml(target)))
 
 
+@pytest.mark.slow
 @THOROUGH
 @given(content=st.one_of(xml_documents(URDF_PARTS), XML_TEXT))
 def test_random_urdf_xml(tmp_path_factory, content):
     check(validate_with(tmp_path_factory, "urdf", content), "urdf", content)
 
 
+@pytest.mark.slow
 @THOROUGH
 @given(content=st.one_of(xml_documents(SRDF_PARTS), XML_TEXT))
 def test_random_srdf_xml(tmp_path_factory, content):

@@ -37,21 +37,11 @@ from plem.errors import MoveItCode, PlanningError, PlemError
 from plem.middleware.action import CANCELED, SUCCEEDED, ActionServer, Execution
 from plem.middleware.goals import Finished, TrajectoryGoal, rejected_trajectory, trajectory_from_message
 from plem.middleware.moveit_messages import (
-    ATTACHED_OBJECTS,
-    OBJECT_COLORS,
-    OBJECT_GEOMETRY,
-    OBJECT_NAMES,
-    ROBOT_STATE,
-    SCENE_SETTINGS,
     SOURCE,
-    apply_scene,
     check_cartesian_request,
     check_motion_request,
-    check_scene_message,
-    collision_object_message,
     constraints_empty,
     error_code,
-    frame_placement,
     goals_from_constraints,
     plan_options,
     pose_from_message,
@@ -61,6 +51,18 @@ from plem.middleware.moveit_messages import (
     state_positions,
     timeout_of,
     trajectory_message,
+)
+from plem.middleware.moveit_scene import (
+    ATTACHED_OBJECTS,
+    OBJECT_COLORS,
+    OBJECT_GEOMETRY,
+    OBJECT_NAMES,
+    ROBOT_STATE,
+    SCENE_SETTINGS,
+    apply_scene,
+    check_scene_message,
+    collision_object_message,
+    frame_placement,
 )
 from plem.middleware.node import Node, ServiceServer
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
