@@ -322,6 +322,24 @@ def test_first_requests_from_many_threads() -> None:
     assert hashes == [f"RIHS01_{ROSIDL_HASHES[request]}"] * 8
 
 
+def test_threads_building_a_struct_at_once_get_one_class() -> None:
+    """Two classes for one type would be two DDS types to Cyclone: every thread must get the same."""
+    fresh = InterfaceLibrary()
+    start = threading.Barrier(8)
+    built: list[type] = []
+
+    def build() -> None:
+        start.wait()
+        built.append(fresh.service_part("moveit_msgs/srv/GetMotionPlan_Request"))
+
+    threads = [threading.Thread(target=build) for _ in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(built) == 8 and len(set(built)) == 1
+
+
 def test_struct_of_an_on_demand_type_in_a_new_library() -> None:
     """Structs nest across the on-demand packages: a planning scene reply holds an octomap."""
     fresh = InterfaceLibrary()

@@ -118,7 +118,8 @@ class InterfaceLibrary:
         paths = sorted(INTERFACES.glob("*/*/*.*"))
         self._pending = {package: [path for path in paths if path.parent.parent.name == package]
                          for package in ON_DEMAND}
-        self._loading = threading.RLock()
+        self._loading = threading.RLock()  # guards the on-demand packages and the structs built so far
+        self._structs: dict[tuple[str, bool], type[IdlStruct]] = {}
         _register(self.store, [path for path in paths if path.parent.parent.name not in ON_DEMAND])
 
     def known(self, ros_type: str) -> bool:
@@ -158,8 +159,18 @@ class InterfaceLibrary:
                 for used in _referenced(self.store.fielddefs[defined][1]):
                     self._require(used)
 
-    @cache  # noqa: B019 - one library per process; its structs live as long as it does
     def _struct(self, ros_type: str, with_header: bool) -> type[IdlStruct]:
+        """The one struct class of a type (threads asking at once get the same class)."""
+        key = (ros_type, with_header)
+        found = self._structs.get(key)
+        if found is None:
+            with self._loading:
+                found = self._structs.get(key)
+                if found is None:
+                    found = self._structs[key] = self._build_struct(ros_type, with_header)
+        return found
+
+    def _build_struct(self, ros_type: str, with_header: bool) -> type[IdlStruct]:
         self._require(ros_type)
         constants, fields = self.store.fielddefs[ros_type]
         annotations: dict[str, Any] = {}
