@@ -43,15 +43,18 @@ def cartesian_states(start: np.ndarray, waypoints: Sequence[pin.SE3], placement:
                             why=f"{total:.3f} m in steps of {max_step} m is {sum(counts)} steps",
                             how="use a larger max_step", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
     states = [start]
-    covered = 0.0
+    covered = stepped = 0.0  # Cartesian way covered (m), joint-space way stepped (rad)
     for begin, end, length, count in zip(poses[:-1], poses[1:], lengths, counts, strict=True):
         for k in range(1, count + 1):
             q = solve(pin.SE3.Interpolate(begin, end, k / count), states[-1])
-            if q is None or not is_free(q) or not _move_free(states[-1], q, is_free) or _jumps(states, q,
-                                                                                             jump_threshold):
+            step = np.inf if q is None else float(np.linalg.norm(q - states[-1]))
+            # a step over jump_threshold times the mean so far is a flip to another IK branch
+            jumped = jump_threshold > 0.0 and len(states) > 1 and step > jump_threshold * stepped / (len(states) - 1)
+            if q is None or jumped or not is_free(q) or not _move_free(states[-1], q, is_free):
                 return np.array(states), covered / total if total > 0 else 0.0
             states.append(q)
             covered += length / count
+            stepped += step
     return np.array(states), 1.0
 
 
@@ -65,11 +68,3 @@ def _move_free(a: np.ndarray, b: np.ndarray, is_free: Callable[[np.ndarray], boo
     """Whether the straight joint-space move from `a` to `b` is free, checked every CHECK_STEP rad."""
     count = int(np.ceil(np.abs(b - a).max() / CHECK_STEP))
     return all(is_free(a + (b - a) * k / count) for k in range(1, count))
-
-
-def _jumps(states: list[np.ndarray], q: np.ndarray, threshold: float) -> bool:
-    """Whether the step to `q` is over `threshold` times the mean step so far (never when threshold is 0)."""
-    if threshold <= 0.0 or len(states) < 2:
-        return False
-    steps = np.linalg.norm(np.diff(np.array(states), axis=0), axis=1)
-    return bool(np.linalg.norm(q - states[-1]) > threshold * steps.mean())

@@ -62,7 +62,6 @@ class IkResult:
     attempts: int
     position_error: float
     orientation_error: float
-    elapsed_s: float
 
 
 def _pose_errors(offset: pin.SE3, position_only: bool) -> tuple[float, float]:
@@ -136,8 +135,7 @@ class IkSolver:
 
         `accept(q)` may refuse a solution (a collision check, say); the search then goes on. Errors are in m and rad.
         """
-        began = time.perf_counter()
-        deadline = began + timeout_s
+        deadline = time.perf_counter() + timeout_s
         _check_budget(timeout_s, position_tolerance, orientation_tolerance)
         start = self._checked_seed(target, seed)
         rng = rng or self._rng
@@ -163,7 +161,7 @@ class IkSolver:
                 break
             x = rng.uniform(self._sample_low, self._sample_high)
         positions, position_error, orientation_error = (full, position_error, orientation_error) if success else best
-        return IkResult(positions, success, attempts, position_error, orientation_error, time.perf_counter() - began)
+        return IkResult(positions, success, attempts, position_error, orientation_error)
 
     def _checked_seed(self, target: pin.SE3, seed: np.ndarray) -> np.ndarray:
         """The seed as a new float vector; raises when the target or the seed cannot be solved for."""

@@ -25,8 +25,6 @@ PLANNERS: dict[str, Callable[[ob.SpaceInformation], ob.Planner]] = {
     "KPIECE": og.KPIECE1, "BKPIECE": og.BKPIECE1, "LBKPIECE": og.LBKPIECE1, "FMT": og.FMT, "BFMT": og.BFMT,
 }
 DEFAULT_PLANNER = "RRTConnect"
-#: Planners that go on improving a solution until the time is up: they are given the whole budget.
-OPTIMIZING = frozenset({"RRTstar", "InformedRRTstar", "SORRTstar", "BITstar", "AORRTC", "PRMstar", "FMT", "BFMT"})
 #: Longest straight joint-space step (rad, largest joint) between two collision checks while planning.
 CHECK_STEP = 0.02
 #: Share of the remaining time path simplification may use.
@@ -37,12 +35,10 @@ ou.setLogLevel(ou.LOG_NONE)  # failures are reported as PlanningError, in plem's
 
 @dataclass(frozen=True)
 class PathResult:
-    """A collision-free path (rows are states, in the order of the joints planned for) and how it was found."""
+    """A collision-free path (rows are states, in the order of the joints planned for) and the planner that found it."""
 
     states: np.ndarray
     planner: str
-    planning_time_s: float
-    simplification_time_s: float
 
 
 def planner_name(planner_id: str) -> str:
@@ -59,8 +55,7 @@ def planner_name(planner_id: str) -> str:
 
 
 def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarray], bool], start: np.ndarray,
-              goals: Sequence[np.ndarray], planner_id: str = "", timeout_s: float = 5.0,
-              simplify: bool = True) -> PathResult:
+              goals: Sequence[np.ndarray], planner_id: str = "", timeout_s: float = 5.0) -> PathResult:
     """A path from `start` to any of `goals` through states `is_free` accepts, within [lower, upper].
 
     Straight steps between states are checked every CHECK_STEP rad. Raises PlanningError when no path is
@@ -99,16 +94,12 @@ def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarra
         raise PlanningError(f"{name} found no path in {planning_time:.2f} s",
                             what="a collision-free path from the start to the goal",
                             why=f"OMPL's {name} ended with '{status}' after {planning_time:.2f} s",
-                            how="allow more planning time (allowed_planning_time in ROS, --timeout on the command "
-                                "line), move obstacles away from the path, or choose another goal", code=code)
-    simplification_time = 0.0
-    if simplify:
-        began = time.perf_counter()
-        setup.simplifySolution(max(timeout_s - planning_time, 0.0) * SIMPLIFY_SHARE or 0.001)
-        simplification_time = time.perf_counter() - began
+                            how="allow more planning time (allowed_planning_time in ROS, --planning-time on the "
+                                "command line), move obstacles away from the path, or choose another goal", code=code)
+    setup.simplifySolution(max(timeout_s - planning_time, 0.0) * SIMPLIFY_SHARE or 0.001)
     path = setup.getSolutionPath()
     states = np.array([[path.getState(k)[i] for i in range(dof)] for k in range(path.getStateCount())])
-    return PathResult(states, name, planning_time, simplification_time)
+    return PathResult(states, name)
 
 
 def _state(space: ob.RealVectorStateSpace, values: np.ndarray) -> ob.State:

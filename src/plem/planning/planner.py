@@ -163,7 +163,7 @@ class Planner:
                 last = problem
         raise last or PlanningError("no time was left to plan", what=f"a plan within {options.timeout_s:g} s",
                                     why="finding the goal states took the whole planning time",
-                                    how="allow more planning time (allowed_planning_time, --timeout)",
+                                    how="allow more planning time (allowed_planning_time, --planning-time)",
                                     code=MoveItCode.TIMED_OUT)
 
     def cartesian(self, start: Sequence[float], waypoints: Sequence[Pose], *, frame: str = "", link: str = "",
@@ -323,10 +323,10 @@ class Planner:
             raise PlanningError(error.summary, what=error.what, why=error.why, how=error.how,
                                 code=MoveItCode.INVALID_GOAL_CONSTRAINTS) from None
         q_goal = self.arm.to_model_order(values)
-        outside = np.flatnonzero(np.abs(q_goal - q_start) > 0.0)
-        moved = set(int(i) for i in outside) - set(int(i) for i in self._indices(group))
-        if moved:
-            names = [self.joint_names[int(np.flatnonzero(self.arm.model_indices == i)[0])] for i in sorted(moved)]
+        start = self.arm.to_arm_order(q_start)
+        names = [name for name, before, after in zip(self.joint_names, start, values, strict=True)
+                 if before != after and name not in group.joints]
+        if names:
             raise PlanningError(f"the goal moves joints outside group {group.name!r}",
                                 what=f"a goal for the joints of {group.name} ({', '.join(group.joints)})",
                                 why=f"it also moves {', '.join(names)}", how="plan for a group holding those joints",
