@@ -30,8 +30,6 @@ from plem.planning.paths import plan_path
 from plem.planning.poses import Pose
 from plem.planning.scene import PlanningScene
 
-#: Largest joint motion (rad) between two states of the dense re-check of a plan.
-RECHECK_STEP = 0.01
 #: Planning attempts when the dense re-check finds a contact the planner's coarser checks missed.
 ATTEMPTS = 3
 #: Distinct collision-free IK solutions gathered as the goal set of a pose goal.
@@ -396,15 +394,15 @@ class Planner:
         return Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
 
     def _recheck(self, motion: Spline, avoid_collisions: bool) -> int:
-        """Check the timed motion every RECHECK_STEP rad against the robot and the scene, and every limit exactly."""
+        """Check every state the RT driver will command for the timed motion (one per control cycle) against the robot
+        and the scene, and the motion exactly against every limit."""
         try:
             motion.check_limits(self.limits, self.cycle_time_s)
         except CommandRejected as error:
             raise PlanningError("the timed plan breaks a limit", what="a plan within every limit", why=error.why,
                                 how="report this: plans are timed within the limits",
                                 code=MoveItCode.INVALID_MOTION_PLAN) from None
-        step = RECHECK_STEP / float(np.max(self.limits.max_velocity))
-        times = np.append(np.arange(0.0, motion.duration, step), motion.duration)
+        times = np.append(np.arange(0.0, motion.duration, self.cycle_time_s), motion.duration)
         for t in times:
             q = self.arm.to_model_order(motion.state_at(float(t))[0])
             if avoid_collisions and not self.collisions.is_free(q):
