@@ -26,6 +26,8 @@ from plem.launch.recorder import record
 from plem.launch.rt_driver import driving
 from plem.recording.archive import read_event_log
 from plem.recording.status import read_status
+from plem.recording.summary import find_bags
+from plem.recording.timeline import read_timeline
 from tests.e2e.cli import run_plem
 from tests.e2e.launched import clean_environment, launched, new_robot_id, wait_until
 
@@ -155,3 +157,31 @@ def test_a_fault_keeps_its_pre_fault_window_and_logs_its_bag_position(tmp_path: 
     assert abs(start + entry["offset_s"] * 1e9 - fault_ns) < 2e6, "the logged position points at the fault"
     faulted = [message.faulted for stamp, message in stamps if stamp >= fault_ns]
     assert faulted and faulted[-1], json.dumps(entry)
+
+
+def test_every_segment_records_the_urdf_the_bridge_publishes(tmp_path: Path, served_driver):
+    """The recorder process records the plan's robot_description at the start of each segment: the bags alone
+    replay the arm, and the timeline reads it back."""
+    robot_id, robot = served_driver
+    bags = tmp_path / "bags"
+    arguments = {"bus": "mock", "robot_id": robot_id, "bag_dir": str(bags), "bag_segment_seconds": "1"}
+    urdf = plan_robot(arguments, generate=False).robot_description
+    stop = threading.Event()
+    recorder = threading.Thread(target=record, args=(arguments, stop))
+    recorder.start()
+    try:
+        assert wait_until(lambda: any(e["kind"] == "segment_closed" for e in read_event_log(bags / robot_id)), 20)
+    finally:
+        stop.set()
+        robot.shutdown()                  # the recorder drains until the driver is gone
+        recorder.join(15)
+    assert not recorder.is_alive()
+    assert urdf.startswith("<?xml") and "<robot" in urdf
+    for segment in segments(bags / robot_id):
+        with Reader(segment) as reader:
+            store = embedded_store(reader)
+            [connection] = [c for c in reader.connections if c.topic == f"/{robot_id}/robot_description"]
+            [(_, _, data)] = list(reader.messages([connection]))
+            assert store.deserialize_cdr(data, connection.msgtype).data == urdf
+    (found,) = find_bags(bags)
+    assert read_timeline(found).description == urdf

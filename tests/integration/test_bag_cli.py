@@ -1,5 +1,6 @@
-"""`plem bag info|plot|repair` on real bags written by the recorder: the figures shown, the PNG written, killed
-segments rebuilt, and WHAT/WHY/HOW errors. The fast RtRaw field reader is checked against rosbags."""
+"""`plem bag info|plot|repair` on real bags written by the recorder: the figures shown, the timeline and the PNG
+drawn from it, a segment read while it is recorded, killed segments rebuilt, and WHAT/WHY/HOW errors. The fast
+RtRaw field reader is checked against rosbags."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ import random
 import re
 import shutil
 import uuid
+from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -26,10 +29,12 @@ from plem.recording.recorder import Recorder
 from plem.recording.segment import SegmentWriter
 from plem.recording.settings import RecordingSettings
 from plem.recording.status import remove_status, write_status
-from plem.recording.summary import find_bags, robot_segments
+from plem.recording.summary import BagError, find_bags
+from plem.recording.timeline import read_timeline
 from tests.e2e.cli import run_plem
 
 S = 1_000_000_000
+MS = 1_000_000
 START = 1_800_000_000 * S                       # 2027-01-15T08:00:00Z
 SEGMENTS = [f"arm_2027_01_15-08_00_0{second}" for second in range(4)]
 JOINTS = [f"joint_{index + 1}" for index in range(6)]
@@ -37,25 +42,33 @@ LIBRARY = library()
 STORE = LIBRARY.store
 
 
+URDF = '<?xml version="1.0"?>\n<robot name="arm">\n  <link name="base_link"/>\n</robot>\n'
+#: The events recorded at a sample: (kind, cause, reason, previous mode, mode); the mode holds until the next.
+EVENTS = {1000: [(EventKind.MODE_CHANGED, "motion", "trajectory started", Mode.HOLD, Mode.TRAJECTORY)],
+          1700: [(EventKind.FAULT, "drive_fault", "joint2 drive fault 0x7121", Mode.TRAJECTORY, Mode.FAULT)],
+          2500: [(EventKind.FAULT_CLEARED, "reset_fault", "joint2 drive fault 0x7121", None, Mode.HOLD),
+                 (EventKind.MODE_CHANGED, "drives_enabled", "drives enabled", Mode.FAULT, Mode.HOLD)]}
+
+
 def cycle_of(index: int) -> int:
     """The cycle recorded at sample `index`: 5 cycles lost after 1499, a new driver run from sample 3000."""
     return index if index < 1500 else index + 5 if index < 3000 else index - 3000
 
 
-def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: bool = True, start: int = START,
-           flush_period_s: float = 1.0) -> None:
-    """One robot's bags, 1 s segments of 1 kHz rt_raw with joint_states, stats and a fault at sample 1700."""
-    now = [start]
-    settings = RecordingSettings(robot_dir, storage=storage, segment_s=1.0, flush_period_s=flush_period_s)
-    recorder = Recorder(settings, robot_dir.name, MONITOR_TOPICS, STORE, clock=lambda: now[0],
-                        disk_usage=lambda _: (100, 10, 90))
-    recorder.start()
+def mode_of(index: int) -> Mode:
+    """The mode at sample `index`: hold, a trajectory from 1000, a fault from 1700 cleared into hold at 2500."""
+    return Mode.HOLD if index < 1000 or index >= 2500 else Mode.TRAJECTORY if index < 1700 else Mode.FAULT
+
+
+def feed_samples(recorder: Recorder, now: list[int], indexes: range, start: int = START, raw: bool = True) -> None:
+    """1 kHz rt_raw from `start` (commanded 0.01 rad ahead of measured) with joint_states, stats and `EVENTS`."""
     encoder, values = RawEncoder(6), np.zeros(43)
-    for index in range(samples):
+    for index in indexes:
         stamp = now[0] = start + index * 1_000_000
-        values[0], values[5] = cycle_of(index), 20_000 + index % 100 * 10
+        values[0], values[2], values[5] = cycle_of(index), mode_of(index), 20_000 + index % 100 * 10
         values[7:13] = np.arange(6) + index / 1000
         values[13:19] = -np.arange(6)
+        values[25:31] = values[7:13] + 0.01
         if raw:
             recorder.rt_raw(encoder.encode(values, stamp), stamp)
         if index % 10 == 0:
@@ -64,10 +77,28 @@ def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: boo
             queues = [LIBRARY.new("plem_msgs/msg/QueueStats", name=name, dropped=dropped)
                       for name, dropped in (("rt_raw", 4), ("events", 0), ("stats", 0), ("bag", 2 * (index > 0)))]
             recorder.rt_monitor_stats(LIBRARY.new(MONITOR_TOPICS["rt_monitor_stats"], queues=queues), stamp)
-        if index == 1700:
-            event = Event(EventKind.FAULT, "drive_fault", "joint2 drive fault 0x7121", Mode.FAULT, cycle_of(index),
-                          stamp, 0.0)
-            recorder.rt_event(LIBRARY.new(MONITOR_TOPICS["rt_events"], kind="fault"), event, stamp)
+        for kind, cause, reason, previous, mode in EVENTS.get(index, []):
+            event = Event(kind, cause, reason, mode, cycle_of(index), stamp, 0.0, previous)
+            recorder.rt_event(LIBRARY.new(MONITOR_TOPICS["rt_events"], header=LIBRARY.new(
+                "std_msgs/msg/Header", stamp=LIBRARY.stamp(stamp)), cycle=event.cycle, kind=kind.value, cause=cause,
+                reason=reason, mode=str(mode), previous_mode="" if previous is None else str(previous)), event, stamp)
+
+
+def recorder_of(robot_dir: Path, now: list[int], storage: str = "mcap", flush_period_s: float = 1.0) -> Recorder:
+    """A started recorder of 1 s segments on the clock `now`, recording the URDF with every segment."""
+    settings = RecordingSettings(robot_dir, storage=storage, segment_s=1.0, flush_period_s=flush_period_s)
+    recorder = Recorder(settings, robot_dir.name, MONITOR_TOPICS, STORE, clock=lambda: now[0],
+                        disk_usage=lambda _: (100, 10, 90), description=URDF)
+    recorder.start()
+    return recorder
+
+
+def record(robot_dir: Path, storage: str = "mcap", samples: int = 3500, raw: bool = True, start: int = START,
+           flush_period_s: float = 1.0) -> None:
+    """One robot's bags: 1 s segments of `feed_samples`, a fault at sample 1700."""
+    now = [start]
+    recorder = recorder_of(robot_dir, now, storage, flush_period_s)
+    feed_samples(recorder, now, range(samples), start, raw)
     recorder.close()
 
 
@@ -121,7 +152,8 @@ def test_info_json_counts_segments_drops_faults_and_deletions(tmp_path: Path, ba
     assert [s["name"] for s in segments] == SEGMENTS
     assert [s["storage"] for s in segments] == [storage] * 4 and all(s["state"] == "complete" for s in segments)
     assert [s["messages"]["/arm/rt_raw"] for s in segments] == [1000, 1000, 1000, 500]
-    assert [s["messages"]["/arm/rt_events"] for s in segments] == [0, 1, 0, 0]
+    assert [s["messages"]["/arm/rt_events"] for s in segments] == [0, 2, 2, 0]
+    assert [s["messages"]["/arm/robot_description"] for s in segments] == [1, 1, 1, 1]
     assert [s["kept"] for s in segments] == [True, True, False, False], "the 10 s before the fault are kept"
     assert segments[1]["start"] == "2027-01-15T08:00:01.000Z" and segments[3]["duration_s"] == pytest.approx(0.499)
     raw = arm["drops"]["rt_raw"]
@@ -146,7 +178,7 @@ def test_info_text_of_a_robot_directory(bag_dir: Path, capsys: pytest.CaptureFix
     out = capsys.readouterr().out
     rows = {name: line for line in out.splitlines() for name in SEGMENTS if name in line and "│" in line}
     assert [("kept for a fault" in rows[name]) for name in SEGMENTS] == [True, True, False, False]
-    assert "joint_states 100, rt_events 1, rt_monitor_stats 10, rt_raw 1000" in rows[SEGMENTS[1]]
+    assert "joint_states 100, robot_description 1, rt_events 2, rt_monitor_stats 10, rt_raw 1000" in rows[SEGMENTS[1]]
     assert "rt_raw: 3500 samples, 5 cycles missing in 1 gap, 1 new driver run" in out
     assert f"  {SEGMENTS[1]} at 0.500 s: 5 cycles missing after cycle 1499" in out
     assert "2 messages not recorded; ring records lost: rt_raw 4, events 0, stats 0" in out
@@ -208,7 +240,7 @@ def test_info_tells_killed_segments_from_the_one_being_recorded(tmp_path: Path, 
     try:
         (arm,) = info_json(tmp_path, capsys)["robots"]
         states = {s["name"]: (s["state"], s["note"]) for s in arm["segments"]}
-        assert states[writing] == ("recording", "being recorded")
+        assert states[writing] == ("recording", "being recorded (so far)")
         for name in (killed, newest_killed):
             assert states[name] == ("killed", "unfinished (recorder killed) — run `plem bag repair`")
         assert run(["bag", "repair", str(tmp_path)]) == 0
@@ -288,7 +320,8 @@ def test_plot_writes_a_png_of_the_expected_size(bag_dir: Path, tmp_path: Path, c
     assert run(["bag", "plot", str(bag_dir), "--out", str(out)]) == 0
     assert f"wrote {out}" in capsys.readouterr().out
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert matplotlib.image.imread(out).shape[:2] == (1000, 1200)
+    width, height = plot.SIZE
+    assert matplotlib.image.imread(out).shape[:2] == (height * plot.DPI, width * plot.DPI)
     assert [path.name for path in out.parent.iterdir()] == ["arm.png"], "no temporary file left"
 
 
@@ -300,8 +333,15 @@ def test_plot_of_a_bag_dir_with_several_robots_plots_the_newest_and_says_so(tmp_
     code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(out))
     assert code == 0, err
     assert (f"WARNING: {tmp_path} holds the bags of 2 robots (arm, arm2): plotting arm2, the one recorded last; "
-            "pass --robot ID for another") in err
-    assert f"wrote {out}" in stdout and out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+            "pass --robot ID for another, or --robot all for one PNG per robot") in err
+    assert f"wrote {out} (" in stdout and "): arm2 from 2027-01-15T09:00:00.000Z" in stdout
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(out), "--robot", "all")
+    assert code == 0 and "WARNING" not in err, err
+    written = [tmp_path / "run-arm.png", tmp_path / "run-arm2.png"]
+    assert [line.split(" (")[0] for line in stdout.splitlines()] == [f"wrote {path}" for path in written]
+    assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
+    assert sorted(path.name for path in tmp_path.glob("*.png")) == ["run-arm.png", "run-arm2.png", "run.png"]
 
 
 def test_plot_writes_only_a_regular_file_in_an_existing_directory(bag_dir: Path, tmp_path: Path,
@@ -321,18 +361,157 @@ def test_plot_writes_only_a_regular_file_in_an_existing_directory(bag_dir: Path,
     assert not (tmp_path / "target.png").exists() and (tmp_path / "folder.png").is_dir()
 
 
-def test_plot_series_decimates_lines_but_keeps_every_latency(bag_dir: Path, monkeypatch: pytest.MonkeyPatch):
-    monkeypatch.setattr(plot, "MAX_POINTS", 1000)
+def read_back(robot: Path, topic: str) -> list[tuple[int, Any]]:
+    """(log time, message) of `topic` over a robot's segments, read with rosbags."""
+    found = []
+    for segment in sorted(path for path in robot.iterdir() if path.is_dir()):
+        with Reader(segment) as reader:
+            connections = [connection for connection in reader.connections if connection.topic == topic]
+            found += [(stamp, STORE.deserialize_cdr(data, connection.msgtype))
+                      for connection, stamp, data in reader.messages(connections)]
+    return found
+
+
+def test_every_segment_starts_with_the_urdf_as_robot_description(bag_dir: Path):
+    for name in SEGMENTS:
+        with Reader(bag_dir / "arm" / name) as reader:
+            [connection] = [c for c in reader.connections if c.topic == "/arm/robot_description"]
+            [(_, stamp, data)] = list(reader.messages([connection]))
+            assert connection.msgtype == "std_msgs/msg/String" and stamp == reader.start_time
+            assert STORE.deserialize_cdr(data, connection.msgtype).data == URDF
+
+
+def test_timeline_decimates_samples_keeps_every_latency_and_marks_events(bag_dir: Path):
     (robot,) = find_bags(bag_dir)
-    series = plot.read_raw(robot_segments(robot))
-    assert series.joint_names == JOINTS
-    assert len(series.latency_us) == 3500
-    np.testing.assert_array_equal(series.latency_us, [(20_000 + i % 100 * 10) / 1e3 for i in range(3500)])
-    assert len(series.time_s) == 875 and series.time_s[0] == 0.0, "every 4th of 3500 samples"
-    samples = np.round(series.time_s * 1000).astype(int)
-    np.testing.assert_array_equal(samples, np.arange(0, 3500, 4))
-    np.testing.assert_allclose(series.position, np.arange(6) + samples[:, None] / 1000)
-    np.testing.assert_array_equal(series.velocity, np.broadcast_to(-np.arange(6.0), (875, 6)))
+    line = read_timeline(robot, max_points=1000)
+    assert (line.robot_id, line.joint_names, line.description) == ("arm", JOINTS, URDF)
+    np.testing.assert_array_equal(line.all_latency_us, [(20_000 + i % 100 * 10) / 1e3 for i in range(3500)])
+    samples = np.arange(0, 3500, 4)                      # every 4th of 3500 samples
+    np.testing.assert_array_equal(line.time_ns, START + samples * MS)
+    np.testing.assert_allclose(line.position, np.arange(6) + samples[:, None] / 1000)
+    np.testing.assert_allclose(line.command_position, line.position + 0.01)
+    np.testing.assert_array_equal(line.velocity, np.broadcast_to(-np.arange(6.0), (875, 6)))
+    np.testing.assert_array_equal(line.mode, [mode_of(index) for index in samples])
+    np.testing.assert_array_equal(line.latency_us, line.all_latency_us[samples])
+    events = read_back(bag_dir / "arm", "/arm/rt_events")
+    assert [(marker.time_ns, marker.cycle) for marker in line.markers] == [(t, event.cycle) for t, event in events]
+    assert [(marker.kind, marker.label) for marker in line.markers] == [
+        ("mode", "hold → trajectory"), ("fault", "fault: joint2 drive fault 0x7121"),
+        ("fault_cleared", "fault cleared: joint2 drive fault 0x7121"), ("mode", "fault → hold")]
+    assert line.faults() == [line.markers[1]] and line.faults()[0].time_ns == START + 1700 * MS
+
+
+def test_timeline_between_two_times_holds_only_them(bag_dir: Path):
+    (robot,) = find_bags(bag_dir)
+    line = read_timeline(robot, START + 1200 * MS, START + 2200 * MS)
+    np.testing.assert_array_equal(line.time_ns, START + np.arange(1200, 2201) * MS)
+    assert len(line.all_latency_us) == 1001 and [marker.kind for marker in line.markers] == ["fault"]
+    coarse = read_timeline(robot, START + 1200 * MS, START + 2200 * MS, max_points=100)
+    assert len(coarse.time_ns) <= 100 and np.all(np.diff(coarse.time_ns) == 11 * MS), "evenly spaced"
+    assert len(coarse.all_latency_us) == 1001
+    with pytest.raises(BagError) as raised:
+        read_timeline(robot, START + 10 * S)
+    assert raised.value.summary == "no rt_raw samples from 2027-01-15T08:00:10.000Z"
+    assert raised.value.why == "the recording covers 2027-01-15T08:00:00.000Z to 2027-01-15T08:00:03.499Z"
+
+
+def test_plot_marks_faults_and_modes_and_draws_commanded_against_measured(bag_dir: Path):
+    from matplotlib.dates import ConciseDateFormatter, date2num, num2date
+
+    def x_of(ns: int) -> float:
+        return float(date2num(np.datetime64(ns, "ns")))
+
+    (robot,) = find_bags(bag_dir)
+    figure = plot.figure(read_timeline(robot), "arm")
+    position = figure.axes[0]
+
+    def with_gid(gid: str) -> list[Any]:
+        return figure.findobj(lambda artist: artist.get_gid() == gid)
+
+    faults = with_gid("fault")
+    assert len(faults) == 3, "one line on each axes over time"
+    assert all(line.get_xdata()[0] == pytest.approx(x_of(START + 1700 * MS), abs=1e-10) for line in faults)
+    [label] = with_gid("fault_label")
+    assert "fault: joint2 drive fault 0x7121" in label.get_text()
+    modes = {artist.get_gid() for artist in figure.findobj() if str(artist.get_gid()).startswith("mode:")}
+    assert modes == {"mode:hold", "mode:trajectory", "mode:fault"}
+    [fault_band, *_] = with_gid("mode:fault")
+    [band] = fault_band.get_paths()
+    assert band.vertices[:, 0].min() == pytest.approx(x_of(START + 1700 * MS), abs=1e-10)
+    assert band.vertices[:, 0].max() == pytest.approx(x_of(START + 2500 * MS), abs=1e-10)
+    assert len(with_gid("mode:hold")[0].get_paths()) == 2, "hold before the trajectory and after the fault"
+    for joint in JOINTS:
+        [measured], [commanded] = with_gid(f"measured:{joint}"), with_gid(f"commanded:{joint}")
+        assert measured.axes is commanded.axes is position and measured.get_color() == commanded.get_color()
+        assert (measured.get_linestyle(), commanded.get_linestyle()) == ("-", "--")
+        np.testing.assert_allclose(commanded.get_ydata(), measured.get_ydata() + 0.01)
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    for axes in figure.axes:
+        legend, box = axes.get_legend(), axes.get_window_extent(renderer)
+        assert legend is not None and legend.get_window_extent(renderer).x0 > box.x1, "legends right of the data"
+        assert not legend.get_window_extent(renderer).overlaps(box)
+    assert [t.get_text() for t in figure.axes[1].get_legend().get_texts()] == ["hold", "trajectory", "fault",
+                                                                              "fault event"]
+    assert isinstance(position.xaxis.get_major_formatter(), ConciseDateFormatter)
+    first, last = (num2date(x) for x in position.get_xlim())
+    assert first <= datetime(2027, 1, 15, 8, 0, tzinfo=UTC) < datetime(2027, 1, 15, 8, 0, 3, 499000, tzinfo=UTC) <= last
+    assert (last - first).total_seconds() < 4, "absolute UTC time, zoomed on the recording"
+
+
+def test_plot_from_to_narrows_the_range_and_refuses_bad_values(bag_dir: Path, tmp_path: Path,
+                                                               capsys: pytest.CaptureFixture[str]):
+    out = str(tmp_path / "zoom.png")
+    code, stdout, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out, "--from", "08:00:01.2", "--to", "+2.2")
+    assert code == 0, err
+    assert "arm from 2027-01-15T08:00:01.200Z to 2027-01-15T08:00:02.200Z" in stdout
+    code, stdout, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out, "--from", "2027-01-15T09:00:03+01:00")
+    assert code == 0, err
+    assert "arm from 2027-01-15T08:00:03.000Z to 2027-01-15T08:00:03.499Z" in stdout
+    for flag, bad in (("--from", "yesterday"), ("--to", "+soon"), ("--from", "+-1"), ("--to", "25:61")):
+        code, _, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out, flag, bad)
+        assert code == 2 and f"ERROR: {flag} '{bad}' is not a time" in err and "Traceback" not in err
+        assert f"WHAT: {flag} as an ISO date and time (2026-11-24T18:30:05" in err
+        assert "a clock time on the recording's day (18:30:05" in err and "start (+12.5)" in err
+    code, _, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out, "--from", "+3", "--to", "+1")
+    assert code == 2 and "ERROR: --from +3 comes after --to +1" in err
+    code, _, err = plem(capsys, "bag", "plot", str(bag_dir), "--out", out, "--from", "09:00:00")
+    assert_plem_error(code, err, "no rt_raw samples from 2027-01-15T09:00:00.000Z")
+    assert "WHY: the recording covers 2027-01-15T08:00:00.000Z to 2027-01-15T08:00:03.499Z" in err
+    assert "HOW: pass --from/--to within it" in err
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_a_segment_being_recorded_shows_what_it_holds_so_far(tmp_path: Path, storage: str,
+                                                            capsys: pytest.CaptureFixture[str]):
+    """The recorder has written 1.8 s and still holds its second segment open: info counts what that holds so far,
+    plot reads it as far as written and says so; once closed it is complete with the same messages."""
+    robot, now = tmp_path / "arm", [START]
+    recorder = recorder_of(robot, now, storage)
+    try:
+        feed_samples(recorder, now, range(1800))
+        recorder.segment.flush()                             # as the recorder does every second
+        segments = info_json(tmp_path, capsys)["robots"][0]["segments"]
+        assert [(s["name"], s["state"]) for s in segments] == [(SEGMENTS[0], "complete"), (SEGMENTS[1], "recording")]
+        live = segments[1]
+        assert live["note"] == "being recorded (so far)" and live["start"] == "2027-01-15T08:00:01.000Z"
+        assert live["duration_s"] == pytest.approx(0.799)
+        assert live["messages"] == {"/arm/rt_raw": 800, "/arm/rt_events": 2, "/arm/joint_states": 80,
+                                    "/arm/rt_monitor_stats": 8, "/arm/robot_description": 1}
+        result = run_plem("bag", "info", str(tmp_path))       # another process, as a user would run it
+        assert result.returncode == 0, result.stderr
+        [row] = [line for line in result.stdout.splitlines() if SEGMENTS[1] in line and "│" in line]
+        assert "being recorded (so far)" in row and "rt_raw 800" in result.stdout
+        assert "rt_raw: 1800 samples" in result.stdout
+        assert "total: 2 segments (1 complete), 1.798 s covered" in result.stdout
+        code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(tmp_path / "live.png"))
+        assert code == 0 and f"WARNING: {SEGMENTS[1]} is being recorded: read as far as written so far" in err
+        assert "arm from 2027-01-15T08:00:00.000Z to 2027-01-15T08:00:01.799Z" in stdout
+        assert len(read_timeline(find_bags(tmp_path)[0]).all_latency_us) == 1800
+    finally:
+        recorder.close()
+    segments = info_json(tmp_path, capsys)["robots"][0]["segments"]
+    assert segments[1]["state"] == "complete" and segments[1]["messages"]["/arm/rt_raw"] == 800
 
 
 def test_plot_errors(bag_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]):

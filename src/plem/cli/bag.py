@@ -18,6 +18,7 @@ from plem.errors import PlemError, raise_collected
 
 if TYPE_CHECKING:
     from plem.recording.summary import RobotBags, RobotSummary, SegmentInfo
+    from plem.recording.time_range import TimePoint
 
 app = typer.Typer(help="Inspect, plot and repair the flight recorder's bags.", no_args_is_help=True)
 
@@ -197,47 +198,76 @@ def _refuse_output(out: Path) -> None:
                        how=f"create it first (mkdir -p {parent}), or pass --out in an existing directory")
 
 
-def _newest(robots: list[RobotBags]) -> RobotBags:
-    """The robot recorded last: its newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time."""
-    return max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
+def _robots_to_plot(found: list[RobotBags], robot: str | None, directory: Path,
+                    out: Path) -> list[tuple[RobotBags, Path]]:
+    """The robots --robot names (default: the one recorded last, said when there are others) and the PNG of each."""
+    from plem.recording.summary import newest_robot, robot_named
+
+    if robot == "all":
+        return [(bags, out.with_name(f"{out.stem}-{bags.robot_id}{out.suffix}")) for bags in found]
+    if robot is not None:
+        return [(robot_named(found, robot, directory, "pass one of them with --robot, or --robot all"), out)]
+    chosen = newest_robot(found)
+    if len(found) > 1:
+        print_warnings([f"{directory} holds the bags of {len(found)} robots "
+                        f"({', '.join(bags.robot_id for bags in found)}): plotting {chosen.robot_id}, the one "
+                        "recorded last; pass --robot ID for another, or --robot all for one PNG per robot"])
+    return [(chosen, out)]
 
 
-@app.command("plot")
-def plot(
-    directory: Directory,
-    out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write.", show_default=False)],
-    robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several (default: the "
-                                              "one recorded last).", show_default=False)] = None,
-) -> None:
-    """Plot joint positions and velocities over time and a histogram of the loop's wake-up latency."""
+def _plot_robot(robot: RobotBags, out: Path, directory: Path, start: TimePoint | None, end: TimePoint | None) -> None:
+    """Write one robot's plot between --from and --to, saying which segments it reads only in part or leaves out."""
     from plem.core.files import write_atomic
-    from plem.recording.plot import read_raw, render
-    from plem.recording.summary import BagError, find_bags, robot_segments
+    from plem.recording.plot import render
+    from plem.recording.summary import BagError, robot_segments
+    from plem.recording.time_range import time_range
+    from plem.recording.timeline import extent, segment_warnings, timeline_of
 
-    _refuse_output(out)
-    found = find_bags(directory)
-    robots = {bags.robot_id: bags for bags in found}
-    if robot is None:
-        chosen = _newest(found)
-        if len(robots) > 1:
-            print_warnings([f"{directory} holds the bags of {len(robots)} robots ({', '.join(robots)}): plotting "
-                            f"{chosen.robot_id}, the one recorded last; pass --robot ID for another"])
-    elif robot in robots:
-        chosen = robots[robot]
-    else:
-        raise BagError(f"no bags of robot {robot} in {directory}", what=f"bags of {robot}",
-                       why=f"robots found: {', '.join(robots)}", how="pass one of them with --robot")
-    segments = robot_segments(chosen)
-    print_warnings([f"{segment.name} left out: {segment.note()}" for segment in segments
-                    if segment.state != "complete"])
-    png = render(read_raw(segments), f"{chosen.robot_id}: {directory}")
+    segments = robot_segments(robot)
+    print_warnings(segment_warnings(segments))
+    timeline = timeline_of(robot.robot_id, segments, *time_range(start, end, extent(segments)))
+    png = render(timeline, f"{robot.robot_id}: {directory}")
     try:
         write_atomic(out, png)
     except OSError as error:
         raise BagError(f"cannot write {out}", what="a PNG file plem may write",
                        why=error.strerror or str(error),
                        how="pass --out with a path in a writable directory") from error
-    typer.echo(f"wrote {out} ({_size(len(png))})")
+    typer.echo(f"wrote {out} ({_size(len(png))}): {robot.robot_id} from {_iso(int(timeline.time_ns[0]))} to "
+               f"{_iso(int(timeline.time_ns[-1]))}")
+
+
+TIME_FORMS = "2026-11-24T18:30:05, 18:30:05 (UTC, on the recording's day) or +12.5 (seconds after its start)"
+
+
+@app.command("plot")
+def plot(
+    directory: Directory,
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write (with --robot all: one per robot, "
+                                      "named OUT-ROBOT_ID.png).", show_default=False)],
+    robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several (default: the "
+                                              "one recorded last; all: every one).", show_default=False)] = None,
+    start: Annotated[str | None, typer.Option("--from", help=f"Plot from this time: {TIME_FORMS}.",
+                                              show_default=False)] = None,
+    end: Annotated[str | None, typer.Option("--to", help=f"Plot up to this time: {TIME_FORMS}.",
+                                            show_default=False)] = None,
+) -> None:
+    """Plot measured and commanded joint positions, velocities and the loop's latency over time, with the modes and
+    faults, and a histogram of the latency."""
+    from plem.recording.summary import find_bags
+    from plem.recording.time_range import parse_time
+
+    first, last = parse_time(start, "--from"), parse_time(end, "--to")
+    targets = _robots_to_plot(find_bags(directory), robot, directory, out)
+    for _, path in targets:
+        _refuse_output(path)
+    problems: list[PlemError] = []
+    for bags, path in targets:
+        try:
+            _plot_robot(bags, path, directory, first, last)
+        except PlemError as error:
+            problems.append(error)
+    raise_collected(problems, f"the plots of {directory}")
 
 
 @app.command("repair")

@@ -25,6 +25,7 @@ from plem.control.modes import Mode
 from plem.control.timing import histogram_summary
 from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
+from plem.fieldbus.cia402 import decode_statusword
 from plem.ipc.channels import RobotChannels
 from plem.ipc.request_bounds import truncated
 from plem.ipc.requests import error_json, result_json
@@ -237,6 +238,8 @@ class DriverService:
                     "expected_working_counter": bus.expected_working_counter,
                     "round_trip": asdict(round_trip.whole_run()) if round_trip is not None else None},
             "encoders": robot.bus.io.position.tolist(),
+            "drives": [{"state": decode_statusword(int(word)).name.lower(), "error_code": int(code)}
+                       for word, code in zip(robot.bus.io.statusword, robot.bus.io.error_code, strict=True)],
             "joint_offsets": robot.runtime.offsets.tolist(),
         }
         self.channels.rings["stats"].write(json.dumps(record, default=_plain).encode())

@@ -120,6 +120,11 @@ class RobotPlan:
         return arm_joint_names(self.config, urdf)
 
     @property
+    def robot_description(self) -> str:
+        """The URDF text the bridge publishes as robot_description and the recorder records with every segment."""
+        return self.report.urdf_xml or ""
+
+    @property
     def controllers(self) -> ControllerSet:
         """The controllers of the package's controllers.yaml, or the ones plem generates when it has none."""
         return read_controllers(self.report.files.controllers, self.joint_names, self.config.cycle_time)

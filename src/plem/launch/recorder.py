@@ -4,7 +4,8 @@
 `python -m plem.launch.recorder '<launch arguments as JSON>'`. It runs at normal priority and only reads
 shared memory, so a slow or full disk never reaches the loop: the rings hold about four seconds, and
 what the recorder could not keep is counted. On a stop signal it records on until the driver has
-stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too. Everything it writes is
+stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too. Every segment starts with the
+robot's URDF text (robot_description, as the bridge publishes it). Everything it writes is
 owner-only, or readable by the group of `shm_group:=` as the robot's shared memory is.
 """
 
@@ -45,7 +46,8 @@ def record(arguments: dict[str, str], stop: threading.Event) -> None:
     plan = plan_robot(arguments, generate=False)
     settings = replace(plan.recording(), group=plan.shm_group)
     interfaces = library()
-    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store)
+    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,
+                        description=plan.robot_description)
     client = connect(plan.robot_id, plan.config.dof)
     feed = MonitorFeed(client, interfaces, plan.joint_state_rate(), history=True)
     try:

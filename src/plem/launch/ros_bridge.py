@@ -35,7 +35,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     rate = plan.joint_state_rate()
     block = plan.report.urdf.ros2_control[0] if plan.report.urdf and plan.report.urdf.ros2_control else None
     hardware = Hardware(block.name if block else plan.robot_name, (block.plugin if block else None) or HARDWARE_PLUGIN)
-    bridge = RobotBridge(client, node, plan.report.urdf_xml or "", rate, plan.controllers, hardware,
+    bridge = RobotBridge(client, node, plan.robot_description, rate, plan.controllers, hardware,
                          commands=plan.bridge_commands, semantic=plan.report.srdf_xml, frame_prefix=plan.frame_prefix)
     commands = _command_thread(bridge, stop) if bridge.commands else None
     announce({"ready": True, "namespace": bridge.namespace, "domain": node.settings.describe(),

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from plem.control.loop import OVERRUN_WINDOW_S
 from plem.errors import PlemError
+from plem.ipc.robot_description import SharedDescription, remove_description, share_description
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
 from plem.robot.config import RT_KERNEL_FLAG
@@ -122,6 +123,9 @@ class Supervisor:
             if self.stop_requested.is_set():
                 return
             plan.arguments["eth_interface"] = self.children[-1].ready["interface"]
+        packages = {plan.report.files.name: str(plan.package.resolve())}
+        share_description(plan.robot_id, SharedDescription(plan.robot_description, packages, os.getpid()),
+                          plan.shm_group)
         self._start(plan, "rt_driver", critical=True)
         if self.stop_requested.is_set():
             return
@@ -298,6 +302,8 @@ class Supervisor:
                 child.process.wait()
                 self.say(f"{child.label} did not stop within {STOP_TIMEOUT_S:.0f} s and was killed")
         self.children.clear()
+        for plan in self.plans:
+            remove_description(plan.robot_id)
         self._print_events(interactive=False)  # the shutdown's events: the mappings outlive the unlinked names
         for client in self._clients.values():
             client.close()

@@ -61,7 +61,7 @@ def read_groups(srdf: SrdfModel, urdf: UrdfModel, arm_joints: tuple[str, ...], k
             continue
         chain = group.chains[0] if group.chains else None
         base = chain[0] if chain else root
-        tip = chain[1] if chain else _end_link(urdf, ordered[-1])
+        tip = chain[1] if chain else end_link(urdf, ordered[-1])
         groups[name] = PlanningGroup(name, ordered, base, tip, settings.get(name, KinematicsSettings()))
     for name in settings:
         if name not in groups:
@@ -87,7 +87,7 @@ def _group_joints(srdf: SrdfModel, urdf: UrdfModel, group: SrdfGroup, seen: set[
     return {name for name in joints if name in urdf.joints and urdf.joints[name].actuated}
 
 
-def _end_link(urdf: UrdfModel, joint: str) -> str:
+def end_link(urdf: UrdfModel, joint: str) -> str:
     """The child link of `joint`, followed down fixed joints while exactly one leaves each link."""
     link = urdf.joints[joint].child or ""  # validation guarantees every joint a child
     while True:

@@ -70,6 +70,9 @@ class Planner:
         self._upper = self.arm.to_model_order(limits.max_position)
         self._solvers: dict[tuple[str, str], IkSolver] = {}
         self._rng = np.random.default_rng()
+        #: How many plans were made, and the newest (what the view shows before it executes).
+        self.plans_made = 0
+        self.latest_plan: Plan | None = None
 
     @classmethod
     def for_package(cls, report: ValidationReport, joint_names: Sequence[str], limits: ArmLimits,
@@ -391,7 +394,10 @@ class Planner:
         checked = self._recheck(motion, options.avoid_collisions)
         trajectory = to_trajectory(motion)
         length = float(np.linalg.norm(np.diff(arm_states, axis=0), axis=1).sum())
-        return Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
+        plan = Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
+        self.plans_made += 1
+        self.latest_plan = plan
+        return plan
 
     def _recheck(self, motion: Spline, avoid_collisions: bool) -> int:
         """Check every state the RT driver will command for the timed motion (one per control cycle) against the robot

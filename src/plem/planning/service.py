@@ -48,6 +48,7 @@ class PlannerService:
         self._operations: dict[str, Callable[[dict[str, Any]], Any]] = {
             "describe": self._describe, "fk": self._fk, "ik": self._ik, "plan": self._plan,
             "cartesian": self._cartesian, "scene": self._scene, "contacts": self._contacts,
+            "view": self._view,
         }
 
     def call(self, work: Callable[[Planner], T]) -> T:
@@ -160,6 +161,16 @@ class PlannerService:
                                 what="add, move, remove, clear, attach, detach or get", why=f"got {action!r}",
                                 how="use one of those", code=MoveItCode.FAILURE)
         return scene.to_json()
+
+    def _view(self, request: dict[str, Any]) -> dict[str, Any]:
+        """What a view draws: the newest plan when newer than `plans_seen`, the scene when newer than `scene_seen`."""
+        planner = self.planner
+        latest = planner.latest_plan
+        newer = planner.plans_made > int(number(request, "plans_seen", 0, -1, 2**63)) and latest is not None
+        scene = planner.scene
+        changed = scene.version != int(number(request, "scene_seen", -1, -2, 2**63))
+        return {"plans": planner.plans_made, "plan": plan_json(latest) if newer and latest else None,
+                "scene": scene.to_json() if changed else None}
 
     # -- the socket ---------------------------------------------------------------------------------------
     def serve(self, server: socket.socket, stop: threading.Event) -> None:

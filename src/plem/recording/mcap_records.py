@@ -39,6 +39,17 @@ def string(content: memoryview, offset: int) -> tuple[str, int]:
     return bytes(content[offset + 4:offset + 4 + length]).decode(), offset + 4 + length
 
 
+def define(opcode: int, content: memoryview, schemas: dict[int, str], channels: dict[int, tuple[str, str]]) -> None:
+    """Note what a SCHEMA (id → type) or CHANNEL (id → topic, type) record defines; other records are ignored."""
+    if opcode == SCHEMA:
+        (schema_id,) = struct.unpack_from("<H", content, 0)
+        schemas[schema_id], _ = string(content, 2)          # the type; its embedded definition is not needed
+    elif opcode == CHANNEL:
+        channel_id, schema_id = struct.unpack_from("<HH", content, 0)
+        topic, _ = string(content, 4)
+        channels[channel_id] = (topic, schemas.get(schema_id, ""))
+
+
 def chunk_records(content: memoryview) -> bytes:
     """The records inside a chunk (plem writes them uncompressed)."""
     offset = 8 + 8 + 8 + 4                               # start time, end time, uncompressed size, crc

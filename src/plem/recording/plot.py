@@ -1,114 +1,153 @@
-"""One robot's recorded rt_raw as a PNG: joint positions and velocities over time, and the loop's wake-up latency.
+"""One robot's timeline as a figure: joint positions (measured solid, commanded dashed, one colour per joint),
+velocities and the loop's wake-up latency over absolute time (UTC), with the modes as shaded bands and the
+faults as labelled lines, and the latency histogram with its percentiles; `render` makes it a PNG.
 
-Lines are drawn from at most `MAX_POINTS` evenly spaced samples; the latency histogram and its
-percentiles use every sample.
+Legends sit right of the axes, never over the data. Every artist drawn from the timeline has a gid for
+tests to find: measured:<joint>, commanded:<joint>, velocity:<joint>, mode:<mode>, fault, fault_label,
+latency, latency_histogram, percentile:<name>.
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import io
-from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from plem.middleware.monitor_feed import MONITOR_TOPICS
-from plem.middleware.raw_cdr import raw_dof, raw_dtype, raw_field
-from plem.recording.summary import BagError, SegmentInfo, read_topic
+from plem.control.modes import Mode
+from plem.recording.archive import iso_time
+from plem.recording.timeline import Timeline
 
-#: Samples per line drawn.
-MAX_POINTS = 20_000
-#: Figure size in inches at `DPI`: the PNG is 1200 × 1000 pixels.
-SIZE, DPI = (12.0, 10.0), 100
-PERCENTILES = (("p50", 50.0), ("p99", 99.0), ("p99.9", 99.9))
-
-
-@dataclass(frozen=True)
-class RawSeries:
-    """rt_raw of one robot: decimated time (s from the first sample), positions and velocities; every latency (µs)."""
-
-    time_s: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    latency_us: np.ndarray
-    joint_names: list[str]
-
-
-def _joint_names(segments: list[SegmentInfo], dof: int) -> list[str]:
-    """The names in the first joint_states message when they fit the DOF, else joint0..N."""
-    from plem.middleware.types import library
-
-    ros_type = MONITOR_TOPICS["joint_states"]
-    for segment in segments:
-        topic = segment.topic_of(ros_type)
-        first = next(read_topic(segment.path, topic), None) if topic else None
-        if first is not None:
-            message: Any = library().store.deserialize_cdr(first.message(0), ros_type)  # a generated message
-            names = list(message.name)
-            if len(names) == dof:
-                return names
-            break
-    return [f"joint{index}" for index in range(dof)]
-
-
-def read_raw(segments: list[SegmentInfo]) -> RawSeries:
-    """The rt_raw of the complete segments, in order."""
-    ros_type = MONITOR_TOPICS["rt_raw"]
-    readable = [(segment, topic) for segment in segments
-                if segment.state == "complete" and (topic := segment.topic_of(ros_type))]
-    total = sum(segment.topics[topic][1] for segment, topic in readable)
-    stride = max(1, -(-total // MAX_POINTS))
-    dof: int | None = None
-    seen = 0
-    stamps, positions, velocities, latencies = [], [], [], []
-    for segment, topic in readable:
-        for payloads in read_topic(segment.path, topic):
-            dof = raw_dof(payloads.message(0)) if dof is None else dof
-            if np.any(payloads.sizes != raw_dtype(dof).itemsize):
-                raise BagError(f"rt_raw in {segment.name} does not have {dof} joints throughout",
-                               what=f"RtRaw messages of one arm ({dof} joints, as the first one)",
-                               why=f"messages of another size in {segment.name}",
-                               how="plot the segments of each arm separately (pass one segment directory)")
-            latencies.append(raw_field(payloads.buffer, payloads.starts, "latency_ns"))
-            pick = np.arange(-seen % stride, len(payloads.starts), stride)
-            stamps.append(payloads.stamps[pick])
-            positions.append(raw_field(payloads.buffer, payloads.starts[pick], "position", dof))
-            velocities.append(raw_field(payloads.buffer, payloads.starts[pick], "velocity", dof))
-            seen += len(payloads.starts)
-    if dof is None:
-        raise BagError("no rt_raw samples in the bags", what=f"complete segments with {ros_type} messages",
-                       why=f"{len(readable)} of {len(segments)} segments are complete and have an rt_raw topic, "
-                           "holding no messages",
-                       how="repair killed segments with `plem bag repair DIR`, or pass a directory the recorder "
-                           "wrote while the robot ran")
-    time_ns = np.concatenate(stamps)
-    return RawSeries((time_ns - time_ns[0]) / 1e9, np.concatenate(positions), np.concatenate(velocities),
-                     np.concatenate(latencies) / 1e3, _joint_names([segment for segment, _ in readable], dof))
-
-
-def render(series: RawSeries, title: str) -> bytes:
-    """The PNG: positions, velocities, and the latency histogram with its percentiles and maximum marked."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.collections import Collection
     from matplotlib.figure import Figure
+
+#: Figure size in inches at `DPI`: the PNG is 1400 × 1200 pixels.
+SIZE, DPI = (14.0, 12.0), 100
+PERCENTILES = (("p50", 50.0), ("p99", 99.0), ("p99.9", 99.9))
+#: Band colour of each mode; a code plem does not know is grey.
+MODE_COLORS = {"idle": "tab:gray", "hold": "tab:blue", "trajectory": "tab:green", "free_drive": "tab:purple",
+               "fault": "tab:red"}
+BAND_ALPHA = 0.12
+FAULT_COLOR = "crimson"
+#: Characters of a fault's reason shown next to its line.
+LABEL_CHARS = 60
+
+
+def mode_name(code: int) -> str:
+    """'hold', 'trajectory', ... for a recorded mode code; 'mode N' for one plem does not know."""
+    try:
+        return str(Mode(code))
+    except ValueError:
+        return f"mode {code}"
+
+
+def _legend(axes: Axes, **options: Any) -> None:
+    """The axes' legend right of them, outside the data."""
+    axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize="small", **options)
+
+
+def _dates(time_ns: np.ndarray) -> np.ndarray:
+    """matplotlib date numbers (days since its epoch) of absolute ns."""
+    from matplotlib.dates import date2num
+
+    days = date2num(np.asarray(time_ns, dtype="datetime64[ns]"))  # type: ignore[no-untyped-call]  # untyped
+    return np.asarray(days)
+
+
+def _mode_bands(axes: Axes, x: np.ndarray, modes: np.ndarray) -> dict[str, Collection]:
+    """One shaded band per run of a mode, each from its first sample to the next run's; the collection per mode."""
+    from matplotlib.collections import PolyCollection
+
+    changes = np.flatnonzero(np.diff(modes)) + 1
+    starts = np.concatenate([[0], changes])
+    ends = np.concatenate([changes, [len(modes) - 1]])
+    bands = {}
+    for code in np.unique(modes):
+        runs = np.flatnonzero(modes[starts] == code)
+        name = mode_name(int(code))
+        bands[name] = axes.add_collection(PolyCollection(
+            [[(left, 0), (left, 1), (right, 1), (right, 0)] for left, right in zip(x[starts[runs]], x[ends[runs]],
+                                                                                   strict=True)],
+            transform=axes.get_xaxis_transform(), facecolor=MODE_COLORS.get(name, "0.5"), edgecolor="none",
+            alpha=BAND_ALPHA, gid=f"mode:{name}", label=name, zorder=0), autolim=False)
+    return bands
+
+
+def figure(timeline: Timeline, title: str) -> Figure:
+    """The figure: positions, velocities and latency over time (shared axis), and the latency histogram."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     figure = Figure(figsize=SIZE, dpi=DPI, layout="constrained")
     FigureCanvasAgg(figure)
-    position, velocity, latency = figure.subplots(3, 1)
-    figure.suptitle(title)
-    for axes, values, label in ((position, series.position, "position (rad)"),
-                                (velocity, series.velocity, "velocity (rad/s)")):
-        for index, name in enumerate(series.joint_names):
-            axes.plot(series.time_s, values[:, index], linewidth=0.8, label=name)
-        axes.set(xlabel="time (s)", ylabel=label)
+    position, velocity, latency, histogram = figure.subplots(4, 1, height_ratios=(3, 2, 2, 2))
+    velocity.sharex(position)
+    latency.sharex(position)
+    figure.suptitle(f"{title}\n{iso_time(int(timeline.time_ns[0]))} to {iso_time(int(timeline.time_ns[-1]))}")
+    x = _dates(timeline.time_ns)
+    measured = []
+    for index, name in enumerate(timeline.joint_names):
+        color = f"C{index % 10}"
+        measured += position.plot(x, timeline.position[:, index], color=color, linewidth=0.9, label=name,
+                                  gid=f"measured:{name}")
+        position.plot(x, timeline.command_position[:, index], color=color, linewidth=0.9, linestyle="--",
+                      gid=f"commanded:{name}")
+        velocity.plot(x, timeline.velocity[:, index], color=color, linewidth=0.8, gid=f"velocity:{name}")
+    stride = max(1, round(len(timeline.all_latency_us) / len(timeline.time_ns)))
+    buckets = np.linspace(0, len(timeline.all_latency_us), len(timeline.time_ns), endpoint=False).astype(np.int64)
+    latency_line = latency.plot(x, np.maximum.reduceat(timeline.all_latency_us, buckets), color="black",
+                                linewidth=0.7, gid="latency",
+                                label="latency" if stride == 1 else f"max of each ~{stride} cycles")
+    faults = timeline.faults()
+    at = _dates(np.array([fault.time_ns for fault in faults], dtype=np.int64))
+    bands: dict[str, Collection] = {}
+    for axes in (position, velocity, latency):
+        bands = _mode_bands(axes, x, timeline.mode)          # the same on each: the last ones make the legend
+        for fault_x in at:
+            axes.axvline(float(fault_x), color=FAULT_COLOR, linewidth=1.2, gid="fault")
         axes.grid(alpha=0.3)
-    position.legend(loc="upper right", ncols=len(series.joint_names), fontsize="small")
-    latency.hist(series.latency_us, bins=200, log=True, histtype="stepfilled", alpha=0.7)
-    marks = [(name, float(np.percentile(series.latency_us, q))) for name, q in PERCENTILES]
-    for (name, value), color in zip([*marks, ("max", float(series.latency_us.max()))],
+    for fault, fault_x in zip(faults, at, strict=True):
+        text = fault.label if len(fault.label) <= LABEL_CHARS else fault.label[:LABEL_CHARS - 1] + "…"
+        position.text(float(fault_x), 0.98, f" {text}", transform=position.get_xaxis_transform(), rotation=90,
+                      ha="right", va="top", fontsize="small", color=FAULT_COLOR, gid="fault_label",
+                      bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
+    locator = AutoDateLocator(tz=dt.UTC)  # type: ignore[no-untyped-call]  # matplotlib.dates is untyped
+    position.xaxis.set_major_locator(locator)
+    position.xaxis.set_major_formatter(ConciseDateFormatter(locator, tz=dt.UTC))  # type: ignore[no-untyped-call]
+    for axes in (position, velocity):
+        axes.tick_params(labelbottom=False)
+    position.set(ylabel="position (rad)")
+    velocity.set(ylabel="velocity (rad/s)")
+    latency.set(ylabel="wake-up latency (µs)", xlabel="time (UTC)")
+    styles = [Line2D([], [], color="0.3", linewidth=0.9, label="measured"),
+              Line2D([], [], color="0.3", linewidth=0.9, linestyle="--", label="commanded")]
+    _legend(position, handles=[*measured, *styles])
+    fault_line = [Line2D([], [], color=FAULT_COLOR, linewidth=1.2, label="fault event")] if faults else []
+    _legend(velocity, handles=[*bands.values(), *fault_line], title="mode")
+    _legend(latency, handles=latency_line)
+    _histogram(histogram, timeline.all_latency_us)
+    return figure
+
+
+def _histogram(axes: Axes, latency_us: np.ndarray) -> None:
+    """Every cycle's wake-up latency, with its percentiles and maximum marked."""
+    axes.hist(latency_us, bins=200, log=True, histtype="stepfilled", alpha=0.7, gid="latency_histogram")
+    marks = [(name, float(np.percentile(latency_us, q))) for name, q in PERCENTILES]
+    for (name, value), color in zip([*marks, ("max", float(latency_us.max()))],
                                     ("tab:green", "tab:orange", "tab:red", "black"), strict=True):
-        latency.axvline(value, color=color, linestyle="--", linewidth=1, label=f"{name} {value:.1f} µs")
-    latency.set(xlabel=f"wake-up latency (µs), {len(series.latency_us)} cycles", ylabel="cycles (log)")
-    latency.legend(loc="upper right")
+        axes.axvline(value, color=color, linestyle="--", linewidth=1, label=f"{name} {value:.1f} µs",
+                     gid=f"percentile:{name}")
+    axes.set(xlabel=f"wake-up latency (µs), {len(latency_us)} cycles", ylabel="cycles (log)")
+    _legend(axes)
+
+
+def render(timeline: Timeline, title: str) -> bytes:
+    """The figure as PNG bytes."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png")
+    figure(timeline, title).savefig(buffer, format="png")
     return buffer.getvalue()

@@ -1,10 +1,11 @@
 """The flight recorder of one robot: monitoring messages into bounded bag segments, with a disk guard.
 
 A `Recorder` is the `MonitorSink` of a `MonitorFeed`. It writes every message into the open segment and
-starts a new one every `segment_s`. `maintain()` (about once a second) deletes closed segments past the
-retention window or while the disk is fuller than the threshold, never the open one nor one kept for
-a fault. On a fault it puts the open segment on disk at once, keeps every segment holding the
-`flight_window_s` before it, and logs where in the bags the fault is.
+starts a new one every `segment_s`; given the robot's URDF text, it records it as robot_description at
+the start of every segment, so a bag directory alone is enough to replay the arm. `maintain()` (about
+once a second) deletes closed segments past the retention window or while the disk is fuller than the
+threshold, never the open one nor one kept for a fault. On a fault it puts the open segment on disk at
+once, keeps every segment holding the `flight_window_s` before it, and logs where in the bags the fault is.
 
 A write the disk refuses stops recording: the open segment is finished with everything written to it
 (`SegmentWriter.salvage`), the cause is logged once as WHAT/WHY/HOW, and what follows is counted as not
@@ -40,6 +41,8 @@ from plem.recording.settings import RecordingSettings
 
 Clock = Callable[[], int]
 DiskUsage = Callable[[Path], tuple[int, int, int]]
+#: The topic (under /{robot_id}/) and type of the URDF text recorded at the start of every segment.
+DESCRIPTION_TOPIC, DESCRIPTION_TYPE = "robot_description", "std_msgs/msg/String"
 
 
 @dataclass
@@ -69,13 +72,20 @@ class Stopped:
 class Recorder:
     """Writes one robot's monitoring messages into segments under `settings.directory`.
 
+    `description`: the robot's URDF text, recorded at the start of every segment (None: not recorded).
     Raises RecordingError (WHAT/WHY/HOW) when the directory cannot be created or written into.
     """
 
     def __init__(self, settings: RecordingSettings, robot_id: str, topics: dict[str, str], store: Typestore,
-                 clock: Clock = time.time_ns, disk_usage: DiskUsage = shutil.disk_usage) -> None:
+                 clock: Clock = time.time_ns, disk_usage: DiskUsage = shutil.disk_usage,
+                 description: str | None = None) -> None:
         self.settings = settings
         self.topics = topics                       # short name (rt_raw) → ROS type
+        self._description = None
+        if description is not None:
+            self.topics = {**topics, DESCRIPTION_TOPIC: DESCRIPTION_TYPE}
+            self._description = bytes(store.serialize_cdr(store.types[DESCRIPTION_TYPE](data=description),
+                                                          DESCRIPTION_TYPE))
         self.namespace = f"/{robot_id}"
         self.store = store
         self.clock = clock
@@ -135,6 +145,9 @@ class Recorder:
         self.segment = SegmentWriter(path, topics, self.store, self.settings.storage, self.settings.flush_period_s,
                                      self.access)
         self._segment_start = wall_ns
+        if self._description is not None:
+            self.segment.append(f"{self.namespace}/{DESCRIPTION_TOPIC}", wall_ns, self._description)
+            self.written += 1
         self.archive.log("segment_opened", f"recording into {path}", segment=path.name,
                          storage=self.settings.storage)
 

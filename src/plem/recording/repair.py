@@ -25,7 +25,7 @@ from plem.core.files import read_regular
 from plem.errors import PlemError
 from plem.middleware.types import library
 from plem.recording.access import FileAccess
-from plem.recording.mcap_records import CHANNEL, CHUNK, MAGIC, MESSAGE, SCHEMA, chunk_records, records, string
+from plem.recording.mcap_records import CHUNK, MAGIC, MESSAGE, chunk_records, define, records
 from plem.recording.segment import BAG_VERSION, STORAGES, bag_file, open_bag_file
 
 
@@ -78,16 +78,11 @@ def recover_mcap(mcap: Path) -> tuple[Channels, Messages]:
         if opcode != CHUNK:
             continue
         for inner, record in records(chunk_records(content)):
-            if inner == SCHEMA:
-                (schema_id,) = struct.unpack_from("<H", record, 0)
-                schemas[schema_id], _ = string(record, 2)   # the type; its embedded definition is rebuilt
-            elif inner == CHANNEL:
-                channel_id, schema_id = struct.unpack_from("<HH", record, 0)
-                topic, _ = string(record, 4)
-                channels[channel_id] = (topic, schemas[schema_id])
-            elif inner == MESSAGE:
+            if inner == MESSAGE:
                 channel_id, _, log_time = struct.unpack_from("<HIQ", record, 0)
                 messages.append((channel_id, log_time, bytes(record[22:])))
+            else:
+                define(inner, record, schemas, channels)     # types only: the definitions are rebuilt
     return channels, messages
 
 

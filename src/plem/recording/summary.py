@@ -3,7 +3,8 @@
 The directory may be the recorder's bag_dir (one directory per robot), one robot's directory or one
 segment. Payloads are taken straight from the MCAP chunks through their message indexes (or from the
 sqlite3 table), and only the bytes of the fields needed are gathered, so an hour of 1 kHz rt_raw is
-summarised in seconds rather than deserialized message by message.
+summarised in seconds rather than deserialized message by message. A segment being recorded is read as
+far as its writer has put it in the file (complete chunks, committed transactions).
 """
 
 from __future__ import annotations
@@ -27,15 +28,15 @@ from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_field, raw_fields
 from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, read_event_log
 from plem.recording.mcap_records import (
-    CHANNEL,
     CHUNK,
     MAGIC,
     MESSAGE_FIELDS,
     MESSAGE_INDEX,
     RECORD_HEADER,
+    McapError,
     chunk_records,
+    define,
     records,
-    string,
 )
 from plem.recording.segment import bag_file, being_written, open_bag_file
 
@@ -92,6 +93,20 @@ def find_bags(path: Path) -> list[RobotBags]:
     return robots
 
 
+def newest_robot(robots: list[RobotBags]) -> RobotBags:
+    """The robot recorded last: its newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time."""
+    return max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
+
+
+def robot_named(robots: list[RobotBags], robot_id: str, directory: Path, how: str) -> RobotBags:
+    """The bags of `robot_id` among `robots`; BagError naming the robots there otherwise."""
+    for bags in robots:
+        if bags.robot_id == robot_id:
+            return bags
+    raise BagError(f"no bags of robot {robot_id} in {directory}", what=f"bags of {robot_id}",
+                   why=f"robots found: {', '.join(bags.robot_id for bags in robots)}", how=how)
+
+
 # -- reading payloads --------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Payloads:
@@ -108,23 +123,37 @@ class Payloads:
         return self.buffer[start:start + int(self.sizes[index])].tobytes()
 
 
-def read_topic(segment: Path, topic: str, head: int | None = None) -> Iterator[Payloads]:
-    """The messages of `topic` in a closed segment, in the order they were written, a chunk at a time.
+#: Log times (ns) from, to (both included): messages outside are not read where the storage allows.
+Window = tuple[int, int]
+EVERYTHING: Window = (0, 2**63 - 1)
+
+
+def read_topic(segment: Path, topic: str, head: int | None = None, window: Window = EVERYTHING) -> Iterator[Payloads]:
+    """The messages of `topic` in a segment, in the order they were written, a chunk at a time.
 
     `head`: only the first `head` bytes of each payload are needed (sqlite3 then reads no more).
+    `window`: the log times wanted; MCAP chunks wholly outside it are skipped, so a batch may still hold
+    messages just outside it.
     """
     file = bag_file(segment)
     if file is None:
         raise BagError(f"{segment} holds no bag file", what="a .mcap or .db3 file in the segment directory",
                        why="none found", how="pass a segment the recorder wrote")
-    return _mcap_topic(file, topic) if file.suffix == ".mcap" else _sqlite3_topic(file, topic, head)
+    return _mcap_topic(file, topic, window) if file.suffix == ".mcap" else _sqlite3_topic(file, topic, head, window)
+
+
+def _chunk_times(chunk: memoryview) -> Window:
+    """The earliest and latest log time of the messages in a chunk, from its header."""
+    start, end = struct.unpack_from("<QQ", chunk, 0)
+    return int(start), int(end)
 
 
 @dataclass(frozen=True)
 class McapIndex:
-    """An MCAP file as far as it reads: its channels, its chunks with their message indexes, whether it ends whole."""
+    """An MCAP file as far as it reads: its channels (id → topic, type), its chunks with their message indexes,
+    whether it ends whole."""
 
-    channels: dict[int, str]
+    channels: dict[int, tuple[str, str]]
     indexed: list[tuple[memoryview, memoryview]]
     whole: bool
 
@@ -133,8 +162,18 @@ class McapIndex:
         counts: Counter[str] = Counter()
         for _, index in self.indexed:
             (channel_id,) = struct.unpack_from("<H", index, 0)
-            counts[self.channels.get(channel_id, "")] += (len(index) - 6) // 16
+            counts[self.channels.get(channel_id, ("", ""))[0]] += (len(index) - 6) // 16
         return counts
+
+    def topics(self) -> dict[str, tuple[str, int]]:
+        """Every channel's topic → (type, messages that can be read), as metadata.yaml lists them."""
+        counts = self.counts()
+        return {topic: (msgtype, counts[topic]) for topic, msgtype in self.channels.values()}
+
+    def extent(self) -> Window | None:
+        """The earliest and latest log time of the messages that can be read; None when there are none."""
+        times = [_chunk_times(chunk) for chunk, _ in self.indexed]
+        return (min(start for start, _ in times), max(end for _, end in times)) if times else None
 
 
 def _corrupt(path: Path, error: Exception) -> BagError:
@@ -142,42 +181,66 @@ def _corrupt(path: Path, error: Exception) -> BagError:
                     why=f"{type(error).__name__}: {error}", how="run `plem bag repair` on its segment, or delete it")
 
 
-def mcap_index(path: Path) -> McapIndex:
-    """Scan an MCAP file's records (their headers only); BagError when it is not an MCAP file or not a regular one."""
+def _file_data(path: Path) -> bytes | mmap.mmap:
+    """A bag file's bytes: mapped when finished; read when it may still be written to, as a writer the disk
+    refuses cuts it back (a mapped page past the end would kill the reader)."""
     try:
         with os.fdopen(open_bag_file(path), "rb") as handle:
             size = os.fstat(handle.fileno()).st_size
-            data = mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
+            if not (path.parent / "metadata.yaml").exists():
+                return handle.read()
+            return mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) if size else b""
     except PlemError as error:
         raise BagError(error.summary, what=error.what, why=error.why, how=error.how) from None
+    except OSError as error:
+        raise BagError(f"cannot read {path}", what="a readable bag file", why=error.strerror or str(error),
+                       how="check the file's permissions") from None
+
+
+def mcap_index(path: Path) -> McapIndex:
+    """Scan an MCAP file's records (their headers only); BagError when it is not an MCAP file or not a regular one.
+
+    A file without its summary (being recorded, or killed) has its channels in its chunks only: those are
+    read until every channel a message index names is known.
+    """
+    data = _file_data(path)
     if data[:len(MAGIC)] != MAGIC:
         raise BagError(f"{path} is not an MCAP file", what="a file starting with the MCAP magic",
                        why="its first bytes differ" if data else "it is empty", how="pass a segment the recorder wrote")
-    channels: dict[int, str] = {}
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+    chunks: list[memoryview] = []
     indexed: list[tuple[memoryview, memoryview]] = []
-    chunk = None
     try:
         for opcode, content in records(data, len(MAGIC)):
             if opcode == CHUNK:
-                chunk = content
-            elif opcode == MESSAGE_INDEX and chunk is not None:
+                chunks.append(content)
+            elif opcode == MESSAGE_INDEX and chunks:
                 if len(content) < 6 or (len(content) - 6) % 16:
                     raise ValueError(f"a message index of {len(content)} bytes")
-                indexed.append((chunk, content))
-            elif opcode == CHANNEL:
-                (channel_id,) = struct.unpack_from("<H", content, 0)
-                channels[channel_id], _ = string(content, 4)
+                indexed.append((chunks[-1], content))
+            else:
+                define(opcode, content, schemas, channels)
+        named = {struct.unpack_from("<H", index, 0)[0] for _, index in indexed}
+        for chunk in chunks:
+            if named <= channels.keys():
+                break
+            for opcode, content in records(chunk_records(chunk)):
+                define(opcode, content, schemas, channels)
     except (struct.error, ValueError) as error:
         raise _corrupt(path, error) from None
+    except McapError as error:
+        raise BagError(error.summary, what=error.what, why=error.why, how=error.how) from None
     return McapIndex(channels, indexed, len(data) > 2 * len(MAGIC) and data[-len(MAGIC):] == MAGIC)
 
 
-def _mcap_topic(path: Path, topic: str) -> Iterator[Payloads]:
-    """Every chunk with messages of `topic`, found through the message index that follows each chunk."""
+def _mcap_topic(path: Path, topic: str, window: Window) -> Iterator[Payloads]:
+    """Every chunk with messages of `topic` in `window`, found through the message index that follows each chunk."""
     index = mcap_index(path)
     for chunk, entries in index.indexed:
         (channel_id,) = struct.unpack_from("<H", entries, 0)
-        if index.channels.get(channel_id) == topic:
+        start, end = _chunk_times(chunk)
+        if index.channels.get(channel_id, ("", ""))[0] == topic and start <= window[1] and end >= window[0]:
             try:
                 yield _indexed_payloads(chunk, entries)
             except (struct.error, IndexError, ValueError) as error:
@@ -194,13 +257,16 @@ def _indexed_payloads(chunk: memoryview, index: memoryview) -> Payloads:
                     lengths - MESSAGE_FIELDS)
 
 
-def _sqlite3_topic(path: Path, topic: str, head: int | None, batch: int = 100_000) -> Iterator[Payloads]:
-    """The messages of `topic` in a rosbag2 sqlite3 file (their first `head` bytes), `batch` rows at a time."""
+def _sqlite3_topic(path: Path, topic: str, head: int | None, window: Window,
+                   batch: int = 100_000) -> Iterator[Payloads]:
+    """The messages of `topic` in `window` in a rosbag2 sqlite3 file (their first `head` bytes), `batch` rows at a
+    time."""
     data = "m.data" if head is None else f"substr(m.data, 1, {int(head)})"
     connection = _sqlite3_open(path)
     try:
         cursor = connection.execute(f"SELECT m.timestamp, {data} FROM messages m JOIN topics t ON m.topic_id = t.id "
-                                    "WHERE t.name = ? ORDER BY m.id", (topic,))
+                                    "WHERE t.name = ? AND m.timestamp BETWEEN ? AND ? ORDER BY m.id",
+                                    (topic, *window))
         while rows := cursor.fetchmany(batch):
             stamps, blobs = zip(*rows, strict=True)
             sizes = np.fromiter(map(len, blobs), np.int64, len(blobs))
@@ -222,6 +288,22 @@ def _sqlite3_open(path: Path) -> sqlite3.Connection:
     return sqlite3.connect(f"file:{path}?mode=ro", uri=True)
 
 
+def _sqlite3_so_far(path: Path) -> tuple[dict[str, tuple[str, int]], Window | None]:
+    """Topics (topic → type, messages) and the extent of what a rosbag2 sqlite3 file holds committed so far."""
+    connection = _sqlite3_open(path)
+    try:
+        rows = connection.execute("SELECT t.name, t.type, count(m.id), min(m.timestamp), max(m.timestamp) FROM "
+                                  "topics t LEFT JOIN messages m ON m.topic_id = t.id GROUP BY t.id").fetchall()
+    except sqlite3.DatabaseError as error:
+        raise BagError(f"{path} cannot be read", what="a rosbag2 sqlite3 database", why=str(error),
+                       how="wait for the recorder to close the segment, then run `plem bag info` again") from error
+    finally:
+        connection.close()
+    times = [(int(first), int(last)) for *_, first, last in rows if first is not None]
+    extent = (min(first for first, _ in times), max(last for _, last in times)) if times else None
+    return {name: (msgtype, int(count)) for name, msgtype, count, _, _ in rows}, extent
+
+
 def _sqlite3_count(path: Path) -> int:
     """The messages a rosbag2 sqlite3 file holds; BagError when it does not read."""
     connection = _sqlite3_open(path)
@@ -240,9 +322,10 @@ def _sqlite3_count(path: Path) -> int:
 class SegmentInfo:
     """One segment and its `state`.
 
-    complete; recording (a live recorder holds it open); killed (unfinished: no metadata.yaml, and no
-    recorder writes it); damaged (metadata.yaml is there but the file is truncated or damaged: `problem`
-    says how much reads); unreadable (its metadata.yaml or bag file cannot be read at all).
+    complete; recording (a live recorder holds it open: its topics, start and duration are what the file
+    holds so far); killed (unfinished: no metadata.yaml, and no recorder writes it); damaged (metadata.yaml
+    is there but the file is truncated or damaged: `problem` says how much reads); unreadable (its
+    metadata.yaml or bag file cannot be read at all).
     """
 
     path: Path
@@ -260,13 +343,20 @@ class SegmentInfo:
         """The segment's directory name, as the event log names it."""
         return self.path.name
 
+    @property
+    def readable(self) -> bool:
+        """Whether its messages are read: complete, or being recorded (as far as written so far)."""
+        return self.state in ("complete", "recording")
+
     def topic_of(self, ros_type: str) -> str | None:
         """The segment's topic carrying `ros_type`."""
         return next((topic for topic, (msgtype, _) in sorted(self.topics.items()) if msgtype == ros_type), None)
 
     def note(self) -> str:
         """What to tell about a segment that is not complete ('' for a complete one)."""
-        return {"killed": "unfinished (recorder killed) — run `plem bag repair`", "recording": "being recorded",
+        recording = f"being recorded; nothing readable so far: {self.problem}" if self.problem else \
+            "being recorded (so far)"
+        return {"killed": "unfinished (recorder killed) — run `plem bag repair`", "recording": recording,
                 "damaged": f"damaged: {self.problem} — run `plem bag repair`",
                 "unreadable": f"unreadable: {self.problem}"}.get(self.state, "")
 
@@ -293,6 +383,8 @@ def segment_info(path: Path) -> SegmentInfo:
         metadata = bag_metadata(path)
         if metadata is None:
             info.state = "recording" if being_written(path) else "killed"
+            if info.state == "recording" and file is not None:
+                _read_so_far(info, file)
             return info
         extent = extent_of(metadata)
         info.topics = {entry["topic_metadata"]["name"]: (entry["topic_metadata"]["type"], int(entry["message_count"]))
@@ -307,6 +399,22 @@ def segment_info(path: Path) -> SegmentInfo:
     if file is not None:
         _check_readable(info, file)
     return info
+
+
+def _read_so_far(info: SegmentInfo, file: Path) -> None:
+    """The topics, message counts, start and duration of a segment being recorded, from what its file holds."""
+    try:
+        if info.storage == "mcap":
+            index = mcap_index(file)
+            topics, extent = index.topics(), index.extent()
+        else:
+            topics, extent = _sqlite3_so_far(file)
+    except PlemError as error:
+        info.problem = f"{error.summary}: {error.why}"
+        return
+    info.topics = topics
+    if extent is not None:
+        info.start_ns, info.duration_ns = extent[0], extent[1] - extent[0]
 
 
 def _check_readable(info: SegmentInfo, file: Path) -> None:
@@ -380,13 +488,14 @@ class RobotSummary:
 
 
 def _cycle_drops(segments: list[SegmentInfo], deleted: list[str]) -> CycleDrops:
-    """Cycle gaps within and across segments; not across a segment that was deleted, or is killed or unreadable."""
+    """Cycle gaps within and across segments (one being recorded as far as written); not across a segment that was
+    deleted, or is killed or unreadable."""
     drops = CycleDrops()
     previous: int | None = None
     last_name = ""
     breaks: list[str] = []
     for segment in segments:
-        if segment.state != "complete":
+        if not segment.readable:
             breaks.append(f"{segment.name} ({segment.state})")
             continue
         topic = segment.topic_of(MONITOR_TOPICS["rt_raw"])
@@ -404,10 +513,10 @@ def _cycle_drops(segments: list[SegmentInfo], deleted: list[str]) -> CycleDrops:
 
 
 def last_message(segments: list[SegmentInfo], ros_type: str) -> tuple[int, bytes] | None:
-    """(log time, payload) of the newest message of `ros_type` in the complete segments."""
+    """(log time, payload) of the newest message of `ros_type` in the segments that read."""
     for segment in reversed(segments):
         topic = segment.topic_of(ros_type)
-        if segment.state != "complete" or topic is None:
+        if not segment.readable or topic is None:
             continue
         last = None
         for payloads in read_topic(segment.path, topic):

@@ -1,0 +1,96 @@
+"""`plem view`: the arm in 3D in a local web page — live from shared memory or DDS, or replayed from the bags."""
+
+from __future__ import annotations
+
+import signal
+import threading
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from plem.cli.output import print_warnings
+from plem.errors import UsageError
+
+RobotArgument = Annotated[str | None, typer.Argument(
+    metavar="[ROBOT_ID]", help="Robot to show (default: $PLEM_ROBOT_ID, else indy).", show_default=False)]
+
+
+def _stop_on_signals() -> threading.Event:
+    """An event set by Ctrl-C or SIGTERM."""
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    return stop
+
+
+def view(
+    robot_id: RobotArgument = None,
+    ros: Annotated[bool, typer.Option("--ros", help="Read the robot over DDS (robot_description, "
+                                                    "joint_states, rt_raw), for a robot on another host.")] = False,
+    bag: Annotated[Path | None, typer.Option("--bag", metavar="DIR", help="Replay the recorded arm from the bags "
+                                             "under DIR (the recorder's bag_dir, a robot's or a segment).",
+                                             show_default=False)] = None,
+    robot: Annotated[str | None, typer.Option("--robot", help="With --bag: the robot to replay when DIR holds "
+                                              "several (default: the one recorded last).", show_default=False)] = None,
+    fault: Annotated[int | None, typer.Option("--fault", min=1, help="With --bag: open at the N-th recorded fault "
+                                              "(1 = the first), the seconds before it.", show_default=False)] = None,
+    host: Annotated[str, typer.Option("--host", help="Address to serve on; the teach panel is offered only on "
+                                                     "this host's loopback.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", min=1, max=65535, help="Port (the next free one if taken).")] = 8080,
+    rate: Annotated[float, typer.Option("--rate", min=1.0, max=120.0, help="Live redraws per second.")] = 30.0,
+) -> None:
+    """Serve a web page showing the arm in 3D and print its URL; Ctrl-C stops it (the arm runs on)."""
+    from plem.bridge.client import default_robot_id
+    from plem.view.server import start_server, url
+
+    if bag is None and (robot is not None or fault is not None):
+        raise UsageError("--robot and --fault need --bag", what="--robot and --fault with --bag DIR",
+                         why="no --bag was given", how="pass --bag DIR to replay recorded bags, or leave them out")
+    if bag is not None and (ros or robot_id is not None):
+        raise UsageError("--bag replays recorded bags, not a running robot",
+                         what="either --bag DIR [--robot ID] or [ROBOT_ID] [--ros]",
+                         why="--bag was given with " + ("--ros" if ros else f"ROBOT_ID {robot_id}"),
+                         how="pass --robot ID with --bag to pick the recorded robot")
+    stop = _stop_on_signals()
+    if bag is not None:
+        from plem.view.replay import Replay
+
+        replay = Replay.of_bags(bag, robot, fault)
+        print_warnings(replay.warnings)
+        server = start_server(host, port, f"plem replay: {replay.timeline.robot_id}")
+        replay.show(server)
+        typer.echo(f"plem view: replay of {replay.timeline.robot_id} from {bag} at {url(server)} — Ctrl-C to stop")
+        stop.wait()
+        server.stop()
+        return
+    _live(robot_id or default_robot_id(), ros, host, port, rate, stop)
+
+
+def _live(robot_id: str, ros: bool, host: str, port: int, rate: float, stop: threading.Event) -> None:
+    from plem.view.live_view import LiveView
+    from plem.view.server import loopback, start_server, url
+
+    if ros:
+        from plem.view.ros_feed import RosFeed
+
+        feed: object = RosFeed(robot_id)
+        source, teach_note = "DDS", "Teach needs the robot on this host: run `plem view` there (without --ros)."
+    else:
+        from plem.view.live import LiveFeed
+
+        feed = LiveFeed(robot_id)
+        local = loopback(host)
+        source = "shared memory"
+        teach_note = "" if local else (f"Teach is offered only with --host 127.0.0.1: anyone reaching {host} could "
+                                       "move the arm.")
+    try:
+        server = start_server(host, port, f"plem view: {robot_id}")
+        live = LiveView(server, feed, planner=not ros, teach=not ros and not teach_note,  # type: ignore[arg-type]
+                        teach_note=teach_note)
+        print_warnings([f"mesh not found: {uri}" for uri in live.model.missing])
+        typer.echo(f"plem view: {robot_id} live from {source} at {url(server)} — Ctrl-C to stop (the arm runs on)")
+        live.run(stop, rate)
+        server.stop()
+    finally:
+        feed.close()  # type: ignore[attr-defined]

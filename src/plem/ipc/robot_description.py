@@ -1,0 +1,88 @@
+"""A launched robot's description beside its shared memory, so tools on the same host can draw the arm.
+
+`plem launch` writes `/dev/shm/plem_description_{robot_id}.json` (atomically, owner-only or readable by
+the group of `shm_group:=`) before it starts the driver, and removes it when it stops: the URDF as
+robot_description carries it, the directories of the packages its `package://` URIs name, and the tool
+link. A reader takes it only when it is a regular file of its own user or root, small, of the expected
+shape, and written by a launch that still runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from plem.core.files import UntrustedFile, open_trusted, trusted_owners, write_atomic
+from plem.errors import PlemError
+from plem.ipc.segment import SHM_DIRECTORY
+from plem.ipc.state_segment import process_alive
+
+#: The largest description file read (a URDF of a few thousand lines fits many times).
+MAX_DESCRIPTION_BYTES = 16 << 20
+
+
+class DescriptionUnavailable(PlemError):
+    """No launch on this host shares the description of the robot asked for."""
+
+
+@dataclass(frozen=True)
+class SharedDescription:
+    """What a launch shares about its robot's description."""
+
+    urdf: str
+    packages: dict[str, str] = field(default_factory=dict)   # package name → directory, for package:// URIs
+    pid: int = 0
+
+
+def description_path(robot_id: str) -> Path:
+    """The description file of `robot_id` in /dev/shm."""
+    return SHM_DIRECTORY / f"plem_description_{robot_id}.json"
+
+
+def share_description(robot_id: str, description: SharedDescription, group: int | None = None) -> None:
+    """Replace the robot's description file (owner-only, or 0640 with `group`)."""
+    write_atomic(description_path(robot_id), json.dumps(asdict(description)),
+                 mode=0o600 if group is None else 0o640, group=group)
+
+
+def remove_description(robot_id: str) -> None:
+    """Remove the description file if it is this user's."""
+    path = description_path(robot_id)
+    try:
+        if os.lstat(path).st_uid == os.geteuid():
+            path.unlink()
+    except FileNotFoundError:
+        pass
+
+
+def _unavailable(robot_id: str, why: str) -> DescriptionUnavailable:
+    return DescriptionUnavailable(
+        f"no description of robot '{robot_id}' on this host",
+        what=f"a running `plem launch` of robot '{robot_id}' on this host, which shares its URDF in "
+             f"{description_path(robot_id)}",
+        why=why, how=f"start it with `plem launch robot_id:={robot_id} ...`, name another robot "
+                     "(`plem view ROBOT_ID`), or view a robot on another host with `plem view --ros ROBOT_ID`")
+
+
+def read_description(robot_id: str) -> SharedDescription:
+    """The description a running launch shares; DescriptionUnavailable when there is none to trust."""
+    path = description_path(robot_id)
+    try:
+        fd, status = open_trusted(path, os.O_RDONLY, trusted_owners())
+    except FileNotFoundError:
+        raise _unavailable(robot_id, f"{path} does not exist") from None
+    except (UntrustedFile, OSError) as error:
+        raise _unavailable(robot_id, f"{path} is not to be trusted: {error}") from None
+    with os.fdopen(fd, "rb") as handle:
+        data = handle.read(MAX_DESCRIPTION_BYTES + 1) if status.st_size <= MAX_DESCRIPTION_BYTES else b""
+    try:
+        payload = json.loads(data)
+        description = SharedDescription(str(payload["urdf"]), {str(k): str(v) for k, v in payload["packages"].items()},
+                                        int(payload["pid"]))
+    except (ValueError, KeyError, TypeError, AttributeError) as error:
+        raise _unavailable(robot_id, f"{path} is not a description plem wrote ({type(error).__name__})") from None
+    if not process_alive(description.pid):
+        raise _unavailable(robot_id, f"the launch that wrote {path} (pid {description.pid}) has ended")
+    return description
