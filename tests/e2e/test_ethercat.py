@@ -19,6 +19,7 @@ import pytest
 from plem.bridge.client import RobotClient, connect
 from plem.control.events import EventKind
 from plem.core.paths import BUILTIN_PACKAGES_DIR
+from plem.errors import CommandRejected
 from plem.fieldbus.ethercat.virtual.emulator import Control
 from tests.e2e.cli import plem_executable, run_plem
 from tests.e2e.launched import Launch, clean_environment, launched, new_robot_id, process_gone, read_line, wait_until
@@ -264,6 +265,21 @@ def enabled_launch(network: Network, home: Path, tmp_path: Path) -> Iterator[tup
         yield launch, client
 
 
+def reset_once_stopped(client: RobotClient, timeout: float = 10.0) -> bool:
+    """Reset the fault as soon as the driver takes it: the stop that follows a fault runs to its end first, which on
+    a busy machine may be a little after the arm's measured velocity reads zero."""
+    def reset() -> bool:
+        try:
+            client.reset_fault()
+        except CommandRejected as refused:
+            if "while the arm moves" not in refused.summary:
+                raise
+            return False
+        return True
+
+    return bool(wait_until(reset, timeout, period=0.05))
+
+
 def test_drive_fault_is_named_stops_the_arm_and_reset_reenables_without_a_jump(network, home, tmp_path):
     with enabled_launch(network, home, tmp_path) as (launch, client):
         slow_motion(client, 1, 0.3)
@@ -273,7 +289,7 @@ def test_drive_fault_is_named_stops_the_arm_and_reset_reenables_without_a_jump(n
         assert events and events[0].cause == "drive_fault", events
         assert "joint2" in events[0].reason and "0x7121" in events[0].reason, events[0].reason
         assert wait_until(lambda: np.max(np.abs(client.state().velocity)) < 1e-3, 10)
-        assert client.reset_fault() is not None
+        assert reset_once_stopped(client)
         client.set_mode("hold")
         assert_no_jump(client)
         state = client.state()
@@ -312,7 +328,7 @@ def test_a_slave_that_disappears_faults_naming_it_and_reset_recovers(network, ho
         assert events[0].cause == "communication_lost" and "slave 3" in events[0].reason, events[0].reason
         assert wait_until(lambda: (client.stats() or {}).get("bus", {}).get("working_counter")
                           == client.stats()["bus"]["expected_working_counter"], 10)
-        client.reset_fault()
+        assert reset_once_stopped(client)
         client.set_mode("hold")
         assert_no_jump(client)
 

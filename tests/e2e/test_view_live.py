@@ -76,7 +76,7 @@ def test_the_page_draws_the_arm_and_follows_a_motion(launch: Launch, client: Rob
             assert "mode hold" in text and "drives enabled" in text and "fault none" in text
             before = wait_for_image(page, lambda image: arm_pixels(image).sum() > ARM_PIXELS)
             target = np.radians([40.0, -30.0, 60.0, 0.0, 45.0, 20.0])
-            motion = client.move_joints(target, speed_scale=0.15)
+            motion = client.move_joints(target, speed_scale=0.3)
             wait_for_text(page, lambda t: "mode trajectory" in t)
             motion.wait(60)
             wait_for_text(page, lambda t: np.allclose(_degrees(t), np.degrees(target), atol=0.11))
@@ -104,10 +104,11 @@ def test_teach_moves_the_arm_only_on_a_click(launch: Launch, client: RobotClient
             wait_for_text(page, lambda t: "joints" in t)
             page.get_by_text("Teach", exact=True).click()
             page.get_by_label("teach").check()
-            slider = page.get_by_role("textbox").nth(1)   # the speed scale, then joint0
             wait_for_text(page, lambda t: "nothing moves until you click" in t)
-            slider.fill("0.5")
-            slider.press("Enter")
+            for index, value in ((0, "1"), (1, "0.5")):      # the speed scale, then joint0
+                box = page.get_by_role("textbox").nth(index)
+                box.fill(value)
+                box.press("Enter")
             page.wait_for_timeout(500)
             cycle = client.live_state().cycle
             assert client.wait_for_state(after_cycle=cycle + 200, timeout=10) is not None
@@ -127,7 +128,7 @@ def test_killing_the_view_or_a_stalled_browser_never_disturbs_the_arm(launch: La
     stalled = websocket(view.url.replace("http", "ws"), max_size=None)   # connects, then never reads
     try:
         for target in (np.radians([-30.0, 20.0, 40.0, 10.0, -20.0, 30.0]), np.zeros(client.dof)):
-            motion = client.move_joints(target, speed_scale=0.3)
+            motion = client.move_joints(target, speed_scale=1.0)
             if not target.any():                           # the second motion: the view is killed during it
                 os.kill(view.process.pid, signal.SIGKILL)
             motion.wait(60)

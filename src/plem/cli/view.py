@@ -37,7 +37,8 @@ def view(
                                               "(1 = the first), the seconds before it.", show_default=False)] = None,
     host: Annotated[str, typer.Option("--host", help="Address to serve on; the teach panel is offered only on "
                                                      "this host's loopback.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option("--port", min=1, max=65535, help="Port (the next free one if taken).")] = 8080,
+    port: Annotated[int, typer.Option("--port", min=0, max=65535, help="Port (the next free one if taken; 0: any "
+                                                                     "free one).")] = 8080,
     rate: Annotated[float, typer.Option("--rate", min=1.0, max=120.0, help="Live redraws per second.")] = 30.0,
 ) -> None:
     """Serve a web page showing the arm in 3D and print its URL; Ctrl-C stops it (the arm runs on)."""
