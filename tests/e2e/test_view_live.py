@@ -121,11 +121,15 @@ def test_teach_moves_the_arm_only_on_a_click(launch: Launch, client: RobotClient
 
 
 def test_killing_the_view_or_a_stalled_browser_never_disturbs_the_arm(launch: Launch, client: RobotClient) -> None:
+    import viser
     from websockets.sync.client import connect as websocket
+    from websockets.typing import Subprotocol
 
     view = View(launch)
     faults = len(client.faults())
-    stalled = websocket(view.url.replace("http", "ws"), max_size=None)   # connects, then never reads
+    stalled = websocket(view.url.replace("http", "ws"), max_size=None,       # a client the view accepts, which then
+                        subprotocols=[Subprotocol(f"viser-v{viser.__version__}")])   # never reads
+    assert stalled.recv(timeout=30), "the view serves the stalled client"
     try:
         for target in (np.radians([-30.0, 20.0, 40.0, 10.0, -20.0, 30.0]), np.zeros(client.dof)):
             motion = client.move_joints(target, speed_scale=1.0)

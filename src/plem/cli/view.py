@@ -39,7 +39,7 @@ def view(
                                                      "this host's loopback.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", min=0, max=65535, help="Port (the next free one if taken; 0: any "
                                                                      "free one).")] = 8080,
-    rate: Annotated[float, typer.Option("--rate", min=1.0, max=120.0, help="Live redraws per second.")] = 30.0,
+    rate: Annotated[float, typer.Option("--rate", min=1.0, max=120.0, help="Live redraws per second.")] = 40.0,
 ) -> None:
     """Serve a web page showing the arm in 3D and print its URL; Ctrl-C stops it (the arm runs on)."""
     from plem.bridge.client import default_robot_id

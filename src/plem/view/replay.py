@@ -8,6 +8,7 @@ and a little after) is read again at up to 1 kHz when the user jumps to it.
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -206,4 +207,4 @@ class ReplayPage:
                 self.playing.clear()
             self.slider.value = value  # type: ignore[misc]  # viser's setter is declared apart from its getter
             self._show_index(self._index(value))
-            threading.Event().wait(FRAME_S)
+            time.sleep(FRAME_S)

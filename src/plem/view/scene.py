@@ -53,7 +53,7 @@ class ArmScene:
         server.initial_camera.look_at = (0.0, 0.0, 0.45)
         self._drawn: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self._objects: dict[str, Any] = {}
-        self._path: Any = None
+        self._path: list[Any] = []
 
     def show(self, position: np.ndarray, command_position: np.ndarray | None) -> bool:
         """Move the drawn arms to these positions; False when nothing changed enough to send."""
@@ -85,15 +85,16 @@ class ArmScene:
 
     def show_path(self, points: Sequence[Sequence[float]], duration_s: float) -> None:
         """The tool's path along a plan's points, with its duration."""
-        if self._path is not None:
-            self._path.remove()
-            self._path = None
+        for handle in self._path:
+            handle.remove()
+        self._path = []
         if len(points) < 2:
             return
         tool = np.array([self.link_transform(np.asarray(p), self.model.tool_link)[:3, 3] for p in points])
-        self._path = self.server.scene.add_spline_catmull_rom("/plan/path", tool, thickness=4.0,
-                                                            thickness_units="screen", color=PATH_COLOR)
-        self.server.scene.add_label("/plan/end", f"plan {duration_s:.2f} s", position=tuple(tool[-1]))
+        scene = self.server.scene
+        self._path = [scene.add_spline_catmull_rom("/plan/path", tool, thickness=4.0, thickness_units="screen",
+                                                   color=PATH_COLOR),
+                      scene.add_label("/plan/end", f"plan {duration_s:.2f} s", position=tuple(tool[-1]))]
 
     def show_objects(self, objects: Sequence[dict[str, Any]], arm_position: np.ndarray) -> None:
         """The planning scene's objects (boxes, spheres, cylinders, meshes), attached ones on their links."""

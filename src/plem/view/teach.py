@@ -60,7 +60,11 @@ class TeachPanel:
 
     def _toggle(self) -> None:
         on = bool(self.enabled.value)
-        state = self.client.state()
+        try:
+            state = self.client.state()
+        except PlemError as error:
+            self.status.content = _error_text(error)
+            return
         if on and state is not None:
             for slider, value in zip(self.sliders, state.position, strict=True):
                 slider.value = float(value)  # type: ignore[misc]  # viser's setter is declared apart from its getter
@@ -94,7 +98,15 @@ class TeachPanel:
             self._busy.release()
 
     def _joints(self) -> Any:
-        return self.client.move_joints([float(slider.value) for slider in self.sliders], speed_scale=self.speed.value)
+        """To the sliders: planned around the scene when the planner runs, else straight in joint space."""
+        target = [float(slider.value) for slider in self.sliders]
+        if self.has_planner():
+            return self.client.move_to(target, options=self._options())
+        return self.client.move_joints(target, speed_scale=self.speed.value)
+
+    def _options(self) -> PlanOptions:
+        scale = float(self.speed.value)
+        return PlanOptions(velocity_scale=scale, acceleration_scale=scale)
 
     def _to_target(self) -> Any:
         target = self.target
@@ -103,5 +115,4 @@ class TeachPanel:
                             how="tick teach and drag the target")
         w, x, y, z = (float(v) for v in np.asarray(target.wxyz))
         pose = Pose(tuple(float(v) for v in target.position), (x, y, z, w))  # type: ignore[arg-type]
-        scale = float(self.speed.value)
-        return self.client.move_to(pose, options=PlanOptions(velocity_scale=scale, acceleration_scale=scale))
+        return self.client.move_to(pose, options=self._options())
