@@ -18,13 +18,12 @@ import numpy as np
 import viser
 import viser.uplot
 
-from plem.control.modes import Mode
 from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
 from plem.recording.archive import iso_time, read_event_log
+from plem.recording.plot import mode_name
 from plem.recording.summary import BagError, RobotBags, find_bags, newest_robot, robot_named, robot_segments
 from plem.recording.timeline import Marker, Timeline, read_timeline, segment_warnings
-from plem.view.feed import mode_text
 from plem.view.model import ViewModel
 from plem.view.readouts import Readouts
 from plem.view.scene import ArmScene
@@ -185,7 +184,7 @@ class ReplayPage:
         joints = "  ".join(f"{name} {np.degrees(value):.1f}°"
                            for name, value in zip(timeline.joint_names, timeline.position[index], strict=True))
         self.readouts.update({"time": f"{iso_time(time_ns)} (+{self.seconds[index]:.3f} s)",
-                              "mode": mode_text(Mode(int(timeline.mode[index])), False), "fault": fault,
+                              "mode": mode_name(int(timeline.mode[index])), "fault": fault,
                               "latency": f"{timeline.latency_us[index]:.0f} µs", "joints": joints})
 
     def _focus_on(self, fault: Marker) -> Callable[[Any], None]:
