@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import plem
+from plem.ipc.robot_description import description_path
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.recording.status import status_path
 from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID, fresh_domain
@@ -53,6 +54,7 @@ def remove_shm(robot_id: str) -> None:
     for path in shm_files(robot_id):
         path.unlink(missing_ok=True)
     status_path(robot_id).unlink(missing_ok=True)          # left only by a killed recorder
+    description_path(robot_id).unlink(missing_ok=True)     # left only by a killed launch
 
 
 def remove_generated(output: str) -> None:

@@ -24,6 +24,7 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.ipc.channels import PRIVATE_RINGS, channel_names
 from plem.ipc.command_socket import socket_path
+from plem.ipc.robot_description import description_path, read_description
 from tests.e2e.cli import run_plem
 from tests.e2e.command_wire import RawConnection
 from tests.e2e.launched import (
@@ -277,8 +278,9 @@ def test_sigkill_of_launch_and_driver_leaves_stale_memory_that_a_new_launch_repl
                 target = target_away(client, 0.3)
                 assert client.move_joints(target, 1.0).wait(30).outcome.value == "succeeded"
                 assert np.allclose(client.state().position, target, atol=ARRIVED)
+            assert read_description(robot_id).pid == second.process.pid, "the new launch shares its description"
             assert second.stop() == 0, second.describe()
-            assert shm_files(robot_id) == []
+            assert shm_files(robot_id) == [] and not description_path(robot_id).exists()
         finally:
             second.cleanup()
     finally:

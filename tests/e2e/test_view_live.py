@@ -9,6 +9,7 @@ import re
 import signal
 import subprocess
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -53,6 +54,17 @@ def launch(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
         yield running
 
 
+@pytest.fixture(scope="module")
+def page(launch: Launch) -> Iterator[Any]:
+    """One `plem view` and one browser on its page for the tests that look at the page; the view must stop cleanly."""
+    view = View(launch)
+    try:
+        with page_of(view.url) as opened:
+            yield opened
+    finally:
+        assert view.stop() == 0
+
+
 @pytest.fixture
 def client(launch: Launch) -> Iterator[RobotClient]:
     with connect(launch.robot_id) as robot:
@@ -68,56 +80,46 @@ def _degrees(text: str) -> np.ndarray:
     return np.array([float(value) for value in re.findall(r"(-?\d+\.\d)°", line)])
 
 
-def test_the_page_draws_the_arm_and_follows_a_motion(launch: Launch, client: RobotClient) -> None:
-    view = View(launch)
-    try:
-        with page_of(view.url) as page:
-            text = wait_for_text(page, lambda t: "joints" in t and "planner running" in t)
-            assert "mode hold" in text and "drives enabled" in text and "fault none" in text
-            before = wait_for_image(page, lambda image: arm_pixels(image).sum() > ARM_PIXELS)
-            target = np.radians([40.0, -30.0, 60.0, 0.0, 45.0, 20.0])
-            motion = client.move_joints(target, speed_scale=0.3)
-            wait_for_text(page, lambda t: "mode trajectory" in t)
-            motion.wait(60)
-            wait_for_text(page, lambda t: np.allclose(_degrees(t), np.degrees(target), atol=0.11))
-            after = wait_for_image(page, lambda image: (arm_pixels(image) ^ arm_pixels(before)).sum() > ARM_PIXELS)
-            assert arm_pixels(after).sum() > ARM_PIXELS
+def test_the_page_draws_the_arm_and_follows_a_motion(page: Any, client: RobotClient) -> None:
+    text = wait_for_text(page, lambda t: "joints" in t and "planner running" in t)
+    assert "mode hold" in text and "drives enabled" in text and "fault none" in text
+    before = wait_for_image(page, lambda image: arm_pixels(image).sum() > ARM_PIXELS)
+    target = np.radians([40.0, -30.0, 60.0, 0.0, 45.0, 20.0])
+    motion = client.move_joints(target, speed_scale=0.3)
+    wait_for_text(page, lambda t: "mode trajectory" in t)
+    motion.wait(60)
+    wait_for_text(page, lambda t: np.allclose(_degrees(t), np.degrees(target), atol=0.11))
+    after = wait_for_image(page, lambda image: (arm_pixels(image) ^ arm_pixels(before)).sum() > ARM_PIXELS)
+    assert arm_pixels(after).sum() > ARM_PIXELS
 
-            objects = coloured(screenshot(page), OBJECT_RGB).sum()
-            client.add_objects(SceneObject("crate", Box((0.3, 0.3, 0.3)), Pose((0.6, 0.0, 0.15))))
-            wait_for_text(page, lambda t: "planner running — 1 objects" in t)
-            wait_for_image(page, lambda image: coloured(image, OBJECT_RGB).sum() > objects + 500)
+    objects = coloured(screenshot(page), OBJECT_RGB).sum()
+    client.add_objects(SceneObject("crate", Box((0.3, 0.3, 0.3)), Pose((0.6, 0.0, 0.15))))
+    wait_for_text(page, lambda t: "planner running — 1 objects" in t)
+    wait_for_image(page, lambda image: coloured(image, OBJECT_RGB).sum() > objects + 500)
 
-            path = coloured(screenshot(page), PATH_RGB, 50).sum()
-            plans = int(re.search(r"(\d+) plans", wait_for_text(page, lambda t: "plans" in t)).group(1))  # type: ignore[union-attr]
-            client.plan("home")
-            wait_for_text(page, lambda t: f"{plans + 1} plans" in t)
-            wait_for_image(page, lambda image: coloured(image, PATH_RGB, 50).sum() > path + 200)
-    finally:
-        assert view.stop() == 0
+    path = coloured(screenshot(page), PATH_RGB, 50).sum()
+    plans = int(re.search(r"(\d+) plans", wait_for_text(page, lambda t: "plans" in t)).group(1))  # type: ignore[union-attr]
+    client.plan("home")
+    wait_for_text(page, lambda t: f"{plans + 1} plans" in t)
+    wait_for_image(page, lambda image: coloured(image, PATH_RGB, 50).sum() > path + 200)
 
 
-def test_teach_moves_the_arm_only_on_a_click(launch: Launch, client: RobotClient) -> None:
-    view = View(launch)
-    try:
-        with page_of(view.url) as page:
-            wait_for_text(page, lambda t: "joints" in t)
-            page.get_by_text("Teach", exact=True).click()
-            page.get_by_label("teach").check()
-            wait_for_text(page, lambda t: "nothing moves until you click" in t)
-            for index, value in ((0, "1"), (1, "0.5")):      # the speed scale, then joint0
-                box = page.get_by_role("textbox").nth(index)
-                box.fill(value)
-                box.press("Enter")
-            page.wait_for_timeout(500)
-            cycle = client.live_state().cycle
-            assert client.wait_for_state(after_cycle=cycle + 200, timeout=10) is not None
-            assert abs(client.live_state().position[0]) < 1e-6, "the arm moved before the click"
-            page.get_by_text("move to the sliders").click()
-            wait_for_text(page, lambda t: "done" in t.splitlines())
-            assert client.live_state().position[0] == pytest.approx(0.5, abs=1e-3)
-    finally:
-        assert view.stop() == 0
+def test_teach_moves_the_arm_only_on_a_click(page: Any, client: RobotClient) -> None:
+    wait_for_text(page, lambda t: "joints" in t)
+    page.get_by_text("Teach", exact=True).click()
+    page.get_by_label("teach").check()
+    wait_for_text(page, lambda t: "nothing moves until you click" in t)
+    for index, value in ((0, "1"), (1, "0.5")):      # the speed scale, then joint0
+        box = page.get_by_role("textbox").nth(index)
+        box.fill(value)
+        box.press("Enter")
+    page.wait_for_timeout(500)
+    cycle = client.live_state().cycle
+    assert client.wait_for_state(after_cycle=cycle + 200, timeout=10) is not None
+    assert abs(client.live_state().position[0]) < 1e-6, "the arm moved before the click"
+    page.get_by_text("move to the sliders").click()
+    wait_for_text(page, lambda t: "done" in t.splitlines())
+    assert client.live_state().position[0] == pytest.approx(0.5, abs=1e-3)
 
 
 def test_killing_the_view_or_a_stalled_browser_never_disturbs_the_arm(launch: Launch, client: RobotClient) -> None:
@@ -127,8 +129,8 @@ def test_killing_the_view_or_a_stalled_browser_never_disturbs_the_arm(launch: La
 
     view = View(launch)
     faults = len(client.faults())
-    stalled = websocket(view.url.replace("http", "ws"), max_size=None,       # a client the view accepts, which then
-                        subprotocols=[Subprotocol(f"viser-v{viser.__version__}")])   # never reads
+    stalled = websocket(view.url.replace("http", "ws"), max_size=None, close_timeout=1,  # a client the view accepts,
+                        subprotocols=[Subprotocol(f"viser-v{viser.__version__}")])   # which then never reads
     assert stalled.recv(timeout=30), "the view serves the stalled client"
     try:
         for target in (np.radians([-30.0, 20.0, 40.0, 10.0, -20.0, 30.0]), np.zeros(client.dof)):
