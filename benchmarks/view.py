@@ -105,7 +105,7 @@ def window_with_reader(client: RobotClient, seconds: float, settle: float) -> Wi
 
     with running_view(client.robot_id) as (view, url):
         received = [0]
-        connection = websocket(url.replace("http", "ws"), max_size=None,
+        connection = websocket(url.replace("http", "ws"), max_size=None, close_timeout=1,
                                subprotocols=[Subprotocol(f"viser-v{viser.__version__}")])
 
         def read() -> None:
