@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import random
+import signal
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,11 @@ ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH", "CYCLONEDDS_"
 TEST_DOMAIN_ID = 1 + os.getpid() % 100
 #: Domains above the default test domain's range, each handed out once per run by `fresh_domain`.
 _FREE_DOMAINS = random.sample(range(101, 233), 132)
+
+# Tests press Ctrl-C on the commands they start. A runner started in the background of a shell without job
+# control ignores SIGINT, and its children would inherit that: give them the terminal's default instead.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def fresh_domain() -> int:

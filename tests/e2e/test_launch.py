@@ -91,13 +91,6 @@ def robot(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
         yield launch
 
 
-@pytest.fixture
-def client(robot: Launch) -> Iterator[RobotClient]:
-    assert robot.process.poll() is None, robot.describe()
-    with connect(robot.robot_id) as connected:
-        yield connected
-
-
 def shm_group_name() -> str | None:
     """An existing group other than ours, for shm_group:=."""
     for name in ("daemon", "nogroup", "users"):

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
 
-from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.control.events import EventKind
 from plem.control.modes import Mode
@@ -49,12 +48,6 @@ def peer(robot: Launch) -> Iterator[RosPeer]:
         yield ros
     finally:
         ros.close()
-
-
-@pytest.fixture
-def client(robot: Launch) -> Iterator[RobotClient]:
-    with connect(robot.robot_id) as connected:
-        yield connected
 
 
 class Endpoints:

@@ -89,12 +89,6 @@ def holding(robot: Launch, peer: RosPeer) -> RosPeer:
     return peer
 
 
-@pytest.fixture
-def client(robot: Launch) -> Iterator[RobotClient]:
-    with connect(robot.robot_id) as connected:
-        yield connected
-
-
 # -- helpers -----------------------------------------------------------------------------------------
 def toward_middle(position: list[float], joint: int, distance: float) -> list[float]:
     """`position` with one joint moved by `distance` rad towards 0, so repeated moves stay in range."""

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from plem.bridge import connect
 from plem.bridge.client import RobotClient
 from plem.middleware.node import Node
 from plem.middleware.qos import LATCHED
@@ -47,12 +46,6 @@ def feed(robot: Launch) -> Iterator[RosFeed]:
         yield ros
     finally:
         ros.close()
-
-
-@pytest.fixture
-def client(robot: Launch) -> Iterator[RobotClient]:
-    with connect(robot.robot_id) as connected:
-        yield connected
 
 
 def published_description(robot_id: str) -> str:
