@@ -22,8 +22,10 @@ $(TEST_STAMP): $(STAMP)
 run: $(STAMP)
 	$(BIN)/plem launch bus:=mock
 
+# Unit and integration tests on two workers; the end-to-end tests, whose launches run real-time loops, one at a time.
 test: $(TEST_STAMP)
-	$(BIN)/pytest -q -m "not slow"
+	$(BIN)/pytest -q -m "not slow" -n 2 tests/unit tests/integration
+	$(BIN)/pytest -q -m "not slow" tests/e2e
 
 lint: $(TEST_STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -12,9 +12,14 @@ import pytest
 from plem.core.config.loader import ConfigLoader
 
 ISOLATED_PREFIXES = ("PLEM_", "ROS_", "RMW_", "AMENT_PREFIX_PATH", "CYCLONEDDS_")
-TEST_DOMAIN_ID = 1 + os.getpid() % 100
-#: Domains above the default test domain's range, each handed out once per run by `fresh_domain`.
-_FREE_DOMAINS = random.sample(range(101, 233), 132)
+#: This process's share of DDS domains. Each pytest-xdist worker (gw0, gw1, ...) of a run takes its own, so
+#: tests running side by side never meet; a run without workers takes them all.
+_WORKER = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw"))
+_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+_RUN = int(os.environ.get("PYTEST_XDIST_TESTRUNUID", "0"), 16) or os.getpid()
+TEST_DOMAIN_ID = 1 + (_RUN + _WORKER) % 100
+#: Domains above the default test domain's range, each handed out once per process by `fresh_domain`.
+_FREE_DOMAINS = random.sample(range(101 + _WORKER, 233, _WORKERS), len(range(101 + _WORKER, 233, _WORKERS)))
 
 # Tests press Ctrl-C on the commands they start. A runner started in the background of a shell without job
 # control ignores SIGINT, and its children would inherit that: give them the terminal's default instead.
