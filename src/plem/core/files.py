@@ -50,6 +50,20 @@ def write_atomic(path: Path, data: str | bytes, mode: int = 0o644, group: int | 
     _sync_folder(path.parent)
 
 
+def write_shared(path: Path, data: str | bytes, group: int | None = None) -> None:
+    """`write_atomic` for a file beside a robot's shared memory: owner-only, or 0640 readable by `group`."""
+    write_atomic(path, data, mode=0o600 if group is None else 0o640, group=group)
+
+
+def remove_own(path: Path) -> None:
+    """Remove `path` if this user owns it: what another user put in a shared directory is not ours to remove."""
+    try:
+        if os.lstat(path).st_uid == os.geteuid():
+            os.unlink(path)
+    except FileNotFoundError:
+        pass
+
+
 def write_new(path: Path, data: str | bytes, mode: int = 0o644) -> None:
     """Create `path` holding `data`, complete or not at all; FileExistsError when `path` is already there.
 
@@ -173,3 +187,12 @@ def open_trusted(path: Path, flags: int, owners: Collection[int]) -> tuple[int, 
         os.close(fd)
         raise UntrustedFile(path, status)
     return fd, status
+
+
+def read_trusted(path: Path, max_bytes: int) -> bytes | None:
+    """The bytes of `path` opened as `open_trusted` does for this user and root; None when it holds more than
+    `max_bytes`. Raises as `open_trusted` does."""
+    fd, status = open_trusted(path, os.O_RDONLY, trusted_owners())
+    with os.fdopen(fd, "rb") as handle:
+        data = handle.read(max_bytes + 1) if status.st_size <= max_bytes else b""
+    return None if status.st_size > max_bytes or len(data) > max_bytes else data

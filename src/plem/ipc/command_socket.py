@@ -17,7 +17,7 @@ import stat
 import struct
 from pathlib import Path
 
-from plem.core.files import trusted_owners, user_name
+from plem.core.files import remove_own, trusted_owners, user_name
 from plem.errors import PlemError
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
 from plem.ipc.segment import SHM_DIRECTORY
@@ -129,12 +129,7 @@ def _clear_stale(path: Path, robot_id: str, title: str) -> None:
 
 def remove_own_socket(robot_id: str, service: str = "commands") -> None:
     """Remove the robot's socket if this user created it; another user's is left alone."""
-    path = socket_path(robot_id, service)
-    try:
-        if path.lstat().st_uid == os.geteuid():
-            path.unlink(missing_ok=True)
-    except FileNotFoundError:
-        pass
+    remove_own(socket_path(robot_id, service))
 
 
 def connect(robot_id: str, service: str = "commands") -> socket.socket:

@@ -10,11 +10,10 @@ shape, and written by a launch that still runs.
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from plem.core.files import UntrustedFile, open_trusted, trusted_owners, write_atomic
+from plem.core.files import UntrustedFile, read_trusted, remove_own, write_shared
 from plem.errors import PlemError
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.ipc.state_segment import process_alive
@@ -43,18 +42,12 @@ def description_path(robot_id: str) -> Path:
 
 def share_description(robot_id: str, description: SharedDescription, group: int | None = None) -> None:
     """Replace the robot's description file (owner-only, or 0640 with `group`)."""
-    write_atomic(description_path(robot_id), json.dumps(asdict(description)),
-                 mode=0o600 if group is None else 0o640, group=group)
+    write_shared(description_path(robot_id), json.dumps(asdict(description)), group)
 
 
 def remove_description(robot_id: str) -> None:
     """Remove the description file if it is this user's."""
-    path = description_path(robot_id)
-    try:
-        if os.lstat(path).st_uid == os.geteuid():
-            path.unlink()
-    except FileNotFoundError:
-        pass
+    remove_own(description_path(robot_id))
 
 
 def _unavailable(robot_id: str, why: str) -> DescriptionUnavailable:
@@ -70,15 +63,13 @@ def read_description(robot_id: str) -> SharedDescription:
     """The description a running launch shares; DescriptionUnavailable when there is none to trust."""
     path = description_path(robot_id)
     try:
-        fd, status = open_trusted(path, os.O_RDONLY, trusted_owners())
+        data = read_trusted(path, MAX_DESCRIPTION_BYTES)
     except FileNotFoundError:
         raise _unavailable(robot_id, f"{path} does not exist") from None
     except (UntrustedFile, OSError) as error:
         raise _unavailable(robot_id, f"{path} is not to be trusted: {error}") from None
-    with os.fdopen(fd, "rb") as handle:
-        data = handle.read(MAX_DESCRIPTION_BYTES + 1) if status.st_size <= MAX_DESCRIPTION_BYTES else b""
     try:
-        payload = json.loads(data)
+        payload = json.loads(data or b"")
         description = SharedDescription(str(payload["urdf"]), {str(k): str(v) for k, v in payload["packages"].items()},
                                         int(payload["pid"]))
     except (ValueError, KeyError, TypeError, AttributeError) as error:

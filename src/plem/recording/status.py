@@ -17,7 +17,7 @@ from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
-from plem.core.files import UntrustedFile, open_trusted, trusted_owners, write_atomic
+from plem.core.files import UntrustedFile, read_trusted, remove_own, write_shared
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.ipc.state_segment import process_alive
 from plem.middleware.monitor_feed import QueueCount
@@ -41,32 +41,25 @@ def status_path(robot_id: str) -> Path:
 def write_status(robot_id: str, queues: list[QueueCount], group: int | None = None) -> None:
     """Replace the recorder's status file with these counters (owner-only, or 0640 with `group`)."""
     payload = {"pid": os.getpid(), "queues": [asdict(queue) for queue in queues]}
-    write_atomic(status_path(robot_id), json.dumps(payload), mode=0o600 if group is None else 0o640, group=group)
+    write_shared(status_path(robot_id), json.dumps(payload), group)
 
 
 def remove_status(robot_id: str) -> None:
     """Remove the status file if it is this user's: a file another user put there is not ours to remove."""
-    path = status_path(robot_id)
-    try:
-        if os.lstat(path).st_uid == os.geteuid():
-            path.unlink()
-    except FileNotFoundError:
-        pass
+    remove_own(status_path(robot_id))
 
 
 def read_status(robot_id: str) -> list[QueueCount]:
     """The running recorder's queues, named `recorder:<queue>`; none when no trusted recorder runs."""
     path = status_path(robot_id)
     try:
-        fd, status = open_trusted(path, os.O_RDONLY, trusted_owners())
+        data = read_trusted(path, MAX_STATUS_BYTES)
     except FileNotFoundError:
         return []
     except (UntrustedFile, OSError) as error:
         _ignore(path, str(error))
         return []
-    with os.fdopen(fd, "rb") as handle:
-        data = handle.read(MAX_STATUS_BYTES + 1) if status.st_size <= MAX_STATUS_BYTES else b""
-    if not data or len(data) > MAX_STATUS_BYTES:
+    if not data:
         _ignore(path, f"empty or larger than {MAX_STATUS_BYTES} bytes")
         return []
     try:
