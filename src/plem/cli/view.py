@@ -2,26 +2,20 @@
 
 from __future__ import annotations
 
-import signal
 import threading
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from plem.cli.output import print_warnings
 from plem.errors import UsageError
 
+if TYPE_CHECKING:
+    from plem.view.feed import Feed
+
 RobotArgument = Annotated[str | None, typer.Argument(
     metavar="[ROBOT_ID]", help="Robot to show (default: $PLEM_ROBOT_ID, else indy).", show_default=False)]
-
-
-def _stop_on_signals() -> threading.Event:
-    """An event set by Ctrl-C or SIGTERM."""
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    return stop
 
 
 def view(
@@ -43,6 +37,7 @@ def view(
 ) -> None:
     """Serve a web page showing the arm in 3D and print its URL; Ctrl-C stops it (the arm runs on)."""
     from plem.bridge.client import default_robot_id
+    from plem.launch.component import stop_on_signals
     from plem.view.server import start_server, url
 
     if bag is None and (robot is not None or fault is not None):
@@ -53,7 +48,7 @@ def view(
                          what="either --bag DIR [--robot ID] or [ROBOT_ID] [--ros]",
                          why="--bag was given with " + ("--ros" if ros else f"ROBOT_ID {robot_id}"),
                          how="pass --robot ID with --bag to pick the recorded robot")
-    stop = _stop_on_signals()
+    stop = stop_on_signals()
     if bag is not None:
         from plem.view.replay import Replay
 
@@ -72,26 +67,27 @@ def _live(robot_id: str, ros: bool, host: str, port: int, rate: float, stop: thr
     from plem.view.live_view import LiveView
     from plem.view.server import loopback, start_server, url
 
+    feed: Feed
     if ros:
         from plem.view.ros_feed import RosFeed
 
-        feed: object = RosFeed(robot_id)
-        source, teach_note = "DDS", "Teach needs the robot on this host: run `plem view` there (without --ros)."
+        feed, source, teacher = RosFeed(robot_id), "DDS", None
+        teach_note = "Teach needs the robot on this host: run `plem view` there (without --ros)."
     else:
         from plem.view.live import LiveFeed
 
-        feed = LiveFeed(robot_id)
+        live_feed = LiveFeed(robot_id)
+        feed, source = live_feed, "shared memory"
         local = loopback(host)
-        source = "shared memory"
+        teacher = live_feed.client if local else None
         teach_note = "" if local else (f"Teach is offered only with --host 127.0.0.1: anyone reaching {host} could "
                                        "move the arm.")
     try:
         server = start_server(host, port, f"plem view: {robot_id}")
-        live = LiveView(server, feed, planner=not ros, teach=not ros and not teach_note,  # type: ignore[arg-type]
-                        teach_note=teach_note)
+        live = LiveView(server, feed, planner=not ros, teach=teacher, teach_note=teach_note)
         print_warnings([f"mesh not found: {uri}" for uri in live.model.missing])
         typer.echo(f"plem view: {robot_id} live from {source} at {url(server)} — Ctrl-C to stop (the arm runs on)")
         live.run(stop, rate)
         server.stop()
     finally:
-        feed.close()  # type: ignore[attr-defined]
+        feed.close()

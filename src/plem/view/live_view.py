@@ -14,7 +14,7 @@ from collections import deque
 import numpy as np
 import viser
 
-from plem.bridge.client import DriverGone
+from plem.bridge.client import DriverGone, RobotClient
 from plem.view.feed import READOUTS, Feed
 from plem.view.model import ViewModel
 from plem.view.planning import PlannerWatch
@@ -33,8 +33,10 @@ RATE_WINDOW = 60
 class LiveView:
     """One arm's live page."""
 
-    def __init__(self, server: viser.ViserServer, feed: Feed, *, planner: bool, teach: bool,
+    def __init__(self, server: viser.ViserServer, feed: Feed, *, planner: bool, teach: RobotClient | None = None,
                  teach_note: str = "") -> None:
+        """`teach`: the command connection the teach panel moves the arm through (None: no panel); `teach_note`:
+        why there is none, shown in its place."""
         self.server = server
         self.feed = feed
         self.model = ViewModel(feed.urdf, feed.joint_names, feed.packages)
@@ -43,9 +45,8 @@ class LiveView:
         self.readouts = Readouts(server.gui, f"robot {feed.robot_id}", labels)
         self.position: np.ndarray | None = None
         self.watch = PlannerWatch(feed.robot_id, self.scene, lambda: self.position) if planner else None
-        client = getattr(feed, "client", None)
-        self.teach = (TeachPanel(server, client, self.scene, lambda: bool(self.watch and self.watch.running))
-                      if teach and client is not None else None)
+        self.teach = (TeachPanel(server, teach, self.scene, lambda: bool(self.watch and self.watch.running))
+                      if teach is not None else None)
         if teach_note:
             with server.gui.add_folder("Teach", expand_by_default=False):
                 server.gui.add_markdown(teach_note)
