@@ -201,17 +201,12 @@ def _refuse_output(out: Path) -> None:
 def _robots_to_plot(found: list[RobotBags], robot: str | None, directory: Path,
                     out: Path) -> list[tuple[RobotBags, Path]]:
     """The robots --robot names (default: the one recorded last, said when there are others) and the PNG of each."""
-    from plem.recording.summary import newest_robot, robot_named
+    from plem.recording.summary import pick_robot
 
     if robot == "all":
         return [(bags, out.with_name(f"{out.stem}-{bags.robot_id}{out.suffix}")) for bags in found]
-    if robot is not None:
-        return [(robot_named(found, robot, directory, "pass one of them with --robot, or --robot all"), out)]
-    chosen = newest_robot(found)
-    if len(found) > 1:
-        print_warnings([f"{directory} holds the bags of {len(found)} robots "
-                        f"({', '.join(bags.robot_id for bags in found)}): plotting {chosen.robot_id}, the one "
-                        "recorded last; pass --robot ID for another, or --robot all for one PNG per robot"])
+    chosen, warnings = pick_robot(found, robot, directory, "plotting", ", or --robot all for one PNG per robot")
+    print_warnings(warnings)
     return [(chosen, out)]
 
 

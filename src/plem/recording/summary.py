@@ -93,18 +93,25 @@ def find_bags(path: Path) -> list[RobotBags]:
     return robots
 
 
-def newest_robot(robots: list[RobotBags]) -> RobotBags:
-    """The robot recorded last: its newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time."""
-    return max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
-
-
-def robot_named(robots: list[RobotBags], robot_id: str, directory: Path, how: str) -> RobotBags:
-    """The bags of `robot_id` among `robots`; BagError naming the robots there otherwise."""
-    for bags in robots:
-        if bags.robot_id == robot_id:
-            return bags
-    raise BagError(f"no bags of robot {robot_id} in {directory}", what=f"bags of {robot_id}",
-                   why=f"robots found: {', '.join(bags.robot_id for bags in robots)}", how=how)
+def pick_robot(robots: list[RobotBags], robot_id: str | None, directory: Path, doing: str,
+               also: str = "") -> tuple[RobotBags, list[str]]:
+    """The bags of `robot_id`, else of the robot recorded last with a warning naming the others (`doing` it, e.g.
+    "plotting"); BagError naming the robots there when `robot_id` is not one of them. `also`: the other choices
+    --robot offers, as the messages end with them."""
+    if robot_id is not None:
+        for bags in robots:
+            if bags.robot_id == robot_id:
+                return bags, []
+        raise BagError(f"no bags of robot {robot_id} in {directory}", what=f"bags of {robot_id}",
+                       why=f"robots found: {', '.join(bags.robot_id for bags in robots)}",
+                       how=f"pass one of them with --robot{also}")
+    # the newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time
+    newest = max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
+    if len(robots) == 1:
+        return newest, []
+    return newest, [f"{directory} holds the bags of {len(robots)} robots "
+                    f"({', '.join(bags.robot_id for bags in robots)}): {doing} {newest.robot_id}, the one recorded "
+                    f"last; pass --robot ID for another{also}"]
 
 
 # -- reading payloads --------------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
 from plem.recording.archive import iso_time, read_event_log
 from plem.recording.plot import mode_name
-from plem.recording.summary import BagError, RobotBags, find_bags, newest_robot, robot_named, robot_segments
+from plem.recording.summary import BagError, RobotBags, find_bags, pick_robot, robot_segments
 from plem.recording.timeline import Marker, Timeline, read_timeline, segment_warnings
 from plem.view.model import ViewModel
 from plem.view.readouts import Readouts
@@ -34,18 +34,6 @@ OVERVIEW_POINTS, WINDOW_POINTS = 20_000, 40_000
 AFTER_FAULT_S = 2.0
 FRAME_S = 1.0 / 30.0
 SPEEDS = ("0.1", "0.25", "0.5", "1", "2")
-
-
-def pick_robot(directory: Path, robot: str | None) -> tuple[RobotBags, list[str]]:
-    """The robot's bags under `directory`: `robot`, else the one recorded last (said in the warnings)."""
-    found = find_bags(directory)
-    if robot is not None:
-        return robot_named(found, robot, directory, "pass one of them with --robot"), []
-    newest = newest_robot(found)
-    warnings = ([f"{directory} holds the bags of {len(found)} robots "
-                 f"({', '.join(bags.robot_id for bags in found)}): showing {newest.robot_id}, the one recorded "
-                 "last; pass --robot ID for another"] if len(found) > 1 else [])
-    return newest, warnings
 
 
 @dataclass
@@ -60,7 +48,7 @@ class Replay:
     @classmethod
     def of_bags(cls, directory: Path, robot: str | None = None, fault: int | None = None) -> Replay:
         """The recording of `robot` (default: the one recorded last); at its `fault`-th fault (1-based) if given."""
-        bags, warnings = pick_robot(directory, robot)
+        bags, warnings = pick_robot(find_bags(directory), robot, directory, "showing")
         warnings += segment_warnings(robot_segments(bags))
         overview = read_timeline(bags, max_points=OVERVIEW_POINTS)
         if overview.description is None:
