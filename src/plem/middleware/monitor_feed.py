@@ -28,6 +28,9 @@ MONITOR_TOPICS = {
     "rt_monitor_stats": "plem_msgs/msg/RtMonitorStats",
     "joint_states": "sensor_msgs/msg/JointState",
 }
+#: The topic (under /{robot_id}/) and type of the robot's URDF text, latched by the bridge and recorded with every
+#: bag segment.
+DESCRIPTION_TOPIC, DESCRIPTION_TYPE = "robot_description", "std_msgs/msg/String"
 _TIMING_FIELDS = ("samples", "min_us", "mean_us", "p50_us", "p99_us", "p999_us", "max_us")
 
 

@@ -36,7 +36,7 @@ from plem.middleware.goals import (
     start_trajectory,
     trajectory_from_message,
 )
-from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
+from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, DESCRIPTION_TYPE, MONITOR_TOPICS, MonitorFeed, QueueCount
 from plem.middleware.node import Node, Subscription
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
 from plem.middleware.parameters import ParameterServices, ParameterValue
@@ -106,7 +106,7 @@ class RobotBridge:
                                                "control_msgs/msg/JointTrajectoryControllerState", DEFAULT)
         self.dynamic_joint_states = node.publisher(f"{ns}/dynamic_joint_states", "control_msgs/msg/DynamicJointState",
                                                    DEFAULT)
-        self.description = node.publisher(f"{ns}/robot_description", "std_msgs/msg/String", LATCHED)
+        self.description = node.publisher(f"{ns}/{DESCRIPTION_TOPIC}", DESCRIPTION_TYPE, LATCHED)
         self.frames = TreeTransforms(description, f"{client.robot_id}/" if frame_prefix is None else frame_prefix)
         self.tf = node.publisher("/tf", "tf2_msgs/msg/TFMessage", TF)
         self.tf_static = node.publisher("/tf_static", "tf2_msgs/msg/TFMessage", TF_STATIC)

@@ -165,11 +165,11 @@ class PlannerService:
     def _view(self, request: dict[str, Any]) -> dict[str, Any]:
         """What a view draws: the newest plan when newer than `plans_seen`, the scene when newer than `scene_seen`."""
         planner = self.planner
-        latest = planner.latest_plan
-        newer = planner.plans_made > int(number(request, "plans_seen", 0, -1, 2**63)) and latest is not None
+        newer = planner.plans_made > int(number(request, "plans_seen", 0, -1, 2**63))
+        plan = planner.latest_plan if newer else None
         scene = planner.scene
         changed = scene.version != int(number(request, "scene_seen", -1, -2, 2**63))
-        return {"plans": planner.plans_made, "plan": plan_json(latest) if newer and latest else None,
+        return {"plans": planner.plans_made, "plan": None if plan is None else plan_json(plan),
                 "scene": scene.to_json() if changed else None}
 
     # -- the socket ---------------------------------------------------------------------------------------

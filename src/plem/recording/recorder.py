@@ -30,7 +30,7 @@ from rosbags.typesys.store import Typestore
 
 from plem.control.events import Event, EventKind
 from plem.errors import PlemError
-from plem.middleware.monitor_feed import QueueCount
+from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, DESCRIPTION_TYPE, QueueCount
 from plem.recording.access import FileAccess
 from plem.recording.archive import Archive, directory_size, iso_time
 from plem.recording.problems import SPACE_ERRORS, write_problem
@@ -41,8 +41,6 @@ from plem.recording.settings import RecordingSettings
 
 Clock = Callable[[], int]
 DiskUsage = Callable[[Path], tuple[int, int, int]]
-#: The topic (under /{robot_id}/) and type of the URDF text recorded at the start of every segment.
-DESCRIPTION_TOPIC, DESCRIPTION_TYPE = "robot_description", "std_msgs/msg/String"
 
 
 @dataclass

@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.monitor_feed import DESCRIPTION_TYPE, MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_dof, raw_dtype, raw_field
 from plem.recording.archive import iso_time
-from plem.recording.recorder import DESCRIPTION_TYPE
 from plem.recording.summary import (
     CYCLE_END,
     EVERYTHING,

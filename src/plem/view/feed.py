@@ -3,6 +3,8 @@ positions measured and commanded, and the readouts beside the arm."""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -10,6 +12,7 @@ import numpy as np
 
 from plem.control.modes import Mode
 from plem.fieldbus.cia402 import describe_error_code
+from plem.middleware.monitor_feed import QueueCount
 
 #: Readouts, in the order the page lists them.
 READOUTS = ("mode", "drives", "fault", "latency", "recorder")
@@ -68,3 +71,23 @@ def latency_text(p99_us: float | None, overruns: int | None) -> str:
     if p99_us is None:
         return "no statistics yet"
     return f"p99 {p99_us:.0f} µs, overruns {overruns or 0}"
+
+
+def fault_text(faulted: bool, reason: str, last: tuple[str, float] | None) -> str:
+    """The present fault's `reason` (else the last fault's), or the last fault (reason, wall time in s) and that it
+    was cleared, or "none"."""
+    if faulted:
+        return reason or (last[0] if last else "faulted")
+    if last is None:
+        return "none"
+    return f"none (last, {time.time() - last[1]:.0f} s ago, cleared: {last[0]})"
+
+
+def recorder_text(bag: QueueCount | None, absent: str) -> str:
+    """The recorder's bag queue as the page shows it; `absent` when there is none."""
+    return absent if bag is None else f"recording — {bag.written} messages written, {bag.dropped} not recorded"
+
+
+def joints_text(names: Sequence[str], position: Sequence[float] | np.ndarray) -> str:
+    """Each joint's position in degrees, on one line."""
+    return "  ".join(f"{name} {np.degrees(value):.1f}°" for name, value in zip(names, position, strict=True))

@@ -4,13 +4,11 @@ shares."""
 
 from __future__ import annotations
 
-import time
-
 from plem.bridge.client import DriverGone, RobotClient, connect
 from plem.control.events import newest_fault
 from plem.ipc.robot_description import read_description
 from plem.recording.status import read_status
-from plem.view.feed import Snapshot, drives_text, latency_text, mode_text
+from plem.view.feed import Snapshot, drives_text, fault_text, latency_text, mode_text, recorder_text
 
 
 class LiveFeed:
@@ -38,22 +36,13 @@ class LiveFeed:
         stats = self.client.stats() or {}
         interval = stats.get("latency_interval") or {}
         fault = newest_fault(self.client.faults())
-        if faulted:
-            fault_text = stats.get("fault_reason") or (fault.reason if fault else "faulted")
-        elif fault is not None:
-            ago = time.time() - fault.wall_time
-            fault_text = f"none (last, {ago:.0f} s ago, cleared: {fault.reason})"
-        else:
-            fault_text = "none"
         queues = {queue.name: queue for queue in read_status(self.robot_id)}
-        bag = queues.get("recorder:bag")
-        recorder = ("not running" if bag is None else
-                    f"recording — {bag.written} messages written, {bag.dropped} not recorded")
         return {"mode": mode_text(mode, faulted),  # type: ignore[arg-type]
                 "drives": drives_text(enabled, stats.get("drives") or [], self.joint_names),
-                "fault": fault_text,
+                "fault": fault_text(faulted, stats.get("fault_reason") or "",
+                                    None if fault is None else (fault.reason, fault.wall_time)),
                 "latency": latency_text(interval.get("p99_us") if interval else None, stats.get("overruns")),
-                "recorder": recorder}
+                "recorder": recorder_text(queues.get("recorder:bag"), "not running")}
 
     def close(self) -> None:
         """Unmap the robot's shared memory."""

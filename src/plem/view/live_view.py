@@ -15,7 +15,7 @@ import numpy as np
 import viser
 
 from plem.bridge.client import DriverGone, RobotClient
-from plem.view.feed import READOUTS, Feed
+from plem.view.feed import READOUTS, Feed, joints_text
 from plem.view.model import ViewModel
 from plem.view.planning import PlannerWatch
 from plem.view.readouts import Readouts
@@ -89,9 +89,7 @@ class LiveView:
             stop.wait(max(0.0, next_frame - time.monotonic()))
 
     def _own(self, position: np.ndarray) -> dict[str, str]:
-        joints = "  ".join(f"{name} {np.degrees(value):.1f}°" for name, value in zip(self.feed.joint_names, position,
-                                                                                       strict=True))
-        values = {"joints": joints,
+        values = {"joints": joints_text(self.feed.joint_names, position),
                   "view": f"{self.rate_hz():.1f} Hz, {len(self.server.get_clients())} browsers connected"}
         if self.watch is not None:
             values["planner"] = self.watch.state

@@ -24,6 +24,7 @@ from plem.recording.archive import iso_time, read_event_log
 from plem.recording.plot import mode_name
 from plem.recording.summary import BagError, RobotBags, find_bags, pick_robot, robot_segments
 from plem.recording.timeline import Marker, Timeline, read_timeline, segment_warnings
+from plem.view.feed import joints_text
 from plem.view.model import ViewModel
 from plem.view.readouts import Readouts
 from plem.view.scene import ArmScene
@@ -41,7 +42,8 @@ class Replay:
     """One robot's recording, ready to be shown."""
 
     bags: RobotBags
-    timeline: Timeline
+    overview: Timeline              # the whole recording, coarse
+    timeline: Timeline              # what is shown: the overview, or a fault's window at full rate
     warnings: list[str] = field(default_factory=list)
     fault: Marker | None = None
 
@@ -56,7 +58,7 @@ class Replay:
                            "robot's URDF (/{robot_id}/robot_description, recorded at the start of each segment)",
                            why="these bags were recorded without it", how="record again with this version of plem "
                            "(plem launch ... record:=true), or plot them with `plem bag plot`")
-        replay = cls(bags, overview, warnings)
+        replay = cls(bags, overview, overview, warnings)
         if fault is not None:
             faults = overview.faults()
             if not 1 <= fault <= len(faults):
@@ -71,7 +73,7 @@ class Replay:
         """Read the window around `fault` (the flight recorder's seconds before it) at full rate; None: everything."""
         self.fault = fault
         if fault is None:
-            self.timeline = read_timeline(self.bags, max_points=OVERVIEW_POINTS)
+            self.timeline = self.overview
             return
         before_ns = int(self._window_s(fault) * 1e9)
         self.timeline = read_timeline(self.bags, fault.time_ns - before_ns, fault.time_ns + int(AFTER_FAULT_S * 1e9),
@@ -169,11 +171,10 @@ class ReplayPage:
         faults = [marker for marker in timeline.markers if marker.kind in ("fault", "fault_cleared")
                   and marker.time_ns <= time_ns]
         fault = faults[-1].label if faults and faults[-1].kind == "fault" else "none"
-        joints = "  ".join(f"{name} {np.degrees(value):.1f}°"
-                           for name, value in zip(timeline.joint_names, timeline.position[index], strict=True))
         self.readouts.update({"time": f"{iso_time(time_ns)} (+{self.seconds[index]:.3f} s)",
                               "mode": mode_name(int(timeline.mode[index])), "fault": fault,
-                              "latency": f"{timeline.latency_us[index]:.0f} µs", "joints": joints})
+                              "latency": f"{timeline.latency_us[index]:.0f} µs",
+                              "joints": joints_text(timeline.joint_names, timeline.position[index])})
 
     def _focus_on(self, fault: Marker) -> Callable[[Any], None]:
         """A click handler that jumps to `fault`."""

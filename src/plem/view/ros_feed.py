@@ -14,10 +14,10 @@ import numpy as np
 
 from plem.control.events import EventKind
 from plem.control.modes import Mode
-from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, DESCRIPTION_TYPE, MONITOR_TOPICS
 from plem.middleware.node import Node, Subscription
 from plem.middleware.qos import EVENTS, LATCHED, QosProfile
-from plem.view.feed import Snapshot, drives_text, latency_text, mode_text
+from plem.view.feed import Snapshot, drives_text, fault_text, latency_text, mode_text, recorder_text
 from plem.view.server import ViewError
 
 #: Only the newest sample of a stream matters to the view.
@@ -36,8 +36,8 @@ class RosFeed:
         self.robot_id = robot_id
         self.packages: dict[str, str] = {}  # package:// URIs resolve on this host's PLEM_PACKAGE_PATH
         self.node = Node()
-        topics = {**MONITOR_TOPICS, "robot_description": "std_msgs/msg/String"}
-        profiles = {"robot_description": LATCHED, "rt_events": EVENTS}
+        topics = {**MONITOR_TOPICS, DESCRIPTION_TOPIC: DESCRIPTION_TYPE}
+        profiles = {DESCRIPTION_TOPIC: LATCHED, "rt_events": EVENTS}
         self._topics: dict[str, Subscription[Any]] = {
             name: self.node.subscription(f"/{robot_id}/{name}", ros_type, profiles.get(name, NEWEST))
             for name, ros_type in topics.items()}
@@ -49,13 +49,13 @@ class RosFeed:
         except BaseException:
             self.close()
             raise
-        self.urdf: str = self._newest["robot_description"].data
+        self.urdf: str = self._newest[DESCRIPTION_TOPIC].data
         self.joint_names: tuple[str, ...] = tuple(self._newest["joint_states"].name)
 
     def _wait_for_start(self, timeout_s: float) -> None:
         """Poll until robot_description and joint_states have arrived, for up to `timeout_s`; else ViewError."""
         deadline = time.monotonic() + timeout_s
-        while self._take("robot_description") is None or self._take("joint_states") is None:
+        while self._take(DESCRIPTION_TOPIC) is None or self._take("joint_states") is None:
             if time.monotonic() >= deadline:
                 raise self._not_seen(timeout_s)
             time.sleep(POLL_S)
@@ -63,7 +63,7 @@ class RosFeed:
     def _not_seen(self, timeout_s: float) -> ViewError:
         """What was and was not seen of the robot on the domain."""
         found = []
-        for name in ("robot_description", "joint_states"):
+        for name in (DESCRIPTION_TOPIC, "joint_states"):
             topic = f"/{self.robot_id}/{name}"
             found.append(f"{topic} received" if name in self._newest else
                          f"{topic} has a publisher but sent nothing" if self._topics[name].publishers else
@@ -97,9 +97,7 @@ class RosFeed:
         self._fault = next((event for event in reversed(self._topics["rt_events"].take())
                             if event.kind == EventKind.FAULT), self._fault)
         queues = {} if stats is None else {queue.name: queue for queue in stats.queues}
-        bag = queues.get("recorder:bag")
-        recorder = (NOT_REPORTED if bag is None else
-                    f"recording — {bag.written} messages written, {bag.dropped} not recorded")
+        recorder = recorder_text(queues.get("recorder:bag"), NOT_REPORTED)
         latency = (latency_text(None, None) if stats is None else
                    latency_text(stats.latency_interval.p99_us, stats.overruns))
         if raw is None:
@@ -107,17 +105,13 @@ class RosFeed:
                     "recorder": recorder}
         return {"mode": mode_text(Mode(raw.mode), raw.faulted),
                 "drives": drives_text(raw.drives_enabled, [], self.joint_names),
-                "fault": self._fault_text(raw.faulted, stats), "latency": latency, "recorder": recorder}
+                "fault": fault_text(raw.faulted, "" if stats is None else stats.fault_reason, self._last_fault()),
+                "latency": latency, "recorder": recorder}
 
-    def _fault_text(self, faulted: bool, stats: Any) -> str:
-        """The present fault's reason, else the last fault seen and that it was cleared, else "none"."""
+    def _last_fault(self) -> tuple[str, float] | None:
+        """The reason and wall time (s) of the newest fault seen on rt_events."""
         fault = self._fault
-        if faulted:
-            return (stats.fault_reason if stats is not None else "") or (fault.reason if fault else "faulted")
-        if fault is None:
-            return "none"
-        ago = time.time() - (fault.header.stamp.sec + fault.header.stamp.nanosec * 1e-9)
-        return f"none (last, {ago:.0f} s ago, cleared: {fault.reason})"
+        return None if fault is None else (fault.reason, fault.header.stamp.sec + fault.header.stamp.nanosec * 1e-9)
 
     def close(self) -> None:
         """Leave the domain: the subscriptions, then the participant."""
