@@ -10,7 +10,7 @@ import pytest
 from plem.errors import ConfigError
 from plem.middleware import controller_manager, robot_bridge
 from plem.middleware.discovery import DiscoverySettings
-from plem.middleware.monitor_feed import MONITOR_TOPICS
+from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, MONITOR_TOPICS
 from plem.middleware.names import (
     ActionNames,
     check_name,
@@ -146,7 +146,7 @@ BRIDGE_ENDPOINTS = {
 def test_bridge_endpoint_names_are_valid() -> None:
     """The names robot_bridge.py uses are these, and each is a valid name for a valid robot id."""
     source = inspect.getsource(robot_bridge)
-    used = (set(re.findall(r'f"\{ns\}/([^"{]+)"', source)) | set(MONITOR_TOPICS)
+    used = (set(re.findall(r'f"\{ns\}/([^"{]+)"', source)) | set(MONITOR_TOPICS) | {DESCRIPTION_TOPIC}
             | {f"{{trajectory}}/{name}" for name in re.findall(r'f"\{trajectory\}/([^"{]+)"', source)}
             | {f"controller_manager/{service}" for service in controller_manager.SERVICES})
     assert 'f"{self.namespace}/controller_manager"' in inspect.getsource(controller_manager)
