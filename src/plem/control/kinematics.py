@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from plem.control import compiled
 from plem.errors import ConfigError
 
 
@@ -132,3 +133,50 @@ class ArmDynamics:
         jac: np.ndarray = pin.computeFrameJacobian(self.model, self.data, self._load(self._q, q), self._tip_id,
                                        pin.LOCAL_WORLD_ALIGNED)
         return jac if self._identity else jac[:, self._order]
+
+
+def compiled_model(model: pin.Model, joint_names: Sequence[str]) -> np.ndarray:
+    """The compiled core's model (`compiled.MODEL`) of a pinocchio model whose joints are the arm's `joint_names`.
+
+    Joints keep pinocchio's order (parents first) with their index in the arm's order; each must have one
+    degree of freedom, turning about or sliding along one axis (revolute, continuous or prismatic). A
+    continuous joint's angle is its position, where pinocchio carries its cosine and sine.
+    """
+    names = list(joint_names)
+    problems = []
+    if model.nv != len(names):
+        problems.append(f"the URDF has {model.nv} degrees of freedom for {len(names)} joints")
+    if len(names) > compiled.MAX_JOINTS:
+        problems.append(f"the core drives at most {compiled.MAX_JOINTS} joints")
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    structure = compiled.new(compiled.MODEL)
+    target = structure[0]
+    for k, joint_id in enumerate(range(1, model.njoints)):
+        name = model.names[joint_id]
+        subspace = np.asarray(data.joints[joint_id].S).reshape(6, -1)
+        linear, angular = np.abs(subspace[:3]).sum(), np.abs(subspace[3:]).sum()
+        if name not in names or subspace.shape[1] != 1 or (linear > 0) == (angular > 0):
+            kind = "not one of the arm joints" if name not in names else "not revolute, continuous or prismatic"
+            problems.append(f"{name} is {kind}")
+            continue
+        if k >= compiled.MAX_JOINTS:
+            continue
+        placement, inertia = model.jointPlacements[joint_id], model.inertias[joint_id]
+        target["parent"][k] = model.parents[joint_id] - 1
+        target["kind"][k] = 1 if linear > 0 else 0
+        target["arm_index"][k] = names.index(name)
+        target["axis"][k] = subspace[:3, 0] if linear > 0 else subspace[3:, 0]
+        target["rotation"][k] = np.asarray(placement.rotation).reshape(9)
+        target["translation"][k] = placement.translation
+        target["mass"][k] = inertia.mass
+        target["com"][k] = inertia.lever
+        target["inertia"][k] = np.asarray(inertia.inertia).reshape(9)
+    if problems:
+        raise ConfigError("the URDF does not match the arm's joints",
+                          what="one revolute, continuous or prismatic joint in the URDF for each joint of the arm",
+                          why="; ".join(problems),
+                          how="use the arm's description package, or pass joint names that match its URDF")
+    target["dof"] = len(names)
+    target["gravity"] = model.gravity.linear
+    return structure

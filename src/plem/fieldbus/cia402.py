@@ -1,8 +1,9 @@
 """CiA402 drive profile: statusword decoding, controlword sequencing and 0x603F error codes.
 
-Pure tables and functions shared by every bus: the master side (which controlword moves a drive toward
-the wanted power state) and the drive side (which state a controlword leads to), so the simulated drives
-and real ones are driven by the same rules.
+The state machines are the compiled core's (plem.control.csrc/cia402.c), which every bus uses: the master
+side (which controlword moves a drive toward the wanted power state) and the drive side (which state a
+controlword leads to), so the simulated drives and real ones are driven by the same rules. This module gives
+them their Python names and keeps the texts: bit names and 0x603F error codes.
 """
 
 from __future__ import annotations
@@ -11,6 +12,9 @@ from collections.abc import Mapping
 from enum import IntEnum
 from types import MappingProxyType
 
+import numpy as np
+
+from plem.control import compiled
 from plem.fieldbus.bus import DriveState
 
 
@@ -35,43 +39,13 @@ STATUSWORD_BITS: tuple[str, ...] = (
     "manufacturer bit 14", "manufacturer bit 15",
 )
 
-FAULT_BIT = 0x0008
-RESET_BIT = 0x0080
-
 #: The statusword a healthy drive under fieldbus control reports in each state: the state pattern plus
 #: remote (bit 9) and, once the drive is powered, voltage enabled (bit 4) and quick stop not active (bit 5).
-STATUSWORD: Mapping[DriveState, int] = MappingProxyType({
-    DriveState.NOT_READY_TO_SWITCH_ON: 0x0200,
-    DriveState.SWITCH_ON_DISABLED: 0x0250,
-    DriveState.READY_TO_SWITCH_ON: 0x0231,
-    DriveState.SWITCHED_ON: 0x0233,
-    DriveState.OPERATION_ENABLED: 0x0237,
-    DriveState.QUICK_STOP_ACTIVE: 0x0217,
-    DriveState.FAULT_REACTION_ACTIVE: 0x021F,
-    DriveState.FAULT: 0x0218,
-})
-
-# (mask, value, state) in the order of the CiA402 statusword table.
-_PATTERNS = (
-    (0x4F, 0x00, DriveState.NOT_READY_TO_SWITCH_ON),
-    (0x4F, 0x40, DriveState.SWITCH_ON_DISABLED),
-    (0x6F, 0x21, DriveState.READY_TO_SWITCH_ON),
-    (0x6F, 0x23, DriveState.SWITCHED_ON),
-    (0x6F, 0x27, DriveState.OPERATION_ENABLED),
-    (0x6F, 0x07, DriveState.QUICK_STOP_ACTIVE),
-    (0x4F, 0x0F, DriveState.FAULT_REACTION_ACTIVE),
-    (0x4F, 0x08, DriveState.FAULT),
-)
-
-
-def _match(bits: int) -> DriveState:
-    for mask, value, state in _PATTERNS:
-        if bits & mask == value:
-            return state
-    return DriveState.FAULT if bits & FAULT_BIT else DriveState.NOT_READY_TO_SWITCH_ON
-
-
-_STATE_OF_BITS = tuple(_match(bits) for bits in range(0x80))
+STATUSWORD: Mapping[DriveState, int] = MappingProxyType({state: compiled.core.statusword_of(state)
+                                                         for state in DriveState})
+#: The states a controlword can hold a drive in (the way up to operation enabled).
+HOLDABLE = frozenset({DriveState.SWITCH_ON_DISABLED, DriveState.READY_TO_SWITCH_ON, DriveState.SWITCHED_ON,
+                      DriveState.OPERATION_ENABLED})
 
 
 def decode_statusword(sw: int) -> DriveState:
@@ -80,23 +54,13 @@ def decode_statusword(sw: int) -> DriveState:
     Words matching no row of the CiA402 table decode as FAULT when the fault bit is set and as
     NOT_READY_TO_SWITCH_ON otherwise.
     """
-    return _STATE_OF_BITS[sw & 0x6F]
+    return DriveState(compiled.core.decode_statusword(sw & 0xFFFF))
 
 
 def describe_statusword(sw: int) -> str:
     """The names of the bits set in a statusword, for logs and fault messages."""
     names = [name for bit, name in enumerate(STATUSWORD_BITS) if sw >> bit & 1]
     return ", ".join(names) if names else "no bits set"
-
-
-_ENABLE_CHAIN = (DriveState.SWITCH_ON_DISABLED, DriveState.READY_TO_SWITCH_ON, DriveState.SWITCHED_ON,
-                 DriveState.OPERATION_ENABLED)
-_ENTERS = {
-    DriveState.SWITCH_ON_DISABLED: Controlword.DISABLE_VOLTAGE,
-    DriveState.READY_TO_SWITCH_ON: Controlword.SHUTDOWN,
-    DriveState.SWITCHED_ON: Controlword.SWITCH_ON,
-    DriveState.OPERATION_ENABLED: Controlword.ENABLE_OPERATION,
-}
 
 
 def next_controlword(state: DriveState, target: DriveState, previous: int = 0) -> int:
@@ -108,14 +72,9 @@ def next_controlword(state: DriveState, target: DriveState, previous: int = 0) -
     fault reset, which acts on a rising edge of bit 7: when `previous` (the last controlword sent)
     already has bit 7 set, bit 7 is cleared first and the reset goes out on the next call.
     """
-    if target not in _ENTERS:
+    if target not in HOLDABLE:
         raise ValueError(f"{target.name} is not a state a controlword can hold a drive in")
-    if state is DriveState.FAULT:
-        return Controlword.DISABLE_VOLTAGE if previous & RESET_BIT else Controlword.FAULT_RESET
-    if state not in _ENTERS:
-        return Controlword.DISABLE_VOLTAGE
-    here, there = _ENABLE_CHAIN.index(state), _ENABLE_CHAIN.index(target)
-    return _ENTERS[_ENABLE_CHAIN[here + 1] if here < there else target]
+    return int(compiled.core.next_controlword(state, target, previous & 0xFFFF))
 
 
 def drive_transition(state: DriveState, controlword: int, previous: int) -> DriveState:
@@ -124,27 +83,7 @@ def drive_transition(state: DriveState, controlword: int, previous: int) -> Driv
     Not ready and fault reaction end by themselves (transitions 1 and 14); a fault is left only on a
     rising edge of bit 7 (transition 15). Commands not allowed in a state leave it unchanged.
     """
-    if state is DriveState.NOT_READY_TO_SWITCH_ON:
-        return DriveState.SWITCH_ON_DISABLED
-    if state is DriveState.FAULT_REACTION_ACTIVE:
-        return DriveState.FAULT
-    if state is DriveState.FAULT:
-        rising = controlword & RESET_BIT and not previous & RESET_BIT
-        return DriveState.SWITCH_ON_DISABLED if rising else state
-    if controlword & RESET_BIT:
-        return state
-    if not controlword & 0x02:
-        return DriveState.SWITCH_ON_DISABLED
-    running = state is DriveState.OPERATION_ENABLED or state is DriveState.QUICK_STOP_ACTIVE
-    if not controlword & 0x04:
-        return DriveState.QUICK_STOP_ACTIVE if running else DriveState.SWITCH_ON_DISABLED
-    if not controlword & 0x01:
-        return state if state is DriveState.QUICK_STOP_ACTIVE else DriveState.READY_TO_SWITCH_ON
-    if state is DriveState.READY_TO_SWITCH_ON:
-        return DriveState.SWITCHED_ON
-    if controlword & 0x08:
-        return DriveState.OPERATION_ENABLED if state is DriveState.SWITCHED_ON or running else state
-    return DriveState.SWITCHED_ON if state is DriveState.OPERATION_ENABLED else state
+    return DriveState(compiled.core.drive_transition(state, controlword & 0xFFFF, previous & 0xFFFF))
 
 
 #: Specific 0x603F error codes (CiA402 / IEC 61800-7-201, with the CiA301 communication codes).
@@ -278,49 +217,29 @@ class PowerSequencer:
     `request()` sets the state wanted of every drive and `request_reset()` asks for one fault-reset edge;
     `commands(seen)` then chooses, from the states the drives last reported, the controlword that moves
     each one step toward it. A drive seen in fault is wanted down (switch on disabled) until enabled again.
-    Once the controlwords stop changing for unchanged states, they are returned as they are until a state
-    or a request changes, so a settled arm costs a list comparison per cycle.
+    The sequencer is the compiled core's (`plem_power`), the one every bus's master uses.
     """
 
     def __init__(self, dof: int) -> None:
-        self.wanted = [DriveState.SWITCH_ON_DISABLED] * dof
-        self.reset = [False] * dof
-        self.sent = [int(Controlword.DISABLE_VOLTAGE)] * dof
-        self._settled_for: list[DriveState] | None = None  # the states the controlwords settled for
+        self._power = compiled.new(compiled.POWER)
+        compiled.core.power_init(self._power, dof)
+        self._seen = np.zeros(dof, dtype=np.int32)
+        self._out = np.zeros(dof, dtype=np.uint16)
 
     def request(self, state: DriveState) -> None:
         """Ask every drive for `state`; it is reached over the next cycles."""
-        self.wanted = [state] * len(self.wanted)
-        self._settled_for = None
+        compiled.core.power_request(self._power, state)
 
     def request_reset(self) -> None:
         """Send one fault-reset edge to every drive that is in fault."""
-        self.reset = [True] * len(self.wanted)
-        self._settled_for = None
+        compiled.core.power_request_reset(self._power)
 
     def master_lost(self) -> None:
         """The exchange failed: stop asking for operation and forget pending resets."""
-        self.request(DriveState.SWITCH_ON_DISABLED)
-        self.reset = [False] * len(self.wanted)
+        compiled.core.power_master_lost(self._power)
 
-    def commands(self, seen: list[DriveState]) -> list[int]:
+    def commands(self, seen: list[DriveState]) -> np.ndarray:
         """This cycle's controlwords for drives last seen in the states `seen` (remembered as sent)."""
-        if seen == self._settled_for:
-            return self.sent
-        reset = list(self.reset)
-        commands = [self._command(drive, state, self.sent[drive]) for drive, state in enumerate(seen)]
-        self._settled_for = list(seen) if commands == self.sent and self.reset == reset else None
-        self.sent = commands
-        return commands
-
-    def _command(self, drive: int, seen: DriveState, previous: int) -> int:
-        if seen is DriveState.FAULT:
-            self.wanted[drive] = DriveState.SWITCH_ON_DISABLED
-            if not self.reset[drive]:
-                return Controlword.DISABLE_VOLTAGE
-            command = next_controlword(seen, DriveState.SWITCH_ON_DISABLED, previous)
-            self.reset[drive] = command != Controlword.FAULT_RESET
-            return command
-        self.reset[drive] = False
-        return next_controlword(seen, self.wanted[drive], previous)
-
+        self._seen[:] = seen
+        compiled.core.power_commands(self._power, self._seen, self._out)
+        return self._out
