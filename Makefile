@@ -10,7 +10,8 @@ CORE_SOURCES := $(wildcard src/plem/control/csrc/*.c src/plem/control/csrc/*.h)
 CORE_FLAGS := -std=c11 -O1 -g -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes -D_GNU_SOURCE -fPIC -shared
 SANITIZED := build/sanitized
 # The core's tests, which call it through its Python face.
-CORE_TESTS := tests/unit/test_core_properties.py tests/unit/test_cia402.py tests/integration/test_mock_bus.py
+CORE_TESTS := tests/unit/test_core_properties.py tests/unit/test_cia402.py tests/unit/test_polynomial.py \
+	tests/integration/test_mock_bus.py
 
 .PHONY: run test test-slow test-sanitized lint clean
 

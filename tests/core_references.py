@@ -6,6 +6,8 @@ the core's results on inputs hypothesis chooses.
 
 from __future__ import annotations
 
+import numpy as np
+
 from plem.fieldbus.bus import DriveState
 from plem.fieldbus.cia402 import Controlword
 
@@ -150,3 +152,17 @@ class PowerSequencer:
         self.reset[drive] = False
         return next_controlword(seen, self.wanted[drive], previous)
 
+
+
+def sample_polynomial(knots: np.ndarray, coefficients: np.ndarray, final: np.ndarray, t: float) -> np.ndarray:
+    """Position, velocity and acceleration (3, dof) of a piecewise polynomial at `t`: powers of the time into the
+    segment times the coefficients and their derivatives' weights."""
+    segments, order = coefficients.shape[0], coefficients.shape[1]
+    if not segments or t >= knots[segments]:
+        return np.array(final, dtype=float)
+    s = min(max(int(np.searchsorted(knots[:segments + 1], t, side="right")) - 1, 0), segments - 1)
+    tau = max(t - knots[s], 0.0)
+    powers = np.arange(order, dtype=float)
+    exponents = np.maximum(powers - np.arange(3)[:, None], 0.0)
+    weights = np.array([np.ones(order), powers, powers * (powers - 1)])
+    return np.asarray((weights * tau ** exponents) @ coefficients[s])

@@ -28,6 +28,10 @@ core: Any = _core
 _LAYOUT: dict[str, Any] = core.layout()
 #: Joints of the largest arm the core drives (the size of every per-joint array).
 MAX_JOINTS: int = _LAYOUT["max_joints"]
+#: Polynomial coefficients per segment and joint of every motion the core samples.
+ORDER: int = _LAYOUT["order"]
+#: Segments of the longest stop the core plans.
+STOP_SEGMENTS: int = _LAYOUT["stop_segments"]
 J = MAX_JOINTS
 
 _MODEL_FIELDS = [

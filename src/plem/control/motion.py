@@ -1,7 +1,7 @@
-"""Jerk-limited motions planned with ruckig: point-to-point moves and smooth stops.
+"""Jerk-limited motions: point-to-point moves planned with ruckig, smooth stops planned by the compiled core.
 
-Both are planned once (offline, time-optimal within the velocity, acceleration and jerk limits) and
-then sampled each cycle. A motion is anything with `sample(t, out) -> done`
+Both are planned once (time-optimal within the velocity, acceleration and jerk limits) and then sampled
+each cycle. A motion is anything with `sample(t, out) -> done`
 and `duration`; the trajectory controller's splines have the same shape.
 """
 
@@ -11,10 +11,11 @@ import math
 from typing import Protocol
 
 import numpy as np
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Result, Ruckig, Trajectory
 
+from plem.control import compiled
 from plem.control.limits import ArmLimits
-from plem.control.polynomial import PolynomialMotion, from_ruckig
+from plem.control.polynomial import ORDER, PolynomialMotion, from_ruckig
 from plem.errors import CommandRejected
 
 #: Where a motion starts: position, velocity and acceleration per joint.
@@ -124,10 +125,14 @@ def plan_point_to_point(limits: ArmLimits, start: StartState, target: np.ndarray
     return motion
 
 
-def plan_stop(limits: ArmLimits, start: StartState) -> RuckigMotion:
-    """The quickest jerk-limited motion from `start` to standstill (used for cancels and faults)."""
-    parameters = _input(limits, *start, scale=1.0)
-    parameters.control_interface = ControlInterface.Velocity
-    parameters.target_velocity = [0.0] * limits.dof
-    parameters.target_acceleration = [0.0] * limits.dof
-    return _calculate(parameters, limits.dof, "the stop")
+def plan_stop(limits: ArmLimits, start: StartState) -> PolynomialMotion:
+    """The quickest jerk-limited motion from `start` to standstill (used for cancels and faults): the core's stop,
+    each joint braking on its own within its acceleration and jerk limits."""
+    position, velocity, acceleration = (np.ascontiguousarray(value, dtype=float) for value in start)
+    dof = limits.dof
+    knots = np.zeros(compiled.STOP_SEGMENTS + 1)
+    coefficients = np.zeros((compiled.STOP_SEGMENTS, ORDER, dof))
+    final = np.zeros((3, dof))
+    segments = compiled.core.plan_stop(position, velocity, acceleration, limits.max_acceleration * INSIDE,
+                                       limits.max_jerk * INSIDE, knots, coefficients, final)
+    return PolynomialMotion(knots[:segments + 1], coefficients[:segments], final)

@@ -1,8 +1,8 @@
 """Piecewise-polynomial motions: the one form in which every planned motion reaches the loop.
 
 A motion is a table of knot times and, per segment and joint, the coefficients of a polynomial of
-degree ORDER-1 in the time since the segment's start. The loop samples it in place (the table may live
-in shared memory written by another process), so building a `PolynomialMotion` copies nothing and
+degree ORDER-1 in the time since the segment's start. The compiled core samples it in place (the table may
+live in shared memory written by another process), so building a `PolynomialMotion` copies nothing and
 costs the same for two points or five thousand. Splines of JointTrajectories are fitted into this form
 directly; ruckig's jerk-limited motions are converted exactly (they are cubic between their phase
 boundaries).
@@ -14,14 +14,12 @@ from typing import Any
 
 import numpy as np
 
-#: Coefficients per segment and joint, lowest order first: enough for a quintic.
-ORDER = 6
+from plem.control import compiled
+
+#: Coefficients per segment and joint, lowest order first: enough for a quintic (the core's PLEM_ORDER).
+ORDER: int = compiled.ORDER
 #: Knots closer than this (s) are one knot.
 KNOT_RESOLUTION = 1e-9
-_POWERS = np.arange(ORDER, dtype=float)
-#: Row d of WEIGHTS * τ**EXPONENTS is the d-th time derivative of (1, τ, τ², …): d/dt τ^k = k τ^(k-1), and so on.
-EXPONENTS = np.maximum(_POWERS - np.arange(3)[:, None], 0.0)
-WEIGHTS = np.array([np.ones(ORDER), _POWERS, _POWERS * (_POWERS - 1)])
 
 
 def hermite_coefficients(duration: np.ndarray, p0: np.ndarray, p1: np.ndarray, v0: np.ndarray, v1: np.ndarray,
@@ -105,49 +103,30 @@ class PolynomialMotion:
     """
 
     def __init__(self, knots: np.ndarray, coefficients: np.ndarray, final: np.ndarray) -> None:
-        self.knots = knots
-        self.coefficients = coefficients
+        self.knots = np.ascontiguousarray(knots, dtype=float)            # views stay views: already contiguous
+        self.coefficients = np.ascontiguousarray(coefficients, dtype=float)
         self.segments = len(coefficients)
         self.duration = float(knots[-1]) if self.segments else 0.0
         final = np.array(final, dtype=float)  # a private copy: the settle check reads it after the table is reused
         final.flags.writeable = False
         self.final_positions, self.final_velocities, self.final_accelerations = final
         self._final = final
-        self._basis = np.zeros((3, ORDER))    # derivatives of the powers of τ, for one matrix product per sample
-        self._cursor = 0
-
-    def _segment(self, t: float) -> int:
-        """The segment holding `t` (advancing from the previous sample, so a cycle's search is one step)."""
-        knots, s = self.knots, self._cursor
-        if t < knots[s] or (s + 2 < len(knots) and t >= knots[s + 2]):
-            s = min(max(int(np.searchsorted(knots, t, side="right")) - 1, 0), self.segments - 1)
-        elif t >= knots[s + 1] and s + 1 < self.segments:
-            s += 1
-        self._cursor = s
-        return s
+        self._dof = final.shape[1]
+        self._cursor = np.zeros(1, dtype=np.int32)  # the segment of the last sample, kept by the core
 
     def sample(self, t: float, out: np.ndarray) -> bool:
         """Write position, velocity and acceleration `t` s after activation into the rows of `out` (3, dof);
-        True once the motion is over. One matrix product, nothing allocated."""
-        if t >= self.duration or not self.segments:
-            np.copyto(out, self._final)
-            return True
-        s = self._segment(t)
-        start = float(self.knots[s])
-        basis = self._basis
-        np.power(t - start if t > start else 0.0, EXPONENTS, out=basis)
-        np.multiply(basis, WEIGHTS, out=basis)
-        np.dot(basis, self.coefficients[s], out=out)
-        return False
+        True once the motion is over. The core's sampling, stepping on from the last sample's segment."""
+        done: bool = compiled.core.motion_sample(self.knots, self.coefficients, self._final, self.segments,
+                                                 self._dof, t, self._cursor, out)
+        return done
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at `t` as new arrays, without touching the sampling cursor."""
-        if t >= self.duration or not self.segments:
-            return self.final_positions.copy(), self.final_velocities.copy(), self.final_accelerations.copy()
-        t = max(t, 0.0)
-        s = min(max(int(np.searchsorted(self.knots, t, side="right")) - 1, 0), self.segments - 1)
-        position, velocity, acceleration = WEIGHTS * (t - float(self.knots[s])) ** EXPONENTS @ self.coefficients[s]
-        return position, velocity, acceleration
+        out = np.empty((3, self._dof))
+        compiled.core.motion_sample(self.knots, self.coefficients, self._final, self.segments, self._dof,
+                                    max(t, 0.0), np.zeros(1, dtype=np.int32), out)
+        return out[0], out[1], out[2]
 
 
 def _ruckig_knots(trajectory: Any) -> list[float]:  # a ruckig.Trajectory: ruckig ships no types

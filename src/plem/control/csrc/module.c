@@ -74,6 +74,60 @@ static PyObject *inverse_dynamics(PyObject *self, PyObject *args) { (void)self; 
 static PyObject *gravity(PyObject *self, PyObject *args) { (void)self; return dynamics_call(args, 1); }
 static PyObject *forward_dynamics(PyObject *self, PyObject *args) { (void)self; return dynamics_call(args, 2); }
 
+static PyObject *motion_sample(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *objects[5];
+    int segments, dof;
+    double t;
+    if (!PyArg_ParseTuple(args, "OOOiidOO", &objects[0], &objects[1], &objects[2], &segments, &dof, &t,
+                          &objects[3], &objects[4]))
+        return NULL;
+    if (segments < 0 || dof < 1 || dof > PLEM_MAX_JOINTS)
+        return PyErr_Format(PyExc_ValueError, "motion_sample: %d segments of %d joints", segments, dof);
+    argument held[5] = {{{0}, 0}, {{0}, 0}, {{0}, 0}, {{0}, 0}, {{0}, 0}};
+    Py_ssize_t row = dof * (Py_ssize_t)sizeof(double);
+    plem_motion motion = {NULL, NULL, NULL, segments, dof, 0};
+    int32_t *cursor = NULL;
+    double *out = NULL;
+    PyObject *result = NULL;
+    if ((motion.knots = take(objects[0], &held[0], (segments + 1) * (Py_ssize_t)sizeof(double), 0, "knots"))
+        && (motion.coefficients = take(objects[1], &held[1], segments * PLEM_ORDER * row, 0, "coefficients"))
+        && (motion.final = take(objects[2], &held[2], 3 * row, 0, "final"))
+        && (cursor = take(objects[3], &held[3], sizeof(int32_t), 1, "cursor"))
+        && (out = take(objects[4], &held[4], 3 * row, 1, "out"))) {
+        motion.cursor = *cursor;
+        result = PyBool_FromLong(plem_motion_sample(&motion, t, out));
+        *cursor = motion.cursor;
+    }
+    release(held, 5);
+    return result;
+}
+
+static PyObject *plan_stop(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *objects[8];
+    if (!PyArg_UnpackTuple(args, "plan_stop", 8, 8, &objects[0], &objects[1], &objects[2], &objects[3], &objects[4],
+                           &objects[5], &objects[6], &objects[7]))
+        return NULL;
+    argument held[8] = {{{0}, 0}};
+    double *arrays[8] = {NULL};
+    argument first = {{0}, 0};
+    if (PyObject_GetBuffer(objects[0], &first.view, PyBUF_C_CONTIGUOUS) < 0) return NULL;
+    Py_ssize_t dof = first.view.len / (Py_ssize_t)sizeof(double);
+    PyBuffer_Release(&first.view);
+    if (dof < 1 || dof > PLEM_MAX_JOINTS) return PyErr_Format(PyExc_ValueError, "plan_stop: %zd joints", dof);
+    Py_ssize_t row = dof * (Py_ssize_t)sizeof(double);
+    const Py_ssize_t sizes[8] = {row, row, row, row, row, (PLEM_STOP_SEGMENTS + 1) * (Py_ssize_t)sizeof(double),
+                                 PLEM_STOP_SEGMENTS * PLEM_ORDER * row, 3 * row};
+    static const char *names[8] = {"p", "v", "a", "max_acceleration", "max_jerk", "knots", "coefficients", "final"};
+    int ok = 1;
+    for (int i = 0; i < 8 && ok; i++) ok = (arrays[i] = take(objects[i], &held[i], sizes[i], i >= 5, names[i])) != NULL;
+    PyObject *result = ok ? PyLong_FromLong(plem_plan_stop((int)dof, arrays[0], arrays[1], arrays[2], arrays[3],
+                                                             arrays[4], arrays[5], arrays[6], arrays[7])) : NULL;
+    release(held, 8);
+    return result;
+}
+
 static plem_sim *take_sim(PyObject *object, argument *arg) {
     plem_sim *sim = take(object, arg, sizeof(plem_sim), 1, "sim");
     if (sim && (sim->dof < 1 || sim->dof > PLEM_MAX_JOINTS || sim->power.dof != sim->dof
@@ -293,8 +347,8 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
     PyObject *power = fields_dict(POWER_FIELDS, sizeof(plem_power));
     PyObject *sim = fields_dict(SIM_FIELDS, sizeof(plem_sim));
     PyObject *result = (model && power && sim)
-        ? Py_BuildValue("{s:O,s:O,s:O,s:i}", "plem_model", model, "plem_power", power, "plem_sim", sim,
-                        "max_joints", PLEM_MAX_JOINTS)
+        ? Py_BuildValue("{s:O,s:O,s:O,s:i,s:i,s:i}", "plem_model", model, "plem_power", power, "plem_sim", sim,
+                        "max_joints", PLEM_MAX_JOINTS, "order", PLEM_ORDER, "stop_segments", PLEM_STOP_SEGMENTS)
         : NULL;
     Py_XDECREF(model);
     Py_XDECREF(power);
@@ -307,6 +361,10 @@ static PyMethodDef METHODS[] = {
     {"inverse_dynamics", inverse_dynamics, METH_VARARGS, "inverse_dynamics(model, q, v, a, tau_out)"},
     {"gravity", gravity, METH_VARARGS, "gravity(model, q, tau_out)"},
     {"forward_dynamics", forward_dynamics, METH_VARARGS, "forward_dynamics(model, q, v, tau, a_out)"},
+    {"motion_sample", motion_sample, METH_VARARGS,
+     "motion_sample(knots, coefficients, final, segments, dof, t, cursor_int32, out) -> True once over"},
+    {"plan_stop", plan_stop, METH_VARARGS,
+     "plan_stop(p, v, a, max_acceleration, max_jerk, knots_out, coefficients_out, final_out) -> segments"},
     {"sim_read", sim_read, METH_O, "sim_read(sim) -> False while communication is lost"},
     {"sim_write", sim_write, METH_O, "sim_write(sim): controlwords, then one cycle"},
     {"sim_serve", sim_serve, METH_VARARGS, "sim_serve(sim, controlwords): a master's controlwords, then one cycle"},

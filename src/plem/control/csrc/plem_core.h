@@ -77,6 +77,34 @@ void plem_inverse_dynamics(const plem_model *model, const double *q, const doubl
 void plem_gravity(const plem_model *model, const double *q, double *tau);
 void plem_forward_dynamics(const plem_model *model, const double *q, const double *v, const double *tau, double *a);
 
+/* ---- motions ----------------------------------------------------------------------------------------- */
+
+/* Coefficients per segment and joint, lowest order first: enough for a quintic. */
+#define PLEM_ORDER 6
+/* Segments of the longest stop: three phases per joint. */
+#define PLEM_STOP_SEGMENTS (3 * PLEM_MAX_JOINTS)
+
+/* A planned motion, sampled in place: knot times (segments + 1), per segment and joint the coefficients of a
+ * polynomial in the time since the segment's start (segments × PLEM_ORDER × dof), and the state after the last
+ * knot (position, velocity, acceleration rows of dof). `cursor` is the segment of the last sample. */
+typedef struct {
+    const double *knots;
+    const double *coefficients;
+    const double *final;
+    int32_t segments;
+    int32_t dof;
+    int32_t cursor;
+} plem_motion;
+
+/* Position, velocity and acceleration at `t` s after the start into out (3 × dof); 1 once `t` is at or past the end. */
+int plem_motion_sample(plem_motion *motion, double t, double *out);
+
+/* The quickest jerk-limited stop of every joint from (p, v, a) to rest within its acceleration and jerk limits
+ * (inf: unlimited), each joint on its own: knots (PLEM_STOP_SEGMENTS + 1), coefficients (PLEM_STOP_SEGMENTS ×
+ * PLEM_ORDER × dof) and the final state (3 × dof). Returns the number of segments. */
+int plem_plan_stop(int dof, const double *p, const double *v, const double *a, const double *max_acceleration,
+                   const double *max_jerk, double *knots, double *coefficients, double *final);
+
 /* ---- the simulated arm -------------------------------------------------------------------------------- */
 
 /* Simulated CiA402 drives, encoders and joints: the bus of bus:=mock and the drives of the virtual network.
