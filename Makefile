@@ -11,7 +11,7 @@ CORE_FLAGS := -std=c11 -O1 -g -Wall -Wextra -Werror -Wshadow -Wstrict-prototypes
 SANITIZED := build/sanitized
 # The core's tests, which call it through its Python face.
 CORE_TESTS := tests/unit/test_core_properties.py tests/unit/test_cia402.py tests/unit/test_polynomial.py \
-	tests/integration/test_mock_bus.py
+	tests/integration/test_mock_bus.py tests/integration/test_runtime.py tests/integration/test_core_thread.py
 
 .PHONY: run test test-slow test-sanitized lint clean
 
@@ -50,7 +50,7 @@ test-sanitized: $(TEST_STAMP)
 	cp -r src/plem $(SANITIZED)/plem && rm -f $(SANITIZED)/plem/control/_core*.so
 	gcc $(CORE_FLAGS) -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer \
 		-I"$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["include"])')" \
-		src/plem/control/csrc/*.c -lm \
+		src/plem/control/csrc/*.c -lm -lpthread \
 		-o $(SANITIZED)/plem/control/_core$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_config_var("EXT_SUFFIX"))')
 	LD_PRELOAD="$$(gcc -print-file-name=libasan.so)" ASAN_OPTIONS=detect_leaks=0 PYTHONPATH=$(SANITIZED) \
 		$(BIN)/python -c 'import plem.control._core as c, sys; sys.exit(0 if "$(SANITIZED)" in c.__file__ else "not the sanitized core: " + c.__file__)'

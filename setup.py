@@ -12,4 +12,4 @@ FLAGS = ["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wstrict
 
 setup(ext_modules=[Extension("plem.control._core", sources=sorted(str(p) for p in SOURCES.glob("*.c")),
                              depends=sorted(str(p) for p in SOURCES.glob("*.h")), extra_compile_args=FLAGS,
-                             libraries=["m"])])
+                             libraries=["m", "pthread"])])

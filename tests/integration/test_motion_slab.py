@@ -20,7 +20,7 @@ LIMITS = ArmLimits(tuple(f"j{i}" for i in range(DOF)), np.full(DOF, -3.0), np.fu
 @pytest.fixture
 def slab():
     name = f"/test_slab_{uuid.uuid4().hex[:8]}"
-    created = MotionSlab.create(name, DOF, slots=2, capacity=64)
+    created = MotionSlab.create(name, DOF, slots=2, capacity=64, local_slots=0)
     yield created
     created.remove()
     assert not segment_path(name).exists()
@@ -53,7 +53,7 @@ def test_a_start_record_that_does_not_match_the_slot_is_refused(slab):
 
 def test_a_motion_larger_than_a_slot_is_refused(slab):
     motion = plan_point_to_point(LIMITS, (np.zeros(DOF), np.zeros(DOF), np.zeros(DOF)), np.full(DOF, 0.1)).polynomial()
-    small = MotionSlab.create(f"/test_slab_{uuid.uuid4().hex[:8]}", DOF, slots=1, capacity=2)
+    small = MotionSlab.create(f"/test_slab_{uuid.uuid4().hex[:8]}", DOF, slots=1, capacity=2, local_slots=0)
     try:
         with pytest.raises(MotionSlabError, match="too many segments"):
             small.write(0, motion)

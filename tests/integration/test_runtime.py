@@ -336,7 +336,7 @@ def test_in_fault_an_arm_the_drives_cannot_hold_goes_onto_its_brakes(holding):
     twice their effort limit), it is not left to run away: the drives are disabled, the brakes hold it, and an
     event says why."""
     holding.move_joints([0.0, 0.9, -0.6, 0.4, 1.0, 0.2]).wait()
-    holding.loop.on_error(RuntimeError("stop here"))
+    holding.runtime.fault("internal_error", "cycle raised RuntimeError('stop here')")
     holding.step(1000)
     assert holding.mode is Mode.FAULT and holding.bus.drive_state(1) is DriveState.OPERATION_ENABLED
     pushed_at = holding.runtime.cycle_count
@@ -355,7 +355,7 @@ def test_in_fault_an_arm_the_drives_cannot_hold_goes_onto_its_brakes(holding):
 
 
 def test_internal_error_in_a_cycle_faults_instead_of_crashing(holding):
-    holding.loop.on_error(RuntimeError("boom"))
+    holding.runtime.fault("internal_error", "cycle raised RuntimeError('boom')")
     [event] = faults(holding)
     assert "boom" in event.reason
 
@@ -381,6 +381,22 @@ def test_free_drive_holds_against_gravity_and_follows_a_push(holding):
     assert abs(trace.velocity[-1][0]) < 0.01
     assert not faults(holding)
     assert holding.set_mode("hold") is Mode.HOLD
+
+
+def test_free_drive_torque_is_gravity_minus_damping_clamped_to_the_effort_limits(holding):
+    holding.set_mode("free_drive")
+    holding.bus.apply_external_torque(1, 30.0)
+    dof, arm = holding.limits.dof, holding.runtime.arm
+    damping = holding.runtime.arm["settings"]["damping"][0][:dof]
+    for effort in (holding.limits.max_effort, np.full(dof, 2.0)):
+        arm["settings"]["max_effort"][0][:dof] = effort
+        holding.step(50)
+        state = holding.state()
+        gravity = holding.dynamics.gravity(state.position, np.zeros(dof))
+        expected = np.clip(gravity - damping * state.velocity, -effort, effort)
+        assert np.any(state.velocity != 0.0)
+        np.testing.assert_allclose(arm["io_torque_offset"][0][:dof], expected, rtol=0, atol=1e-9)
+    assert np.any(np.abs(expected) == 2.0), "the smaller limit clamps"
 
 
 def test_free_drive_needs_standstill_to_leave_to_idle(holding):
@@ -412,7 +428,7 @@ def test_steady_state_cycles_keep_their_buffers_and_do_not_grow_memory(holding):
     holding.execute_trajectory(quintic_trajectory([(8.0, [0.5] * 6)]))
     holding.step(200)
     runtime = holding.runtime
-    buffers = [id(a) for a in (runtime._work, runtime._scratch, holding.bus.io.target_position)]
+    buffers = [id(a) for a in (runtime.arm, runtime.work, holding.bus.io.target_position)]
     tracemalloc.start()
     try:
         holding.step(100)
@@ -421,7 +437,7 @@ def test_steady_state_cycles_keep_their_buffers_and_do_not_grow_memory(holding):
         after, _ = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert [id(a) for a in (runtime._work, runtime._scratch, holding.bus.io.target_position)] == buffers
+    assert [id(a) for a in (runtime.arm, runtime.work, holding.bus.io.target_position)] == buffers
     assert after - before < 2048, after - before
 
 
@@ -450,7 +466,7 @@ def test_a_motion_that_commands_nan_faults_and_stops_from_the_measured_state(hol
     coefficients[0, 1, 2] = np.nan
     motion = PolynomialMotion(np.array([0.0, 1.0]), coefficients, np.zeros((3, dof)))
     handle = CommandHandle("nan")
-    holding.runtime.inbox.append(StartMotion(motion, holding.runtime.basis, None, TrajectoryTolerances(), handle))
+    holding.runtime.submit(StartMotion(motion, holding.runtime.basis, None, TrajectoryTolerances(), handle))
     trace = step_recording(holding, 2_000)
     assert [event.cause for event in faults(holding)] == ["invalid_command"]
     assert np.isfinite(np.array(trace.command)).all()

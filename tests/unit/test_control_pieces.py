@@ -9,7 +9,7 @@ import pinocchio as pin
 import pytest
 
 from plem.control.commands import CommandHandle
-from plem.control.free_drive import FreeDriveController, default_damping
+from plem.control.free_drive import default_damping
 from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
 from plem.control.modes import REQUESTABLE, Mode, check_transition
@@ -156,19 +156,6 @@ def test_urdf_without_the_joints_is_a_config_error(indy7):
 
 
 # -- free drive ------------------------------------------------------------------------------------
-
-def test_free_drive_torque_is_gravity_minus_damping_clamped(indy7):
-    xml, limits = indy7
-    arm = ArmDynamics(xml, JOINTS)
-    controller = FreeDriveController(arm, limits, 0.001)
-    q = np.array([0.0, 0.9, -0.5, 0.0, 0.4, 0.0])
-    v = np.array([0.0, 0.5, 0.0, 0.0, 0.0, 0.0])
-    torque = controller.update(q, v, np.zeros(6))
-    expected = arm.gravity(q, np.zeros(6)) - controller.damping * v
-    assert np.allclose(torque, expected)
-    fast = controller.update(q, np.full(6, 1e6), np.zeros(6))
-    assert np.all(np.abs(fast) <= limits.max_effort)
-
 
 def test_damping_is_capped_by_joint_inertia_for_stability(indy7):
     xml, limits = indy7

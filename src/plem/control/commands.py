@@ -1,7 +1,8 @@
 """Commands that travel from callers to the loop, and the handles callers wait on.
 
-A caller validates and plans a command in its own thread, then puts it in the loop's inbox. The loop
-accepts or rejects it at the start of a cycle and later finishes it; the handle carries both answers.
+A caller validates and plans a command in its own thread, then hands it to the compiled core's command ring
+(`ArmRuntime.submit`). The core accepts or rejects it at the start of a cycle and later finishes it; the handle
+carries both answers.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from plem.control.modes import Mode
-from plem.control.motion import Motion
+from plem.control.polynomial import PolynomialMotion
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
 
@@ -103,16 +104,17 @@ class CommandHandle:
 
 @dataclass(frozen=True)
 class PlanBasis:
-    """The loop's motion state a plan starts from; replaced (never mutated) whenever it changes.
+    """The loop's motion state a plan starts from, as the core published it.
 
-    A plan is valid only while this very object is the loop's basis, so a stale plan is detected by
-    identity. Holding: the plan starts at `hold_position` at rest. Moving: it starts at `motion`'s
-    state at the activation cycle the caller picked.
+    A plan is valid only while the core's basis still has this `generation` (it changes whenever the basis
+    does), so a stale plan is refused. Holding: the plan starts at `hold_position` at rest. Moving: it starts
+    at `motion`'s state at the activation cycle the caller picked.
     """
 
     hold_position: np.ndarray
-    motion: Motion | None = None
+    motion: PolynomialMotion | None = None
     motion_start_cycle: int = 0
+    generation: int = 0
 
 
 @dataclass
@@ -125,15 +127,21 @@ class SetMode:
 
 @dataclass
 class StartMotion:
-    """Run a planned motion from `basis`, at `activation_cycle` when it preempts a running one."""
+    """Run a planned motion from `basis`, at `activation_cycle` when it preempts a running one.
 
-    motion: Motion
+    The motion goes into a free slot of the robot's own motion slab, unless `slot` names the slab slot it was
+    already written to (with its `segments`), as the RT driver's command service does.
+    """
+
+    motion: PolynomialMotion
     basis: PlanBasis
     activation_cycle: int | None
     tolerances: TrajectoryTolerances
     handle: CommandHandle
     label: str = "motion"
     note: str = ""  # how the motion differs from what was asked (re-timed to the limits), for the result
+    slot: int | None = None
+    segments: int = 0
 
 
 @dataclass
@@ -153,20 +161,6 @@ class ResetFault:
 
 #: Everything the loop's inbox carries.
 Command = SetMode | StartMotion | StopMotion | ResetFault
-
-
-@dataclass
-class ActiveMotion:
-    """The motion the loop is executing, with what it needs to judge the result."""
-
-    motion: Motion
-    start_cycle: int
-    tolerances: TrajectoryTolerances
-    handle: CommandHandle | None
-    label: str
-    note: str = ""
-    settle_deadline_cycle: int | None = None
-    ended: bool = False
 
 
 def motion_error(result: TrajectoryResult) -> PlemError | None:

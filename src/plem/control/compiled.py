@@ -74,14 +74,71 @@ SIM = _checked("plem_sim", [
     ("spike", "<i8", J), ("stuck", "u1", J), ("latched", "u1", J), ("stopping", "u1", J), ("pad1", "u1", J),
     ("state", "<i4", J), ("statusword", "<u2", J), ("error_code", "<u2", J), ("controlword", "<u2", J),
     ("pad2", "<u2", J),
-    ("lost", "<i4"), ("pad3", "<i4"), ("lost_reads", "<i8"), ("lost_frames", "<i8"),
+    ("lost", "<i4"), ("answered", "<i4"), ("lost_reads", "<i8"), ("lost_frames", "<i8"),
     ("io_target_position", "<i8", J), ("io_velocity_offset", "<i8", J), ("io_torque_offset", "<f8", J),
     ("io_mode", "i1", J), ("pad4", "u1", J),
     ("io_position", "<i8", J), ("io_velocity", "<i8", J), ("io_torque", "<f8", J),
     ("io_statusword", "<u2", J), ("io_error_code", "<u2", J),
-    ("power", np.dtype(_POWER_FIELDS, align=True)), ("scratch", "<f8", (8, J)),
-    ("model", np.dtype(_MODEL_FIELDS, align=True)),
+    ("power", POWER), ("scratch", "<f8", (8, J)), ("model", MODEL),
 ])
+
+
+_SETTINGS_FIELDS = [
+    ("dof", "<i4"), ("bus", "<i4"), ("dt", "<f8"), ("tracking_tolerance", "<f8"), ("velocity_margin", "<f8"),
+    ("position_margin", "<f8"), ("standstill_velocity", "<f8"), ("command_tolerance", "<f8"),
+    ("enable_timeout_cycles", "<i8"), ("counts_per_radian", "<f8", J), ("offsets", "<i8", J),
+    *((name, "<f8", J) for name in ("min_position", "max_position", "max_velocity", "max_acceleration", "max_jerk",
+                                    "max_effort", "damping")),
+]
+_BASIS_FIELDS = [("sequence", "<u8"), ("generation", "<u8"), ("slot", "<i4"), ("segments", "<i4"),
+                 ("start_cycle", "<i8"), ("hold_position", "<f8", J)]
+_RING_FIELDS = [("head", "<u8"), ("pad0", "<u8", 7), ("tail", "<u8"), ("pad1", "<u8", 7), ("dropped", "<u8"),
+                ("pad2", "<u8", 7)]
+_COMMAND_FIELDS = [("token", "<u8"), ("op", "<i4"), ("mode", "<i4"), ("slot", "<i4"), ("segments", "<i4"),
+                   ("basis", "<u8"), ("activation", "<i8"), ("goal", "<u8"), ("has_path", "<i4"), ("has_goal", "<i4"),
+                   ("goal_time", "<f8"), ("stopped_velocity", "<f8"), ("path", "<f8", J), ("goal_tolerance", "<f8", J)]
+_OUTCOME_FIELDS = [("token", "<u8"), ("cycle", "<i8"), ("stage", "<i4"), ("answer", "<i4"), ("mode", "<i4"),
+                   ("detail", "<i4"), ("joint", "<i4"), ("pad", "<i4"), ("values", "<f8", 2)]
+_EVENT_FIELDS = [("cycle", "<i8"), ("monotonic_ns", "<i8"), ("token", "<u8"), ("kind", "<i4"), ("cause", "<i4"),
+                 ("mode", "<i4"), ("previous_mode", "<i4"), ("joint", "<i4"), ("detail", "<i4"), ("values", "<f8", 4)]
+#: The core's enumerations and sizes by their C names (PLEM_HOLD, PLEM_ANSWER_STALE, ...).
+CONSTANTS: dict[str, int] = dict(_LAYOUT["constants"])
+SETTINGS = _checked("plem_settings", _SETTINGS_FIELDS)
+BASIS = _checked("plem_basis", _BASIS_FIELDS)
+RING = _checked("plem_ring", _RING_FIELDS)
+COMMAND = _checked("plem_command", _COMMAND_FIELDS)
+OUTCOME = _checked("plem_outcome", _OUTCOME_FIELDS)
+EVENT = _checked("plem_event", _EVENT_FIELDS)
+ARM = _checked("plem_arm", [
+    ("settings", SETTINGS), ("model", MODEL),
+    ("io_position", "<i8", J), ("io_velocity", "<i8", J), ("io_torque", "<f8", J), ("io_statusword", "<u2", J),
+    ("io_error_code", "<u2", J), ("io_target_position", "<i8", J), ("io_velocity_offset", "<i8", J),
+    ("io_torque_offset", "<f8", J), ("io_mode", "i1", J), ("pad0", "u1", J), ("io_answered", "<i4"),
+    ("power_wanted", "<i4"), ("power_requests", "<u8"), ("power_resets", "<u8"), ("power", POWER),
+    ("cycle", "<i8"), ("mode", "<i4"), ("fault_cause", "<i4"), ("communication_ok", "<i4"), ("have_previous", "<i4"),
+    ("braking", "<i4"), ("pad1", "<i4"), ("work", "<f8", (6, J)), ("previous_position", "<f8", J),
+    ("previous_acceleration", "<f8", J), ("torque", "<f8", J),
+    ("active", "<i4"), ("active_ended", "<i4"), ("active_slot", "<i4"), ("active_segments", "<i4"),
+    ("active_token", "<u8"), ("active_start_cycle", "<i8"), ("settle_deadline", "<i8"), ("active_cursor", "<i4"),
+    ("active_has_path", "<i4"), ("active_has_goal", "<i4"), ("pad2", "<i4"), ("active_goal_time", "<f8"),
+    ("active_stopped_velocity", "<f8"), ("active_path", "<f8", J), ("active_goal", "<f8", J),
+    ("active_final", "<f8", (3, J)),
+    ("pending", "<i4"), ("pending_target", "<i4"), ("pending_deadline", "<i8"), ("pending_token", "<u8"),
+    ("pending_enable_sent", "<i4"), ("pad3", "<i4"),
+    ("stop_knots", "<f8", STOP_SEGMENTS + 1), ("stop_coefficients", "<f8", STOP_SEGMENTS * ORDER * J),
+    ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS),
+    ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),
+    ("outcomes_index", RING), ("outcomes", OUTCOME, CONSTANTS["PLEM_OUTCOME_SLOTS"]),
+    ("events_index", RING), ("events", EVENT, CONSTANTS["PLEM_EVENT_SLOTS"]),
+])
+
+SERIES = _checked("plem_series", [("count", "<i8"), ("total_ns", "<i8"), ("min_ns", "<i8"), ("max_ns", "<i8"),
+                                  ("histogram", "<i8", CONSTANTS["PLEM_HISTOGRAM_BINS"]),
+                                  ("window", "<i8", CONSTANTS["PLEM_WINDOW"])])
+STATS = _checked("plem_stats", [("cycles", "<i8"), ("overruns", "<i8"), ("missed_periods", "<i8"),
+                                ("consecutive_overruns", "<i8"), ("policy", "<i4"), ("priority", "<i4"),
+                                ("sched_error", "<i4"), ("affinity_error", "<i4"), ("cpus", "<u8"),
+                                ("latency", SERIES), ("compute", SERIES)])
 
 
 def new(dtype: np.dtype[Any]) -> np.ndarray:
@@ -93,3 +150,11 @@ def joints(structure: np.ndarray, field: str, dof: int) -> np.ndarray:
     """A writable view of the first `dof` entries of a per-joint field (e.g. a simulated arm's 'q')."""
     view: np.ndarray = structure[field][0][:dof]
     return view
+
+
+def describe() -> str:
+    """The core and its build in one line, for the launch summary and `plem doctor`."""
+    build: dict[str, Any] = core.build()
+    standard = {201112: "C11", 201710: "C17"}.get(int(build["standard"]), f"C ({build['standard']})")
+    sanitized = ", AddressSanitizer" if build["sanitized"] else ""
+    return f"{standard}, {build['compiler']}{sanitized}, up to {build['max_joints']} joints"

@@ -1,7 +1,7 @@
 """Free drive: the drives apply gravity compensation plus damping, so a person can guide the arm.
 
-The torque is g(q) − D·v, clamped to each joint's effort limit. Damping makes the arm come to rest when
-the push stops, instead of drifting on with the momentum it was given.
+The torque is g(q) − D·v, clamped to each joint's effort limit, computed each cycle by the compiled core.
+Damping makes the arm come to rest when the push stops, instead of drifting on with the momentum it was given.
 """
 
 from __future__ import annotations
@@ -29,20 +29,10 @@ def default_damping(dynamics: ArmDynamics, limits: ArmLimits, cycle_time_s: floa
 
 
 class FreeDriveController:
-    """Computes the free-drive torque into a caller-owned array, allocating nothing per cycle."""
+    """What free drive needs of the arm: its dynamics (the core's gravity model comes from them) and damping."""
 
     def __init__(self, dynamics: ArmDynamics, limits: ArmLimits, cycle_time_s: float,
                  damping: np.ndarray | None = None) -> None:
         self.dynamics = dynamics
         self.damping = (default_damping(dynamics, limits, cycle_time_s) if damping is None
                         else np.asarray(damping, dtype=float))
-        self._effort = limits.max_effort
-        self._negative_effort = -limits.max_effort
-        self._damping_torque = np.zeros(limits.dof)
-
-    def update(self, position: np.ndarray, velocity: np.ndarray, torque_out: np.ndarray) -> np.ndarray:
-        """torque_out = clamp(g(q) − D·v) within the effort limits."""
-        self.dynamics.gravity(position, torque_out)
-        np.multiply(self.damping, velocity, out=self._damping_torque)
-        np.subtract(torque_out, self._damping_torque, out=torque_out)
-        return np.clip(torque_out, self._negative_effort, self._effort, out=torque_out)

@@ -81,19 +81,21 @@ class RealtimeContext:
     """Applies the real-time settings on `__enter__` and restores the machine on `__exit__`."""
 
     def __init__(self, priority: int, cpus: tuple[int, ...] | None = None, *, lock_memory: bool = True,
-                 hold_dma_latency: bool = True) -> None:
+                 hold_dma_latency: bool = True, schedule_caller: bool = True) -> None:
         self.priority = priority
         self.cpus = cpus
         self.lock_memory = lock_memory
         self.hold_dma_latency = hold_dma_latency
+        self.schedule_caller = schedule_caller  # False: a thread of the compiled core schedules itself
         self.report = RealtimeReport()
         self._dma_fd: int | None = None
         self._previous_policy: tuple[int, os.sched_param] | None = None
         self._gc_was_enabled = False
 
     def __enter__(self) -> RealtimeReport:
-        self._set_scheduler()
-        self._set_affinity()
+        if self.schedule_caller:
+            self._set_scheduler()
+            self._set_affinity()
         self._lock_memory()
         self._hold_dma_latency()
         self._gc_was_enabled = gc.isenabled()

@@ -2,7 +2,8 @@
 
 Recording a cycle is a few index operations on preallocated arrays. A fixed-bin histogram (1 µs bins)
 covers the whole run, like cyclictest's; a rolling window of the last samples gives live figures.
-Percentiles are computed only when someone asks, outside the loop.
+Percentiles are computed only when someone asks, outside the loop. `TimingStats` is kept by a loop written
+in Python; `CoreTimingStats` reads the same figures from the compiled core's real-time thread (`plem_stats`).
 """
 
 from __future__ import annotations
@@ -61,21 +62,58 @@ class TimingSeries:
 
     def recent(self) -> TimingSummary:
         """Figures over the rolling window, from the raw samples."""
-        filled = min(self.count, self.window.shape[0])
-        if filled == 0:
-            return TimingSummary.empty()
-        values = self.window[:filled] / 1e3
-        p50, p99, p999 = np.percentile(values, (50, 99, 99.9))
-        return TimingSummary(filled, float(values.min()), float(values.mean()), float(p50), float(p99),
-                             float(p999), float(values.max()))
+        return _recent(self.window, self.count)
 
     def whole_run(self) -> TimingSummary:
         """Figures over every sample so far; percentiles to 1 µs bins."""
-        if self.count == 0:
-            return TimingSummary.empty()
-        p50, p99, p999 = _percentiles(self.histogram, self.count)
-        return TimingSummary(self.count, self.min_ns / 1e3, self.total_ns / self.count / 1e3, p50, p99, p999,
-                             self.max_ns / 1e3)
+        return _whole_run(self.histogram, self.count, self.min_ns, self.total_ns, self.max_ns)
+
+
+def _recent(window: np.ndarray, count: int) -> TimingSummary:
+    filled = min(count, window.shape[0])
+    if filled == 0:
+        return TimingSummary.empty()
+    values = window[:filled] / 1e3
+    p50, p99, p999 = np.percentile(values, (50, 99, 99.9))
+    return TimingSummary(filled, float(values.min()), float(values.mean()), float(p50), float(p99), float(p999),
+                         float(values.max()))
+
+
+def _whole_run(histogram: np.ndarray, count: int, min_ns: int, total_ns: int, max_ns: int) -> TimingSummary:
+    if count == 0:
+        return TimingSummary.empty()
+    p50, p99, p999 = _percentiles(histogram, count)
+    return TimingSummary(count, min_ns / 1e3, total_ns / count / 1e3, p50, p99, p999, max_ns / 1e3)
+
+
+class CoreSeries:
+    """One timed quantity as the core's real-time thread keeps it (`plem_series`), read in place."""
+
+    def __init__(self, series: np.ndarray) -> None:
+        self._series = series
+        self.histogram: np.ndarray = series["histogram"]
+        self.window: np.ndarray = series["window"]
+
+    @property
+    def count(self) -> int:
+        """Samples so far."""
+        return int(self._series["count"])
+
+    @property
+    def max_ns(self) -> int:
+        """The largest sample so far."""
+        return int(self._series["max_ns"])
+
+    def recent(self) -> TimingSummary:
+        """Figures over the rolling window, from the raw samples."""
+        return _recent(self.window.copy(), self.count)
+
+    def whole_run(self) -> TimingSummary:
+        """Figures over every sample so far; percentiles to 1 µs bins."""
+        series = self._series
+        count = self.count
+        return _whole_run(self.histogram.copy(), count, int(series["min_ns"]), int(series["total_ns"]),
+                          int(series["max_ns"]))
 
 
 def _percentiles(histogram: np.ndarray, count: int) -> tuple[float, float, float]:
@@ -127,6 +165,43 @@ class TimingStats:
 
     def summary(self) -> dict[str, object]:
         """Rolling and whole-run figures, for status lines, the state block and benchmarks."""
-        return {"cycles": self.cycles, "overruns": self.overruns, "missed_periods": self.missed_periods,
-                "latency": self.latency.whole_run(), "compute": self.compute.whole_run(),
-                "latency_recent": self.latency.recent(), "compute_recent": self.compute.recent()}
+        return _summary(self)
+
+
+class CoreTimingStats:
+    """Timing of every cycle of the core's real-time thread (`plem_stats`), read in place."""
+
+    def __init__(self, stats: np.ndarray) -> None:
+        self._stats = stats
+        self.latency = CoreSeries(stats["latency"])
+        self.compute = CoreSeries(stats["compute"])
+
+    @property
+    def cycles(self) -> int:
+        """Cycles run by the thread."""
+        return int(self._stats["cycles"])
+
+    @property
+    def overruns(self) -> int:
+        """Cycles that ended after the next deadline."""
+        return int(self._stats["overruns"])
+
+    @property
+    def missed_periods(self) -> int:
+        """Deadlines skipped after overruns."""
+        return int(self._stats["missed_periods"])
+
+    @property
+    def consecutive_overruns(self) -> int:
+        """Overruns in a row up to the last cycle."""
+        return int(self._stats["consecutive_overruns"])
+
+    def summary(self) -> dict[str, object]:
+        """Rolling and whole-run figures, for status lines, the state block and benchmarks."""
+        return _summary(self)
+
+
+def _summary(stats: TimingStats | CoreTimingStats) -> dict[str, object]:
+    return {"cycles": stats.cycles, "overruns": stats.overruns, "missed_periods": stats.missed_periods,
+            "latency": stats.latency.whole_run(), "compute": stats.compute.whole_run(),
+            "latency_recent": stats.latency.recent(), "compute_recent": stats.compute.recent()}

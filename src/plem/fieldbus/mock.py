@@ -121,7 +121,27 @@ class MockBus:
         self._sim = self._new_sim(_joint_array("initial_positions", 0.0 if initial_positions is None
                                                else initial_positions, dof))
         self.io = BusIO(dof)
-        self.status = BusStatus()
+        self._status = BusStatus()
+
+    @property
+    def status(self) -> BusStatus:
+        """Health of the exchange, from the simulated arm (whoever stepped it: this bus or the compiled core)."""
+        status, sim = self._status, self._sim[0]
+        answered = bool(sim["answered"])
+        status.communication_ok = answered
+        status.working_counter = status.expected_working_counter if answered else 0
+        status.lost_frames = int(sim["lost_frames"])
+        status.detail = "" if answered else "simulated communication loss: no drive answered"
+        return status
+
+    @status.setter
+    def status(self, status: BusStatus) -> None:
+        self._status = status
+
+    @property
+    def simulated_arm(self) -> np.ndarray | None:
+        """The compiled core's structure of this simulated arm once open, for a core that steps it itself."""
+        return self._sim if self._open else None
 
     def _new_sim(self, positions: np.ndarray) -> np.ndarray:
         """A simulated arm at rest at `positions` with every drive switched off, its master asking for nothing."""
@@ -136,6 +156,7 @@ class MockBus:
         self._view["statusword"][:] = STATUSWORD[DriveState.SWITCH_ON_DISABLED]
         self._view["io_mode"][:] = OperationMode.CYCLIC_SYNC_POSITION
         sim["lost_reads"] = -1
+        sim["answered"] = 1
         self._power = sim["power"]
         compiled.core.power_init(self._power, n)
         return sim
@@ -193,19 +214,8 @@ class MockBus:
         """Encoder counts, torques, statuswords and error codes into `io`; False while communication is lost."""
         if not self._open:
             raise self._not_open("read")
-        status = self.status
-        answered = compiled.core.sim_read(self._sim)
-        status.lost_frames = int(self._sim["lost_frames"][0])
-        if not answered:
-            status.communication_ok = False
-            status.working_counter = 0
-            status.detail = "simulated communication loss: no drive answered"
-            return False
-        if not status.communication_ok:
-            status.communication_ok = True
-            status.detail = ""
-        status.working_counter = status.expected_working_counter
-        return True
+        answered: bool = compiled.core.sim_read(self._sim)
+        return answered
 
     def write(self) -> None:
         """Deliver this cycle's controlwords and commands, then advance the arm by one cycle time."""

@@ -2,8 +2,9 @@
 
 A few fixed slots, each holding one piecewise-polynomial motion (segment count, final state, knots,
 coefficients) as float64. The command service writes a motion into a slot the driver has released and
-then names the slot in its start record; the driver samples it in place (`view` copies nothing), so
-handing over a 5000-point trajectory costs the RT process the same few microseconds as a short one.
+then names the slot in its start record; the driver's core samples it in place (`view` copies nothing), so
+handing over a 5000-point trajectory costs the RT process the same few microseconds as a short one. The first
+`shared_slots` are the command service's; the rest belong to motions planned in the driver's own process.
 """
 
 from __future__ import annotations
@@ -17,11 +18,13 @@ from plem.ipc.request_bounds import MAX_POINTS
 from plem.ipc.segment import SegmentError, SharedSegment
 
 MAGIC = b"PLEMMOTN"
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 2
 HEADER_BYTES = 64
-_HEADER = struct.Struct("<8sIIII")   # magic, layout version, dof, slots, capacity (segments per slot)
-#: Slots: the running motion, the next one, and one being written.
+_HEADER = struct.Struct("<8sIIIII")  # magic, layout version, dof, slots, capacity (segments per slot), shared slots
+#: Slots of the command service: the running motion, the next one, and one being written.
 SLOTS = 3
+#: Slots of motions planned in the RT driver's own process (its Robot's methods).
+LOCAL_SLOTS = 2
 #: Segments per slot: every point of the largest trajectory plus the segment from the start state.
 CAPACITY = MAX_POINTS + 1
 
@@ -38,35 +41,55 @@ def _slot_values(dof: int, capacity: int) -> int:
 class MotionSlab:
     """The slab mapped by the driver (`create`) or the command service (`attach`)."""
 
-    def __init__(self, segment: SharedSegment, dof: int, slots: int, capacity: int) -> None:
-        self.name = segment.name
+    def __init__(self, segment: SharedSegment | None, dof: int, slots: int, capacity: int, shared_slots: int,
+                 memory: np.ndarray | None = None) -> None:
+        self.name = segment.name if segment is not None else "(private)"
         self.dof = dof
         self.slots = slots
         self.capacity = capacity
+        self.shared_slots = shared_slots
         self._segment = segment
-        self._values = np.ndarray((slots, _slot_values(dof, capacity)), np.float64, segment.buffer, HEADER_BYTES)
+        buffer: memoryview | np.ndarray | None = segment.buffer if segment is not None else memory
+        if buffer is None:
+            raise ValueError("a motion slab needs a shared segment or memory of its own")
+        #: The whole slab, header included, as the compiled core reads it.
+        self.buffer = buffer
+        self._values = np.ndarray((slots, _slot_values(dof, capacity)), np.float64, self.buffer, HEADER_BYTES)
+
+    @property
+    def local_slots(self) -> range:
+        """The slots of motions planned in the process that owns the loop."""
+        return range(self.shared_slots, self.slots)
 
     @classmethod
-    def create(cls, name: str, dof: int, slots: int = SLOTS, capacity: int = CAPACITY) -> MotionSlab:
+    def private(cls, dof: int, slots: int = SLOTS, capacity: int = CAPACITY) -> MotionSlab:
+        """A slab in this process's own memory, every slot local, for a robot whose loop runs here."""
+        memory = np.zeros(HEADER_BYTES + slots * _slot_values(dof, capacity) * 8, dtype=np.uint8)
+        memory[:_HEADER.size] = np.frombuffer(_HEADER.pack(MAGIC, LAYOUT_VERSION, dof, slots, capacity, 0), np.uint8)
+        return cls(None, dof, slots, capacity, 0, memory)
+
+    @classmethod
+    def create(cls, name: str, dof: int, slots: int = SLOTS, capacity: int = CAPACITY,
+               local_slots: int = LOCAL_SLOTS) -> MotionSlab:
         """A new slab, owner-only: only the driver and its command service ever map it."""
-        size = HEADER_BYTES + slots * _slot_values(dof, capacity) * 8
+        size = HEADER_BYTES + (slots + local_slots) * _slot_values(dof, capacity) * 8
         segment = SharedSegment.create(name, size, 0o600)
-        segment.buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, dof, slots, capacity)
-        return cls(segment, dof, slots, capacity)
+        segment.buffer[:_HEADER.size] = _HEADER.pack(MAGIC, LAYOUT_VERSION, dof, slots + local_slots, capacity, slots)
+        return cls(segment, dof, slots + local_slots, capacity, slots)
 
     @classmethod
     def attach(cls, name: str) -> MotionSlab:
         """Map an existing slab writable (the command service)."""
         segment = SharedSegment.open(name, writable=True)
-        magic, version, dof, slots, capacity = _HEADER.unpack_from(segment.buffer)
-        if magic != MAGIC or version != LAYOUT_VERSION or not dof or not slots or \
+        magic, version, dof, slots, capacity, shared = _HEADER.unpack_from(segment.buffer)
+        if magic != MAGIC or version != LAYOUT_VERSION or not dof or not shared or shared > slots or \
                 segment.size < HEADER_BYTES + slots * _slot_values(dof, capacity) * 8:
             segment.close()
             raise MotionSlabError(f"{name} is not a plem motion slab of this version",
                                   what=f"magic {MAGIC!r}, layout version {LAYOUT_VERSION} and a matching size",
                                   why=f"found magic {magic!r}, version {version}, {segment.size} bytes",
                                   how="run the same plem version for the driver and its command service")
-        return cls(segment, dof, slots, capacity)
+        return cls(segment, dof, slots, capacity, shared)
 
     def _parts(self, slot: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         row, dof, capacity = self._values[slot], self.dof, self.capacity
@@ -103,10 +126,12 @@ class MotionSlab:
 
     def close(self) -> None:
         """Drop the views, then unmap."""
-        del self._values
-        self._segment.close()
+        del self._values, self.buffer
+        if self._segment is not None:
+            self._segment.close()
 
     def remove(self) -> None:
         """Unmap and unlink (the driver's clean exit)."""
         self.close()
-        SharedSegment.unlink(self.name)
+        if self._segment is not None:
+            SharedSegment.unlink(self.name)

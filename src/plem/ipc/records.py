@@ -8,14 +8,13 @@ block's joint rows. Events and statistics are rare and travel as JSON.
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
-from plem.control.state import ROWS, JointState, StateBlock
+from plem.control.state import ROWS, JointState
 
 RAW_SCALARS = ("cycle", "monotonic_ns", "mode", "faulted", "drives_enabled", "latency_ns", "compute_ns")
 
@@ -45,31 +44,6 @@ class RawSample(JointState):
         cycle, stamp, mode, faulted, enabled, latency, compute = raw_scalars(record)
         return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), position, velocity, effort,
                    command_position, command_velocity, command_acceleration, latency, compute)
-
-
-class RawRecorder:
-    """Fills the rt_raw record from the state block the cycle just published; called by the loop."""
-
-    def __init__(self, block: StateBlock, write: Callable[[np.ndarray], object]) -> None:
-        self._block = block
-        self._write = write
-        self.record = np.zeros(raw_record_length(block.dof))
-        self._scalars = self.record[:len(RAW_SCALARS)]
-        self._rows = self.record[len(RAW_SCALARS):].reshape(len(ROWS), block.dof)
-
-    def __call__(self, latency_ns: int, compute_ns: int) -> None:
-        """Write this cycle's record, with its wake-up latency and the previous cycle's compute time."""
-        header = self._block.header
-        scalars = self._scalars
-        scalars[0] = header[1]
-        scalars[1] = header[2]
-        scalars[2] = header[3]
-        scalars[3] = header[4]
-        scalars[4] = header[5]
-        scalars[5] = latency_ns
-        scalars[6] = compute_ns
-        np.copyto(self._rows, self._block.values)
-        self._write(self.record)
 
 
 def event_record(event: Event, max_bytes: int = 1024) -> bytes:

@@ -92,6 +92,11 @@ class SlotRing:
         return cls(segment, slot_bytes, slots, bool(flags & BOUNDED))
 
     @property
+    def buffer(self) -> memoryview:
+        """The whole ring, header included, as the compiled core writes rt_raw records into it."""
+        return self._segment.buffer
+
+    @property
     def writable(self) -> bool:
         """True when this process mapped the ring for writing."""
         return self._segment.writable

@@ -109,7 +109,7 @@ class CommandService:
         if channels.motions is None:
             raise ValueError("the command service needs the motion slab: channels of RobotChannels.attach_service")
         self.slab = channels.motions
-        self.free_slots = list(range(self.slab.slots))
+        self.free_slots = list(range(self.slab.shared_slots))
         self.counters = Counters()
         self._tokens = itertools.count(1)
         self._commands: dict[int, _Command] = {}
@@ -309,7 +309,7 @@ class CommandService:
     def _take_slot(self) -> int:
         self._until(lambda: bool(self.free_slots), DriverSilent(
             "no motion slot was released", what="the driver to release a finished motion",
-            why=f"all {self.slab.slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s",
+            why=f"all {self.slab.shared_slots} slots stayed in use for {DRIVER_TIMEOUT_S:g} s",
             how="stop the robot and retry"))
         return self.free_slots.pop(0)
 

@@ -138,11 +138,11 @@ class DriverService:
     def _prepare(self, token: int, lead_s: float) -> None:
         """Tell the command service where a new motion starts: the held position, or the running motion ahead."""
         runtime = self.robot.runtime
-        basis = runtime.basis
         dof = self.robot.limits.dof
+        basis = runtime.basis
         if basis.motion is None:
             activation, start = None, np.stack([basis.hold_position, np.zeros(dof), np.zeros(dof)])
-        else:
+        else:   # a start that no longer matches when the motion changed meanwhile is refused as stale, then replanned
             activation = runtime.cycle_count + max(2, math.ceil(lead_s / runtime.dt))
             start = np.stack(basis.motion.state_at((activation - basis.motion_start_cycle) * runtime.dt))
         self._prepared[token] = (basis, activation, start)
@@ -170,9 +170,9 @@ class DriverService:
         note = str(command.get("note", ""))[:NOTE_CHARACTERS]
         handle = CommandHandle(label)
         self._pending[token] = _Pending(handle, slot)
-        self.robot.runtime.inbox.append(StartMotion(motion, basis, activation,
-                                                    TrajectoryTolerances(**tolerances) if tolerances
-                                                    else TrajectoryTolerances(), handle, label, note))
+        self.robot.runtime.submit(StartMotion(motion, basis, activation,
+                                              TrajectoryTolerances(**tolerances) if tolerances
+                                              else TrajectoryTolerances(), handle, label, note, slot, motion.segments))
 
     def _answer_pending(self) -> None:
         for token, pending in list(self._pending.items()):

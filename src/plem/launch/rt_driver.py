@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from plem.control import compiled
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.realtime import keep_threads_scheduled
@@ -25,7 +26,7 @@ from plem.errors import PlemError
 from plem.fieldbus.bus import IBus
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import socket_path
-from plem.ipc.records import RawRecorder
+from plem.ipc.motion_slab import MotionSlab
 from plem.launch.command_process import CommandServiceProcess
 from plem.launch.component import announce, run_component
 from plem.launch.driver_service import DriverService
@@ -57,8 +58,8 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
     try:
         robot = (Robot.builder(plan.config).with_bus(_bus(plan)).with_description(str(plan.package), plan.urdf_file)
                  .with_loop_settings(max_consecutive_overruns=plan.max_consecutive_overruns)
-                 .with_state_block(state_block)
-                 .with_cycle_observer(lambda block: RawRecorder(block, channels[0].rings["rt_raw"].write_values))
+                 .with_state_block(state_block).with_motion_slab(lambda: _slab(channels[0]))
+                 .with_raw_ring(lambda: channels[0].rings["rt_raw"])
                  .build())
     except BaseException:
         for created in channels:
@@ -66,6 +67,12 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
         raise
     channels[0].publish_events(robot.events)
     return robot, channels[0]
+
+
+def _slab(channels: RobotChannels) -> MotionSlab:
+    if channels.motions is None:
+        raise ValueError("the driver's channels have no motion slab (RobotChannels.create makes one)")
+    return channels.motions
 
 
 @dataclass
@@ -125,6 +132,7 @@ def serve(plan: RobotPlan, stop: threading.Event, announce: Callable[[dict[str, 
         announce({"ready": True, "pid": os.getpid(), "robot_id": plan.robot_id, "dof": plan.config.dof,
                   "joint_names": list(robot.joint_names), "cycle_time_us": plan.config.cycle_time,
                   "policy": report.policy, "priority": report.priority, "memory_locked": report.memory_locked,
+                  "core": compiled.describe(), "loop": "python" if robot.runtime.python_bus else "core",
                   "warnings": report.warnings, "shared_memory": driver.channels.names,
                   "command_socket": str(socket_path(plan.robot_id)), "command_service_pid": driver.commands.pid})
         while not stop.wait(0.2):

@@ -186,6 +186,9 @@ class Supervisor:
                         else f"{ready['policy']} (real-time priority {config.rt_priority} refused)")
             self.say(f"  rt_driver     running, pid {ready['pid']}, {priority}, memory locked: "
                      f"{'yes' if ready['memory_locked'] else 'no'}")
+            where = ("its own real-time thread" if ready["loop"] == "core"
+                     else "a Python thread, as the bus is written in Python (no real-time guarantee)")
+            self.say(f"  core          compiled ({ready['core']}); the cycle runs on {where}")
             origin = ("max_consecutive_overruns:=" + plan.arguments["max_consecutive_overruns"]
                       if plan.arguments.get("max_consecutive_overruns")
                       else f"the default on bus {plan.bus}; max_consecutive_overruns:=N sets it")

@@ -1,8 +1,8 @@
 """Robot: one arm's runtime and loop behind a Python API, built by `Robot.builder(config)` or `RobotFactory`.
 
-The loop runs either in a background thread of the calling process (`start()`, for scripts and tests)
-or in the calling thread (`run()`, the body of the RT driver process); the commands are the same.
-Motions are validated and planned in the caller's thread, so the loop only samples them.
+Each cycle is the compiled core's (`ArmRuntime`). The loop runs either in a background thread of the calling
+process (`start()`, for scripts and tests) or in the calling thread (`run()`); the commands are the same.
+Motions are validated and planned in the caller's thread, so the core only samples them.
 """
 
 from __future__ import annotations
@@ -19,20 +19,24 @@ import numpy as np
 
 from plem.bridge.planning import LocalPlannerLink, PlanningCalls
 from plem.control.commands import Command, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
+from plem.control.core_thread import CoreThread
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
-from plem.control.loop import CycleLoop, LoopSettings, OverrunWindow
+from plem.control.loop import CycleLoop, LoopSettings
 from plem.control.modes import Mode
-from plem.control.motion import Motion, StartState, plan_point_to_point
+from plem.control.motion import StartState, plan_point_to_point
+from plem.control.polynomial import PolynomialMotion
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, MoveItCode, PlanningError, PlemError, RobotFault
 from plem.fieldbus.bus import BusSetup, IBus
+from plem.ipc.motion_slab import MotionSlab
 from plem.ipc.request_bounds import point_count
+from plem.ipc.ring import SlotRing
 from plem.planning import fit_to_limits
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
@@ -79,7 +83,7 @@ def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]
 class Robot(PlanningCalls):
     """A built arm: bus opened, limits and dynamics loaded, loop ready to run; with an SRDF, plans in this process."""
 
-    def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop,
+    def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop | CoreThread,
                  description_package: str, dynamics: ArmDynamics, report: ValidationReport | None = None) -> None:
         self.report = report
         self.config = config
@@ -130,20 +134,26 @@ class Robot(PlanningCalls):
 
     # -- running the loop ------------------------------------------------------------------------
     def start(self) -> None:
-        """Run the loop in a background thread (real-time priority when permitted)."""
-        if self._thread is not None:
+        """Run the loop in the background: the core's real-time thread, or for a bus written in Python a thread of
+        this process (real-time priority when permitted)."""
+        if self.running:
             return
-        self._previous_switch_interval = sys.getswitchinterval()
-        # the loop thread gets the interpreter back within a fraction of its period
-        sys.setswitchinterval(min(MAX_SWITCH_INTERVAL_S, self.runtime.dt / SWITCH_INTERVALS_PER_CYCLE))
-        self._thread = threading.Thread(target=self.loop.run, name=f"plem-loop-{self.robot_id or 'robot'}",
-                                        daemon=True)
-        self._thread.start()
+        if isinstance(self.loop, CoreThread):
+            self.loop.start()
+        else:
+            self._start_python_loop(self.loop)
         state = self.wait_for_state(2.0)
         if state is None:
             raise PlemError("the control loop did not start", what="a first cycle within 2 s",
                             why=repr(self.loop.error) if self.loop.error else "no cycle ran",
                             how="check the bus and the system load")
+
+    def _start_python_loop(self, loop: CycleLoop) -> None:
+        self._previous_switch_interval = sys.getswitchinterval()
+        # the loop thread gets the interpreter back within a fraction of its period
+        sys.setswitchinterval(min(MAX_SWITCH_INTERVAL_S, self.runtime.dt / SWITCH_INTERVALS_PER_CYCLE))
+        self._thread = threading.Thread(target=loop.run, name=f"plem-loop-{self.robot_id or 'robot'}", daemon=True)
+        self._thread.start()
 
     def step(self, cycles: int = 1) -> None:
         """Run `cycles` cycles now, in the calling thread, without waiting for deadlines (simulated time).
@@ -158,7 +168,9 @@ class Robot(PlanningCalls):
 
     @property
     def running(self) -> bool:
-        """True while the loop runs in its background thread (after start(), until shutdown())."""
+        """True while the loop runs in the background (after start(), until shutdown())."""
+        if isinstance(self.loop, CoreThread):
+            return self.loop.running
         return self._thread is not None and self._thread.is_alive()
 
     def _pump(self, condition: Callable[[], bool], timeout: float | None) -> None:
@@ -172,8 +184,16 @@ class Robot(PlanningCalls):
             self.runtime.cycle()
 
     def run(self, duration_s: float | None = None) -> None:
-        """Run the loop in the calling thread until `shutdown()` from elsewhere (or `duration_s`)."""
-        self.loop.run(duration_s)
+        """Run the loop until `shutdown()` from elsewhere (or for `duration_s`), returning when it has stopped."""
+        if isinstance(self.loop, CoreThread):
+            self.start()
+            waited, pause = 0.0, threading.Event()
+            while self.running and (duration_s is None or waited < duration_s):
+                pause.wait(0.01)
+                waited += 0.01
+            self.loop.stop()
+        else:
+            self.loop.run(duration_s)
 
     def shutdown(self, timeout: float = 10.0) -> None:
         """Stop any motion smoothly, disable the drives, stop the loop and close the bus (idempotent)."""
@@ -181,14 +201,15 @@ class Robot(PlanningCalls):
             return
         if self.mode in (Mode.TRAJECTORY, Mode.HOLD, Mode.FREE_DRIVE):
             self._settle_and_disable(timeout)
+        self.loop.stop()
         thread = self._thread
         if thread is not None and thread.is_alive():
-            self.loop.stop()
             thread.join(timeout)
         self._thread = None
         if self._previous_switch_interval is not None:
             sys.setswitchinterval(self._previous_switch_interval)
             self._previous_switch_interval = None
+        self.runtime.close()
         self.bus.close()
         self._closed = True
 
@@ -258,8 +279,7 @@ class Robot(PlanningCalls):
 
     # -- commands --------------------------------------------------------------------------------
     def _send(self, command: Command) -> CommandHandle:
-        self.runtime.inbox.append(command)
-        return command.handle
+        return self.runtime.submit(command)
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
@@ -292,7 +312,7 @@ class Robot(PlanningCalls):
         Returns once the loop accepted the motion; wait on the handle for the result.
         """
         goal = self.limits.check_vector(target, "the target")
-        return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale), ""),
+        return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(), ""),
                             tolerances, "move_joints")
 
     def execute_trajectory(self, trajectory: JointTrajectory,
@@ -304,13 +324,13 @@ class Robot(PlanningCalls):
         """
         point_count(len(trajectory.points))
 
-        def plan(start: StartState) -> tuple[Motion, str]:
+        def plan(start: StartState) -> tuple[PolynomialMotion, str]:
             timed = fit_to_limits(trajectory, self.limits, start, self.runtime.dt)
             return timed.motion, timed.note()
 
         return self._submit(plan, tolerances, "trajectory")
 
-    def _submit(self, plan: Callable[[StartState], tuple[Motion, str]],
+    def _submit(self, plan: Callable[[StartState], tuple[PolynomialMotion, str]],
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
         """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
         tolerances = tolerances or TrajectoryTolerances()
@@ -363,7 +383,8 @@ class RobotBuilder:
     urdf_file: str | None = None
     counts_per_radian: tuple[float, ...] | None = None
     state_block: Callable[[ArmLimits], StateBlock] | None = None
-    cycle_observer: Callable[[StateBlock], Callable[[int, int], None]] | None = None
+    motion_slab: Callable[[], MotionSlab] | None = None
+    raw_ring: Callable[[], SlotRing] | None = None
     runtime_settings: RuntimeSettings = field(default_factory=RuntimeSettings)
     loop_settings: dict[str, Any] = field(default_factory=dict)
 
@@ -388,9 +409,16 @@ class RobotBuilder:
         self.state_block = make
         return self
 
-    def with_cycle_observer(self, make: Callable[[StateBlock], Callable[[int, int], None]]) -> RobotBuilder:
-        """Call `make(state_block)(latency_ns, previous_compute_ns)` after every cycle (the rt_raw sample)."""
-        self.cycle_observer = make
+    def with_motion_slab(self, make: Callable[[], MotionSlab]) -> RobotBuilder:
+        """Take started motions from the slab `make()` returns (the RT driver's shared one) instead of a private one;
+        called after the state block is made."""
+        self.motion_slab = make
+        return self
+
+    def with_raw_ring(self, make: Callable[[], SlotRing]) -> RobotBuilder:
+        """Write every cycle's rt_raw record into the ring `make()` returns (the RT driver's shared memory); called
+        after the state block is made."""
+        self.raw_ring = make
         return self
 
     def with_counts_per_radian(self, counts: Sequence[float]) -> RobotBuilder:
@@ -437,34 +465,26 @@ class RobotBuilder:
         setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, urdf_xml,
                          config.network_interface, config.master_index, drives)
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
-        loop_dynamics = ArmDynamics(urdf_xml, joint_names)  # the loop's own: instances are not thread-safe
+        dynamics = ArmDynamics(urdf_xml, joint_names)
         state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)
         bus.open(setup)
-        runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
-                             FreeDriveController(loop_dynamics, limits, setup.cycle_time_s), self.runtime_settings,
-                             state_block)
         loop_settings = LoopSettings(cycle_time_ns=config.cycle_time * 1000, priority=config.rt_priority,
                                      **self.loop_settings)
-
         limit = loop_settings.max_consecutive_overruns
-
-        def report_overruns(window: OverrunWindow) -> None:
-            runtime.events.emit(EventKind.OVERRUN, "overrun",
-                                f"{window.overruns} overrun{'' if window.overruns == 1 else 's'} in the last "
-                                f"{window.seconds:.0f} s "
-                                f"({window.missed_periods} periods skipped, at most {window.longest_run} in a row; "
-                                f"{limit} in a row fault the arm), {window.total_overruns} in all",
-                                runtime.mode, runtime.cycle_count)
-
-        loop = CycleLoop(runtime.cycle, loop_settings,
-                         on_overruns=lambda n: runtime.fault("overrun", f"{n} consecutive cycles overran their "
-                                                                        f"{config.cycle_time} µs period "
-                                                                        f"(max_consecutive_overruns {limit})"),
-                         on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
-                         on_overrun_report=report_overruns,
-                         on_warning=lambda text: _warn(runtime, text),
-                         after_cycle=self.cycle_observer(state_block) if self.cycle_observer else None)
-        return Robot(config, bus, runtime, loop, str(package), ArmDynamics(urdf_xml, joint_names), report)
+        runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
+                             FreeDriveController(dynamics, limits, setup.cycle_time_s), self.runtime_settings,
+                             state_block, slab=self.motion_slab() if self.motion_slab else None,
+                             raw_ring=self.raw_ring() if self.raw_ring else None, max_consecutive_overruns=limit)
+        loop: CycleLoop | CoreThread
+        if runtime.python_bus:   # served at its own pace by a thread of this process
+            loop = CycleLoop(runtime.cycle, loop_settings,
+                             on_overruns=lambda n: runtime.fault_overrun(n, limit),
+                             on_error=lambda error: runtime.fault("internal_error", f"cycle raised {error!r}"),
+                             on_overrun_report=runtime.report_overruns,
+                             on_warning=lambda text: _warn(runtime, text), after_cycle=runtime.record_raw)
+        else:
+            loop = CoreThread(runtime, loop_settings, on_warning=lambda text: _warn(runtime, text))
+        return Robot(config, bus, runtime, loop, str(package), dynamics, report)
 
     def _bus(self, config: SerialArmConfig) -> IBus:
         bus = self.bus or config.custom_bus

@@ -6,9 +6,12 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <pthread.h>
 #include <stddef.h>
+#include <string.h>
 
 #include "plem_core.h"
+#include "thread.h"
 
 /* Nested structures travel as buffers of their own, which the core takes only 8-byte aligned. */
 _Static_assert(offsetof(plem_sim, power) % 8 == 0, "plem_sim.power must be 8-byte aligned");
@@ -301,6 +304,212 @@ static PyObject *drive_transition(PyObject *self, PyObject *args) {
     return PyLong_FromLong(plem_drive_transition(state, (uint16_t)controlword, (uint16_t)previous));
 }
 
+
+/* ---- the arm's cycle: a Core holds the buffers one arm's cycles work on ------------------------------------ */
+
+typedef struct {
+    PyObject_HEAD
+    argument arm, header, values, slab, sim, raw, stats;
+    plem_slab slab_view;
+    plem_state_block block;
+    plem_raw_ring raw_view;
+    plem_loop loop;
+    pthread_t thread;
+    int running;
+} Core;
+
+/* Stop the real-time thread and wait for it, without the interpreter lock (it never needs it). */
+static void core_stop_thread(Core *core) {
+    if (!core->running) return;
+    atomic_store_explicit(&core->loop.stop, 1, memory_order_release);
+    Py_BEGIN_ALLOW_THREADS
+    pthread_join(core->thread, NULL);
+    Py_END_ALLOW_THREADS
+    core->running = 0;
+}
+
+static void core_release(Core *core) {
+    core_stop_thread(core);
+    argument *held[7] = {&core->arm, &core->header, &core->values, &core->slab, &core->sim, &core->raw, &core->stats};
+    for (int i = 0; i < 7; i++) release(held[i], 1);
+}
+
+static void core_dealloc(Core *core) {
+    core_release(core);
+    Py_TYPE(core)->tp_free((PyObject *)core);
+}
+
+/* The rt_raw ring: a plem ring (magic, version 1, drop-oldest) whose slots hold one record of this arm. */
+static int take_raw(Core *core, PyObject *raw, int dof) {
+    uint8_t *base = take(raw, &core->raw, 64, 1, "raw ring");
+    if (!base) return 0;
+    uint32_t version, slot_bytes, slots, flags;
+    memcpy(&version, base + 8, 4), memcpy(&slot_bytes, base + 12, 4), memcpy(&slots, base + 16, 4);
+    memcpy(&flags, base + 20, 4);
+    Py_ssize_t record = (7 + 6 * (Py_ssize_t)dof) * (Py_ssize_t)sizeof(double);
+    if (memcmp(base, "PLEMRING", 8) != 0 || version != 1 || flags != 0 || slots == 0 || slot_bytes < record
+        || 64 + (Py_ssize_t)slots * (16 + (Py_ssize_t)slot_bytes) > core->raw.view.len) {
+        PyErr_SetString(PyExc_ValueError, "raw ring: not a drop-oldest plem ring with room for this arm's record");
+        return 0;
+    }
+    core->raw_view = (plem_raw_ring){base, slot_bytes, slots};
+    return 1;
+}
+
+static int core_init(Core *core, PyObject *args, PyObject *kwargs) {
+    static char *keywords[] = {"arm", "header", "values", "slab", "sim", "raw", "stats", NULL};
+    PyObject *arm, *header, *values, *slab, *sim = Py_None, *raw = Py_None, *stats = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOO", keywords, &arm, &header, &values, &slab, &sim, &raw,
+                                     &stats))
+        return -1;
+    core_release(core);
+    plem_arm *a = take(arm, &core->arm, sizeof(plem_arm), 1, "arm");
+    if (!a) goto fail;
+    int dof = a->settings.dof;
+    if (dof < 1 || dof > PLEM_MAX_JOINTS || a->model.dof != dof) {
+        PyErr_Format(PyExc_ValueError, "arm: dof %d and its model's %d must agree, 1..%d", dof, a->model.dof,
+                     PLEM_MAX_JOINTS);
+        goto fail;
+    }
+    if (!(core->block.header = take(header, &core->header, 6 * sizeof(int64_t), 1, "state header"))) goto fail;
+    if (!(core->block.values = take(values, &core->values, 6 * dof * (Py_ssize_t)sizeof(double), 1, "state values")))
+        goto fail;
+    if (!(core->slab_view.base = take(slab, &core->slab, 64, 0, "slab"))) goto fail;
+    core->slab_view.size = core->slab.view.len;
+    if (sim != Py_None) {
+        plem_sim *s = take(sim, &core->sim, sizeof(plem_sim), 1, "sim");
+        if (!s) goto fail;
+        if (s->dof != dof) {
+            PyErr_Format(PyExc_ValueError, "sim: %d joints for an arm of %d", s->dof, dof);
+            goto fail;
+        }
+    }
+    if (raw != Py_None && !take_raw(core, raw, dof)) goto fail;
+    if (stats != Py_None && !take(stats, &core->stats, sizeof(plem_stats), 1, "stats")) goto fail;
+    return 0;
+fail:
+    core_release(core);
+    return -1;
+}
+
+static int core_ready(Core *core) {
+    if (!core->arm.held) {
+        PyErr_SetString(PyExc_RuntimeError, "the core holds no arm (it was closed)");
+        return 0;
+    }
+    if (core->running) {
+        PyErr_SetString(PyExc_RuntimeError, "the core's real-time thread runs the cycles");
+        return 0;
+    }
+    return 1;
+}
+
+static PyObject *core_cycle(Core *core, PyObject *unused) {
+    (void)unused;
+    if (!core_ready(core)) return NULL;
+    plem_arm_cycle(core->arm.view.buf, core->sim.held ? core->sim.view.buf : NULL, &core->slab_view, &core->block);
+    Py_RETURN_NONE;
+}
+
+static PyObject *core_record_raw(Core *core, PyObject *args) {
+    long long latency, compute;
+    if (!PyArg_ParseTuple(args, "LL", &latency, &compute)) return NULL;
+    if (!core_ready(core)) return NULL;
+    if (core->raw.held)
+        plem_raw_write(&core->raw_view, &core->block, ((plem_arm *)core->arm.view.buf)->settings.dof, latency, compute);
+    Py_RETURN_NONE;
+}
+
+static PyObject *core_fault(Core *core, PyObject *args) {
+    int cause;
+    double v0 = 0.0, v1 = 0.0;
+    if (!PyArg_ParseTuple(args, "i|dd", &cause, &v0, &v1)) return NULL;
+    if (!core_ready(core)) return NULL;
+    plem_arm_fault(core->arm.view.buf, cause, v0, v1);
+    Py_RETURN_NONE;
+}
+
+static PyObject *core_start(Core *core, PyObject *args, PyObject *kwargs) {
+    static char *keywords[] = {"period_ns", "priority", "cpus", "max_consecutive_overruns", "window_ns", NULL};
+    long long period, window;
+    unsigned long long cpus;
+    int priority, overruns;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "LiKiL", keywords, &period, &priority, &cpus, &overruns, &window))
+        return NULL;
+    if (!core_ready(core)) return NULL;
+    if (!core->stats.held) return PyErr_Format(PyExc_RuntimeError, "the core was given no statistics to keep");
+    if (period <= 0 || window <= 0 || overruns < 1 || priority < 0 || priority > 99)
+        return PyErr_Format(PyExc_ValueError, "start: period %lld ns, window %lld ns, %d overruns, priority %d",
+                            period, window, overruns, priority);
+    core->loop = (plem_loop){core->arm.view.buf, core->sim.held ? core->sim.view.buf : NULL, &core->slab_view,
+                             &core->block, core->raw.held ? &core->raw_view : NULL, core->stats.view.buf,
+                             period, window, cpus, priority, overruns, 0};
+    int error = pthread_create(&core->thread, NULL, plem_loop_run, &core->loop);
+    if (error) return PyErr_Format(PyExc_OSError, "the real-time thread could not be created: %s", strerror(error));
+    core->running = 1;
+    Py_RETURN_NONE;
+}
+
+static PyObject *core_stop(Core *core, PyObject *unused) {
+    (void)unused;
+    core_stop_thread(core);
+    Py_RETURN_NONE;
+}
+
+static PyObject *core_running(Core *core, void *closure) {
+    (void)closure;
+    return PyBool_FromLong(core->running);
+}
+
+static PyObject *core_close(Core *core, PyObject *unused) {
+    (void)unused;
+    core_release(core);
+    Py_RETURN_NONE;
+}
+
+static PyGetSetDef CORE_GETSET[] = {
+    {"running", (getter)core_running, NULL, "The real-time thread runs the cycles.", NULL},
+    {NULL, NULL, NULL, NULL, NULL}};
+
+static PyMethodDef CORE_METHODS[] = {
+    {"cycle", (PyCFunction)core_cycle, METH_NOARGS, "Run one cycle of the arm now, in the calling thread."},
+    {"record_raw", (PyCFunction)core_record_raw, METH_VARARGS,
+     "record_raw(latency_ns, compute_ns): the rt_raw record of the cycle just run (when a raw ring is held)."},
+    {"start", (PyCFunction)(void (*)(void))core_start, METH_VARARGS | METH_KEYWORDS,
+     "start(period_ns, priority, cpus, max_consecutive_overruns, window_ns): the real-time thread runs the cycles."},
+    {"stop", (PyCFunction)core_stop, METH_NOARGS, "Stop the real-time thread after its current cycle and join it."},
+    {"close", (PyCFunction)core_close, METH_NOARGS,
+     "Stop the thread and let go of every buffer (shared memory may then be unmapped)."},
+    {"fault", (PyCFunction)core_fault, METH_VARARGS, "fault(cause, value0=0, value1=0): fault from outside the cycle."},
+    {NULL, NULL, 0, NULL}};
+
+static PyTypeObject CORE_TYPE = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "plem.control._core.Core",
+    .tp_basicsize = sizeof(Core),
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Core(arm, header, values, slab, sim=None, raw=None, stats=None): one arm's cycle over the buffers it "
+              "holds, run by the caller or by the core's own real-time thread.",
+    .tp_new = PyType_GenericNew,
+    .tp_init = (initproc)core_init,
+    .tp_dealloc = (destructor)core_dealloc,
+    .tp_methods = CORE_METHODS,
+    .tp_getset = CORE_GETSET,
+};
+
+static PyObject *arm_init(PyObject *self, PyObject *object) {
+    (void)self;
+    argument arg = {{0}, 0};
+    plem_arm *arm = take(object, &arg, sizeof(plem_arm), 1, "arm");
+    if (arm && (arm->settings.dof < 1 || arm->settings.dof > PLEM_MAX_JOINTS)) {
+        PyErr_Format(PyExc_ValueError, "arm: dof %d outside 1..%d", arm->settings.dof, PLEM_MAX_JOINTS);
+        arm = NULL;
+    }
+    if (arm) plem_arm_init(arm);
+    release(&arg, 1);
+    return arm ? Py_NewRef(Py_None) : NULL;
+}
+
 /* ---- the layout table ---------------------------------------------------------------------------------- */
 
 typedef struct { const char *name; size_t offset, size; } field;
@@ -325,11 +534,116 @@ static const field SIM_FIELDS[] = {
     FIELD(plem_sim, external), FIELD(plem_sim, stop_q), FIELD(plem_sim, stop_v), FIELD(plem_sim, spike),
     FIELD(plem_sim, stuck), FIELD(plem_sim, latched), FIELD(plem_sim, stopping), FIELD(plem_sim, state),
     FIELD(plem_sim, statusword), FIELD(plem_sim, error_code), FIELD(plem_sim, controlword), FIELD(plem_sim, lost),
+    FIELD(plem_sim, answered),
     FIELD(plem_sim, lost_reads), FIELD(plem_sim, lost_frames), FIELD(plem_sim, io_target_position),
     FIELD(plem_sim, io_velocity_offset), FIELD(plem_sim, io_torque_offset), FIELD(plem_sim, io_mode),
     FIELD(plem_sim, io_position), FIELD(plem_sim, io_velocity), FIELD(plem_sim, io_torque),
     FIELD(plem_sim, io_statusword), FIELD(plem_sim, io_error_code), FIELD(plem_sim, power),
     FIELD(plem_sim, scratch), FIELD(plem_sim, model), {NULL, 0, 0}};
+
+
+static const field SETTINGS_FIELDS[] = {
+    FIELD(plem_settings, dof), FIELD(plem_settings, bus), FIELD(plem_settings, dt),
+    FIELD(plem_settings, tracking_tolerance), FIELD(plem_settings, velocity_margin),
+    FIELD(plem_settings, position_margin), FIELD(plem_settings, standstill_velocity),
+    FIELD(plem_settings, command_tolerance), FIELD(plem_settings, enable_timeout_cycles),
+    FIELD(plem_settings, counts_per_radian), FIELD(plem_settings, offsets), FIELD(plem_settings, min_position),
+    FIELD(plem_settings, max_position), FIELD(plem_settings, max_velocity), FIELD(plem_settings, max_acceleration),
+    FIELD(plem_settings, max_jerk), FIELD(plem_settings, max_effort), FIELD(plem_settings, damping), {NULL, 0, 0}};
+
+static const field BASIS_FIELDS[] = {
+    FIELD(plem_basis, sequence), FIELD(plem_basis, generation), FIELD(plem_basis, slot), FIELD(plem_basis, segments),
+    FIELD(plem_basis, start_cycle), FIELD(plem_basis, hold_position), {NULL, 0, 0}};
+
+static const field RING_FIELDS[] = {
+    FIELD(plem_ring, head), FIELD(plem_ring, tail), FIELD(plem_ring, dropped), {NULL, 0, 0}};
+
+static const field COMMAND_FIELDS[] = {
+    FIELD(plem_command, token), FIELD(plem_command, op), FIELD(plem_command, mode), FIELD(plem_command, slot),
+    FIELD(plem_command, segments), FIELD(plem_command, basis), FIELD(plem_command, activation),
+    FIELD(plem_command, goal), FIELD(plem_command, has_path), FIELD(plem_command, has_goal),
+    FIELD(plem_command, goal_time), FIELD(plem_command, stopped_velocity), FIELD(plem_command, path),
+    FIELD(plem_command, goal_tolerance), {NULL, 0, 0}};
+
+static const field OUTCOME_FIELDS[] = {
+    FIELD(plem_outcome, token), FIELD(plem_outcome, cycle), FIELD(plem_outcome, stage), FIELD(plem_outcome, answer),
+    FIELD(plem_outcome, mode), FIELD(plem_outcome, detail), FIELD(plem_outcome, joint), FIELD(plem_outcome, values),
+    {NULL, 0, 0}};
+
+static const field EVENT_FIELDS[] = {
+    FIELD(plem_event, cycle), FIELD(plem_event, monotonic_ns), FIELD(plem_event, token), FIELD(plem_event, kind),
+    FIELD(plem_event, cause), FIELD(plem_event, mode), FIELD(plem_event, previous_mode), FIELD(plem_event, joint),
+    FIELD(plem_event, detail), FIELD(plem_event, values), {NULL, 0, 0}};
+
+static const field ARM_FIELDS[] = {
+    FIELD(plem_arm, settings), FIELD(plem_arm, model), FIELD(plem_arm, io_position), FIELD(plem_arm, io_velocity),
+    FIELD(plem_arm, io_torque), FIELD(plem_arm, io_statusword), FIELD(plem_arm, io_error_code),
+    FIELD(plem_arm, io_target_position), FIELD(plem_arm, io_velocity_offset), FIELD(plem_arm, io_torque_offset),
+    FIELD(plem_arm, io_mode), FIELD(plem_arm, io_answered), FIELD(plem_arm, power_wanted),
+    FIELD(plem_arm, power_requests),
+    FIELD(plem_arm, power_resets), FIELD(plem_arm, power), FIELD(plem_arm, cycle), FIELD(plem_arm, mode),
+    FIELD(plem_arm, fault_cause), FIELD(plem_arm, communication_ok), FIELD(plem_arm, have_previous),
+    FIELD(plem_arm, braking), FIELD(plem_arm, work), FIELD(plem_arm, previous_position),
+    FIELD(plem_arm, previous_acceleration), FIELD(plem_arm, torque), FIELD(plem_arm, active),
+    FIELD(plem_arm, active_ended), FIELD(plem_arm, active_slot), FIELD(plem_arm, active_segments),
+    FIELD(plem_arm, active_token), FIELD(plem_arm, active_start_cycle), FIELD(plem_arm, settle_deadline),
+    FIELD(plem_arm, active_cursor), FIELD(plem_arm, active_has_path), FIELD(plem_arm, active_has_goal),
+    FIELD(plem_arm, active_goal_time), FIELD(plem_arm, active_stopped_velocity), FIELD(plem_arm, active_path),
+    FIELD(plem_arm, active_goal), FIELD(plem_arm, active_final), FIELD(plem_arm, pending),
+    FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
+    FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
+    FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis),
+    FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
+    FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};
+
+static const field SERIES_FIELDS[] = {
+    FIELD(plem_series, count), FIELD(plem_series, total_ns), FIELD(plem_series, min_ns), FIELD(plem_series, max_ns),
+    FIELD(plem_series, histogram), FIELD(plem_series, window), {NULL, 0, 0}};
+
+static const field STATS_FIELDS[] = {
+    FIELD(plem_stats, cycles), FIELD(plem_stats, overruns), FIELD(plem_stats, missed_periods),
+    FIELD(plem_stats, consecutive_overruns), FIELD(plem_stats, policy), FIELD(plem_stats, priority),
+    FIELD(plem_stats, sched_error), FIELD(plem_stats, affinity_error), FIELD(plem_stats, cpus),
+    FIELD(plem_stats, latency), FIELD(plem_stats, compute), {NULL, 0, 0}};
+
+typedef struct { const char *name; long value; } constant;
+
+#define CONSTANT(name) {#name, name}
+
+static const constant CONSTANTS[] = {
+    CONSTANT(PLEM_IDLE), CONSTANT(PLEM_HOLD), CONSTANT(PLEM_TRAJECTORY), CONSTANT(PLEM_FREE_DRIVE),
+    CONSTANT(PLEM_FAULTED), CONSTANT(PLEM_OP_SET_MODE), CONSTANT(PLEM_OP_START), CONSTANT(PLEM_OP_STOP),
+    CONSTANT(PLEM_OP_RESET), CONSTANT(PLEM_ACCEPTED), CONSTANT(PLEM_REJECTED), CONSTANT(PLEM_FINISHED),
+    CONSTANT(PLEM_ANSWER_MODE), CONSTANT(PLEM_ANSWER_DONE), CONSTANT(PLEM_ANSWER_NOT_HOLDING),
+    CONSTANT(PLEM_ANSWER_STALE), CONSTANT(PLEM_ANSWER_MODE_PENDING), CONSTANT(PLEM_ANSWER_TRANSITION),
+    CONSTANT(PLEM_ANSWER_MOVING), CONSTANT(PLEM_ANSWER_ENABLE_TIMEOUT), CONSTANT(PLEM_ANSWER_RESET_NO_BUS),
+    CONSTANT(PLEM_ANSWER_FAULTED), CONSTANT(PLEM_ANSWER_SUCCEEDED), CONSTANT(PLEM_ANSWER_GOAL_VIOLATED),
+    CONSTANT(PLEM_ANSWER_PATH_VIOLATED), CONSTANT(PLEM_ANSWER_FAULT_ABORTED), CONSTANT(PLEM_ANSWER_PREEMPTED),
+    CONSTANT(PLEM_ANSWER_CANCELED), CONSTANT(PLEM_ANSWER_INVALID_SLOT), CONSTANT(PLEM_ANSWER_UNKNOWN_OP),
+    CONSTANT(PLEM_EVENT_MODE_CHANGED), CONSTANT(PLEM_EVENT_FAULT), CONSTANT(PLEM_EVENT_FAULT_CLEARED),
+    CONSTANT(PLEM_EVENT_MOTION_STARTED), CONSTANT(PLEM_EVENT_MOTION_FINISHED), CONSTANT(PLEM_EVENT_COMMAND_REJECTED),
+    CONSTANT(PLEM_EVENT_WARNING), CONSTANT(PLEM_EVENT_OVERRUN), CONSTANT(PLEM_CAUSE_SET_MODE_IDLE), CONSTANT(PLEM_CAUSE_SET_MODE_FREE_DRIVE),
+    CONSTANT(PLEM_CAUSE_SET_MODE_HOLD), CONSTANT(PLEM_CAUSE_DRIVES_ENABLED), CONSTANT(PLEM_CAUSE_MOTION_STARTED),
+    CONSTANT(PLEM_CAUSE_MOTION_FINISHED), CONSTANT(PLEM_CAUSE_DRIVE_FAULT), CONSTANT(PLEM_CAUSE_DRIVE_DISABLED),
+    CONSTANT(PLEM_CAUSE_ENCODER_JUMP), CONSTANT(PLEM_CAUSE_POSITION_LIMIT), CONSTANT(PLEM_CAUSE_VELOCITY_LIMIT),
+    CONSTANT(PLEM_CAUSE_TRACKING_ERROR), CONSTANT(PLEM_CAUSE_COMMUNICATION_LOST),
+    CONSTANT(PLEM_CAUSE_INVALID_COMMAND), CONSTANT(PLEM_CAUSE_COMMAND_POSITION),
+    CONSTANT(PLEM_CAUSE_COMMAND_VELOCITY), CONSTANT(PLEM_CAUSE_COMMAND_ACCELERATION),
+    CONSTANT(PLEM_CAUSE_COMMAND_JERK), CONSTANT(PLEM_CAUSE_OVERRUN), CONSTANT(PLEM_CAUSE_INTERNAL_ERROR),
+    CONSTANT(PLEM_CAUSE_RESET), CONSTANT(PLEM_CAUSE_BRAKES_ENGAGED), CONSTANT(PLEM_CAUSE_ENABLE_TIMEOUT),
+    CONSTANT(PLEM_CAUSE_REJECTED), CONSTANT(PLEM_STOP_SLOT), CONSTANT(PLEM_COMMAND_SLOTS),
+    CONSTANT(PLEM_OUTCOME_SLOTS), CONSTANT(PLEM_EVENT_SLOTS), CONSTANT(PLEM_COMMANDS_PER_CYCLE),
+    CONSTANT(PLEM_HISTOGRAM_BINS), CONSTANT(PLEM_WINDOW), {NULL, 0}};
+
+static PyObject *constants_dict(void) {
+    PyObject *table = PyDict_New();
+    for (const constant *c = CONSTANTS; table && c->name; c++) {
+        PyObject *value = PyLong_FromLong(c->value);
+        if (!value || PyDict_SetItemString(table, c->name, value) < 0) Py_CLEAR(table);
+        Py_XDECREF(value);
+    }
+    return table;
+}
 
 static PyObject *fields_dict(const field *fields, size_t size) {
     PyObject *table = Py_BuildValue("{s:n}", "__size__", (Py_ssize_t)size);
@@ -343,20 +657,39 @@ static PyObject *fields_dict(const field *fields, size_t size) {
 
 static PyObject *layout(PyObject *self, PyObject *unused) {
     (void)self, (void)unused;
-    PyObject *model = fields_dict(MODEL_FIELDS, sizeof(plem_model));
-    PyObject *power = fields_dict(POWER_FIELDS, sizeof(plem_power));
-    PyObject *sim = fields_dict(SIM_FIELDS, sizeof(plem_sim));
-    PyObject *result = (model && power && sim)
-        ? Py_BuildValue("{s:O,s:O,s:O,s:i,s:i,s:i}", "plem_model", model, "plem_power", power, "plem_sim", sim,
-                        "max_joints", PLEM_MAX_JOINTS, "order", PLEM_ORDER, "stop_segments", PLEM_STOP_SEGMENTS)
-        : NULL;
-    Py_XDECREF(model);
-    Py_XDECREF(power);
-    Py_XDECREF(sim);
+    static const struct { const char *name; const field *fields; size_t size; } STRUCTURES[] = {
+        {"plem_model", MODEL_FIELDS, sizeof(plem_model)}, {"plem_power", POWER_FIELDS, sizeof(plem_power)},
+        {"plem_sim", SIM_FIELDS, sizeof(plem_sim)}, {"plem_settings", SETTINGS_FIELDS, sizeof(plem_settings)},
+        {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
+        {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
+        {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},
+        {"plem_series", SERIES_FIELDS, sizeof(plem_series)}, {"plem_stats", STATS_FIELDS, sizeof(plem_stats)}};
+    PyObject *result = Py_BuildValue("{s:i,s:i,s:i}", "max_joints", PLEM_MAX_JOINTS, "order", PLEM_ORDER,
+                                     "stop_segments", PLEM_STOP_SEGMENTS);
+    for (size_t i = 0; result && i < sizeof STRUCTURES / sizeof STRUCTURES[0]; i++) {
+        PyObject *table = fields_dict(STRUCTURES[i].fields, STRUCTURES[i].size);
+        if (!table || PyDict_SetItemString(result, STRUCTURES[i].name, table) < 0) Py_CLEAR(result);
+        Py_XDECREF(table);
+    }
+    PyObject *constants = result ? constants_dict() : NULL;
+    if (result && (!constants || PyDict_SetItemString(result, "constants", constants) < 0)) Py_CLEAR(result);
+    Py_XDECREF(constants);
     return result;
 }
 
+static PyObject *build(PyObject *self, PyObject *unused) {
+    (void)self, (void)unused;
+#if defined(__SANITIZE_ADDRESS__)
+    const int sanitized = 1;
+#else
+    const int sanitized = 0;
+#endif
+    return Py_BuildValue("{s:s,s:l,s:O,s:i}", "compiler", "gcc " __VERSION__, "standard", (long)__STDC_VERSION__,
+                         "sanitized", sanitized ? Py_True : Py_False, "max_joints", PLEM_MAX_JOINTS);
+}
+
 static PyMethodDef METHODS[] = {
+    {"build", build, METH_NOARGS, "How the core was built: compiler, C standard, sanitizers."},
     {"layout", layout, METH_NOARGS, "Offset and size of every field of every structure, and each one's size."},
     {"inverse_dynamics", inverse_dynamics, METH_VARARGS, "inverse_dynamics(model, q, v, a, tau_out)"},
     {"gravity", gravity, METH_VARARGS, "gravity(model, q, tau_out)"},
@@ -365,6 +698,7 @@ static PyMethodDef METHODS[] = {
      "motion_sample(knots, coefficients, final, segments, dof, t, cursor_int32, out) -> True once over"},
     {"plan_stop", plan_stop, METH_VARARGS,
      "plan_stop(p, v, a, max_acceleration, max_jerk, knots_out, coefficients_out, final_out) -> segments"},
+    {"arm_init", arm_init, METH_O, "arm_init(arm): a fresh arm (settings and model written) ready to cycle"},
     {"sim_read", sim_read, METH_O, "sim_read(sim) -> False while communication is lost"},
     {"sim_write", sim_write, METH_O, "sim_write(sim): controlwords, then one cycle"},
     {"sim_serve", sim_serve, METH_VARARGS, "sim_serve(sim, controlwords): a master's controlwords, then one cycle"},
@@ -385,4 +719,9 @@ static PyMethodDef METHODS[] = {
 static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_core", "plem's compiled core.", -1, METHODS,
                                     NULL, NULL, NULL, NULL};
 
-PyMODINIT_FUNC PyInit__core(void) { return PyModule_Create(&MODULE); }
+PyMODINIT_FUNC PyInit__core(void) {
+    if (PyType_Ready(&CORE_TYPE) < 0) return NULL;
+    PyObject *module = PyModule_Create(&MODULE);
+    if (module && PyModule_AddObjectRef(module, "Core", (PyObject *)&CORE_TYPE) < 0) Py_CLEAR(module);
+    return module;
+}

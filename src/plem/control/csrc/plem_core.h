@@ -145,7 +145,7 @@ typedef struct {
     uint16_t pad2[PLEM_MAX_JOINTS];
     /* communication */
     int32_t lost;                         /* 1 while the exchange is dropped */
-    int32_t pad3;
+    int32_t answered;                     /* the last read got an answer */
     int64_t lost_reads;                   /* reads still to drop; -1 until restored */
     int64_t lost_frames;
     /* process data: outputs written by the master */
@@ -173,11 +173,282 @@ int plem_sim_read(plem_sim *sim);
 void plem_sim_write(plem_sim *sim);
 /* Be the drives of a real master: take its controlwords and advance one cycle. */
 void plem_sim_serve(plem_sim *sim, const uint16_t *controlwords);
+/* A master's exchange with the simulated arm: its controlwords (a quick stop while communication is lost),
+ * then one cycle. */
+void plem_sim_exchange(plem_sim *sim, const uint16_t *controlwords);
 /* Drives that no longer hear their master quick-stop; 1 when a drive changed state. */
 int plem_sim_quick_stop(plem_sim *sim);
 /* One drive faults with `error_code`; a latched fault survives resets. */
 void plem_sim_fault(plem_sim *sim, int drive, uint16_t error_code, int latched);
 /* Every drive not in fault switches off, and the master asks for that too. */
 void plem_sim_power_off(plem_sim *sim);
+
+
+/* ---- the arm's cycle ---------------------------------------------------------------------------------- */
+
+enum plem_mode { PLEM_IDLE = 0, PLEM_HOLD = 1, PLEM_TRAJECTORY = 2, PLEM_FREE_DRIVE = 3, PLEM_FAULTED = 4 };
+
+/* Requests from Python (the command ring). */
+enum plem_op { PLEM_OP_SET_MODE = 1, PLEM_OP_START = 2, PLEM_OP_STOP = 3, PLEM_OP_RESET = 4 };
+
+/* Answers to requests (the outcome ring): a stage and, for refusals and ends, a code with its numbers. */
+enum plem_stage { PLEM_ACCEPTED = 1, PLEM_REJECTED = 2, PLEM_FINISHED = 3 };
+enum plem_answer {
+    PLEM_ANSWER_MODE = 1,          /* finished: mode reached (mode) */
+    PLEM_ANSWER_DONE,              /* finished: a stop request, nothing to report */
+    PLEM_ANSWER_NOT_HOLDING,       /* rejected start: mode (mode), a mode change pending (detail) */
+    PLEM_ANSWER_STALE,             /* rejected start: planned from an outdated state */
+    PLEM_ANSWER_MODE_PENDING,      /* rejected set_mode: a mode change to (detail) is in progress */
+    PLEM_ANSWER_TRANSITION,        /* rejected set_mode: not allowed from (mode) to (detail) */
+    PLEM_ANSWER_MOVING,            /* rejected: action (detail) needs standstill; joint moving at values[0], or a
+                                      motion runs (joint -1) */
+    PLEM_ANSWER_ENABLE_TIMEOUT,    /* rejected: drives not enabled in time; values[0] the drive states, 4 bits each */
+    PLEM_ANSWER_RESET_NO_BUS,      /* rejected reset: bus communication lost */
+    PLEM_ANSWER_FAULTED,           /* rejected: the robot faulted while the mode change was pending */
+    PLEM_ANSWER_SUCCEEDED,         /* motion finished: reached its goal */
+    PLEM_ANSWER_GOAL_VIOLATED,     /* motion aborted: joint values[0] rad from goal after goal_time */
+    PLEM_ANSWER_PATH_VIOLATED,     /* motion aborted: joint values[0] rad from the path, tolerance values[1] */
+    PLEM_ANSWER_FAULT_ABORTED,     /* motion aborted: the robot faulted */
+    PLEM_ANSWER_PREEMPTED,         /* motion replaced by a newer one */
+    PLEM_ANSWER_CANCELED,          /* motion canceled */
+    PLEM_ANSWER_INVALID_SLOT,      /* rejected start: the slot does not hold the announced motion */
+    PLEM_ANSWER_UNKNOWN_OP,        /* rejected: not a request the core knows */
+};
+
+/* What happened in the loop (the event ring). */
+enum plem_event_kind {
+    PLEM_EVENT_MODE_CHANGED = 1, PLEM_EVENT_FAULT, PLEM_EVENT_FAULT_CLEARED, PLEM_EVENT_MOTION_STARTED,
+    PLEM_EVENT_MOTION_FINISHED, PLEM_EVENT_COMMAND_REJECTED, PLEM_EVENT_WARNING,
+    PLEM_EVENT_OVERRUN,              /* a window with overruns: values overruns, skipped, longest run, total; detail ms */
+};
+enum plem_cause {
+    /* mode changes */
+    PLEM_CAUSE_SET_MODE_IDLE = 1, PLEM_CAUSE_SET_MODE_FREE_DRIVE, PLEM_CAUSE_SET_MODE_HOLD, PLEM_CAUSE_DRIVES_ENABLED,
+    PLEM_CAUSE_MOTION_STARTED, PLEM_CAUSE_MOTION_FINISHED,
+    /* faults: joint and values name what was breached */
+    PLEM_CAUSE_DRIVE_FAULT, PLEM_CAUSE_DRIVE_DISABLED, PLEM_CAUSE_ENCODER_JUMP, PLEM_CAUSE_POSITION_LIMIT,
+    PLEM_CAUSE_VELOCITY_LIMIT, PLEM_CAUSE_TRACKING_ERROR, PLEM_CAUSE_COMMUNICATION_LOST, PLEM_CAUSE_INVALID_COMMAND,
+    PLEM_CAUSE_COMMAND_POSITION, PLEM_CAUSE_COMMAND_VELOCITY, PLEM_CAUSE_COMMAND_ACCELERATION,
+    PLEM_CAUSE_COMMAND_JERK, PLEM_CAUSE_OVERRUN, PLEM_CAUSE_INTERNAL_ERROR,
+    /* the rest */
+    PLEM_CAUSE_RESET, PLEM_CAUSE_BRAKES_ENGAGED, PLEM_CAUSE_ENABLE_TIMEOUT, PLEM_CAUSE_REJECTED,
+};
+
+#define PLEM_COMMAND_SLOTS 64
+#define PLEM_OUTCOME_SLOTS 256
+#define PLEM_EVENT_SLOTS 256
+/* Requests the core takes per cycle at most. */
+#define PLEM_COMMANDS_PER_CYCLE 8
+
+typedef struct {
+    uint64_t token;
+    int32_t op;                      /* enum plem_op */
+    int32_t mode;                    /* set_mode: the mode asked for */
+    int32_t slot;                    /* start: the slab slot holding the motion */
+    int32_t segments;                /* start: its segment count */
+    uint64_t basis;                  /* start: the basis generation it was planned from */
+    int64_t activation;              /* start: the cycle it takes over a running motion, -1 at once */
+    uint64_t goal;                   /* stop: only this motion's token (0: whatever runs) */
+    int32_t has_path, has_goal;      /* start: which tolerances are checked */
+    double goal_time;                /* start: s to settle after the end (inf: forever) */
+    double stopped_velocity;         /* start: rad/s below which a joint counts as stopped */
+    double path[PLEM_MAX_JOINTS];    /* rad; inf leaves a joint unchecked */
+    double goal_tolerance[PLEM_MAX_JOINTS];
+} plem_command;
+
+typedef struct {
+    uint64_t token;
+    int64_t cycle;
+    int32_t stage;                   /* enum plem_stage */
+    int32_t answer;                  /* enum plem_answer */
+    int32_t mode;
+    int32_t detail;
+    int32_t joint;
+    int32_t pad;
+    double values[2];
+} plem_outcome;
+
+typedef struct {
+    int64_t cycle;
+    int64_t monotonic_ns;
+    uint64_t token;                  /* the motion's, for motion events */
+    int32_t kind;                    /* enum plem_event_kind */
+    int32_t cause;                   /* enum plem_cause */
+    int32_t mode;
+    int32_t previous_mode;           /* -1 when the mode did not change */
+    int32_t joint;                   /* -1 when no joint is concerned */
+    int32_t detail;                  /* an answer code, a limit row, a statusword */
+    double values[4];
+} plem_event;
+
+/* A single-producer, single-consumer ring index: the producer advances head, the consumer tail. */
+typedef struct {
+    uint64_t head;
+    uint64_t pad0[7];
+    uint64_t tail;
+    uint64_t pad1[7];
+    uint64_t dropped;                /* records the producer could not put (the consumer fell behind) */
+    uint64_t pad2[7];
+} plem_ring;
+
+/* Fixed settings of one arm (SI units), written by Python before the first cycle. */
+typedef struct {
+    int32_t dof;
+    int32_t bus;                     /* 0: process data exchanged by the caller; 1: the simulated arm */
+    double dt;
+    double tracking_tolerance;       /* rad between command and measurement before a fault */
+    double velocity_margin;          /* measured |v| may exceed max_velocity by this factor */
+    double position_margin;          /* rad a measured position may pass a limit */
+    double standstill_velocity;      /* rad/s below which the arm stands still */
+    double command_tolerance;        /* relative slack for commanded derivatives */
+    int64_t enable_timeout_cycles;
+    double counts_per_radian[PLEM_MAX_JOINTS];
+    int64_t offsets[PLEM_MAX_JOINTS];
+    double min_position[PLEM_MAX_JOINTS];
+    double max_position[PLEM_MAX_JOINTS];
+    double max_velocity[PLEM_MAX_JOINTS];
+    double max_acceleration[PLEM_MAX_JOINTS];
+    double max_jerk[PLEM_MAX_JOINTS];
+    double max_effort[PLEM_MAX_JOINTS];
+    double damping[PLEM_MAX_JOINTS];  /* free drive, N·m·s/rad */
+} plem_settings;
+
+/* Where a new motion starts: the held position, or a running motion (a slab slot, or the core's stop) from a
+ * cycle on. Its generation changes whenever it does; a start planned from another generation is stale. */
+#define PLEM_STOP_SLOT (-2)
+typedef struct {
+    uint64_t sequence;               /* seqlock: odd while written */
+    uint64_t generation;
+    int32_t slot;                    /* -1: holding; PLEM_STOP_SLOT: the core's stop; else a slab slot */
+    int32_t segments;
+    int64_t start_cycle;
+    double hold_position[PLEM_MAX_JOINTS];
+} plem_basis;
+
+/* The arm: settings, the state of its cycle, and its rings. */
+typedef struct {
+    plem_settings settings;
+    plem_model model;                /* gravity in free drive */
+    /* process data, in counts at the bus boundary */
+    int64_t io_position[PLEM_MAX_JOINTS];
+    int64_t io_velocity[PLEM_MAX_JOINTS];
+    double io_torque[PLEM_MAX_JOINTS];
+    uint16_t io_statusword[PLEM_MAX_JOINTS];
+    uint16_t io_error_code[PLEM_MAX_JOINTS];
+    int64_t io_target_position[PLEM_MAX_JOINTS];
+    int64_t io_velocity_offset[PLEM_MAX_JOINTS];
+    double io_torque_offset[PLEM_MAX_JOINTS];
+    int8_t io_mode[PLEM_MAX_JOINTS];
+    uint8_t pad0[PLEM_MAX_JOINTS];
+    int32_t io_answered;             /* the bus answered this cycle's read */
+    int32_t power_wanted;            /* what the drives were last asked for: switch on disabled or operation enabled */
+    uint64_t power_requests;         /* power requests so far (a Python bus passes each one on as enable/disable) */
+    uint64_t power_resets;           /* fault-reset edges asked for so far */
+    plem_power power;                /* the controlwords, when the core is the master */
+    /* the cycle */
+    int64_t cycle;
+    int32_t mode;                    /* enum plem_mode */
+    int32_t fault_cause;             /* enum plem_cause of the current fault, 0 when none */
+    int32_t communication_ok;
+    int32_t have_previous;
+    int32_t braking;                 /* faulted and the drives could not hold the arm: they are off */
+    int32_t pad1;
+    double work[6][PLEM_MAX_JOINTS]; /* position, velocity, effort, command position/velocity/acceleration */
+    double previous_position[PLEM_MAX_JOINTS];
+    double previous_acceleration[PLEM_MAX_JOINTS];
+    double torque[PLEM_MAX_JOINTS];
+    /* the running motion */
+    int32_t active;                  /* a motion runs */
+    int32_t active_ended;
+    int32_t active_slot;
+    int32_t active_segments;
+    uint64_t active_token;           /* 0 for the core's own stop */
+    int64_t active_start_cycle;
+    int64_t settle_deadline;         /* -1 until the motion's end */
+    int32_t active_cursor;
+    int32_t active_has_path, active_has_goal, pad2;
+    double active_goal_time, active_stopped_velocity;
+    double active_path[PLEM_MAX_JOINTS];
+    double active_goal[PLEM_MAX_JOINTS];
+    double active_final[3][PLEM_MAX_JOINTS];
+    /* a mode change waiting for the drives */
+    int32_t pending;
+    int32_t pending_target;
+    int64_t pending_deadline;
+    uint64_t pending_token;          /* 0: no one waits (a reset's enable answers the reset) */
+    int32_t pending_enable_sent;
+    int32_t pad3;
+    /* the core's stop, a motion like the others */
+    double stop_knots[PLEM_STOP_SEGMENTS + 1];
+    double stop_coefficients[PLEM_STOP_SEGMENTS * PLEM_ORDER * PLEM_MAX_JOINTS];
+    double stop_final[3 * PLEM_MAX_JOINTS];
+    int32_t stop_segments;
+    int32_t pad4;
+    plem_basis basis;
+    /* rings */
+    plem_ring commands_index;
+    plem_command commands[PLEM_COMMAND_SLOTS];
+    plem_ring outcomes_index;
+    plem_outcome outcomes[PLEM_OUTCOME_SLOTS];
+    plem_ring events_index;
+    plem_event events[PLEM_EVENT_SLOTS];
+} plem_arm;
+
+/* The motion slab the core samples started motions from (the layout of plem.ipc.motion_slab). */
+typedef struct {
+    const uint8_t *base;
+    int64_t size;
+} plem_slab;
+
+/* The state block the cycle publishes (the seqlock of plem.control.state): int64 header, float64 rows. */
+typedef struct {
+    int64_t *header;
+    double *values;
+} plem_state_block;
+
+/* Make a fresh arm ready for its first cycle (settings and model already written). */
+void plem_arm_init(plem_arm *arm);
+/* One cycle: read the bus (the simulated arm, or process data the caller put in io_*), supervise, take requests,
+ * control, check the command against every limit, write the bus, publish. */
+void plem_arm_cycle(plem_arm *arm, plem_sim *sim, const plem_slab *slab, plem_state_block *block);
+/* Fault from outside the cycle (consecutive overruns, a failing caller), with two numbers for the reason. */
+void plem_arm_fault(plem_arm *arm, int cause, double value0, double value1);
+/* The summary of one overrun window, as an event. */
+void plem_arm_report_overruns(plem_arm *arm, int64_t overruns, int64_t missed, int64_t longest, int64_t total,
+                              int64_t window_ms);
+
+/* ---- the real-time thread ------------------------------------------------------------------------------ */
+
+#define PLEM_HISTOGRAM_BINS 10000     /* 1 µs bins: 0..10 ms, the last counts everything above */
+#define PLEM_WINDOW 10000             /* the most recent samples, for live figures */
+
+/* One timed quantity of the loop: whole-run histogram and a rolling window of raw samples (ns). */
+typedef struct {
+    int64_t count, total_ns, min_ns, max_ns;
+    int64_t histogram[PLEM_HISTOGRAM_BINS];
+    int64_t window[PLEM_WINDOW];
+} plem_series;
+
+/* The loop's timing and what it obtained from the machine. */
+typedef struct {
+    int64_t cycles, overruns, missed_periods, consecutive_overruns;
+    int32_t policy;                   /* 1 once the thread runs at SCHED_FIFO */
+    int32_t priority;
+    int32_t sched_error;              /* errno of the refused scheduling request, 0 when granted */
+    int32_t affinity_error;           /* errno of the refused CPU affinity, 0 when granted or not asked */
+    uint64_t cpus;                    /* the CPUs the thread may run on */
+    plem_series latency, compute;
+} plem_stats;
+
+/* A ring of the RT driver's rt_raw records in shared memory (the layout of plem.ipc.ring). */
+typedef struct {
+    uint8_t *base;
+    int64_t slot_bytes, slots;
+} plem_raw_ring;
+
+void plem_series_add(plem_series *series, int64_t value_ns);
+/* One rt_raw record from the state block the cycle just published, with its timing. */
+void plem_raw_write(plem_raw_ring *ring, const plem_state_block *block, int dof, int64_t latency_ns,
+                    int64_t compute_ns);
 
 #endif

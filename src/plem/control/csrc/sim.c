@@ -226,9 +226,11 @@ int plem_sim_read(plem_sim *sim) {
     if (sim->lost && sim->lost_reads != 0) {
         if (sim->lost_reads > 0) sim->lost_reads--;
         sim->lost_frames++;
+        sim->answered = 0;
         plem_power_master_lost(&sim->power);
         return 0;
     }
+    sim->answered = 1;
     sim->lost = 0;
     sim->lost_reads = -1;
     for (int i = 0; i < sim->dof; i++) {
@@ -242,17 +244,20 @@ int plem_sim_read(plem_sim *sim) {
     return 1;
 }
 
+void plem_sim_exchange(plem_sim *sim, const uint16_t *controlwords) {
+    if (sim->lost) plem_sim_quick_stop(sim);
+    else apply(sim, controlwords);
+    advance(sim);
+}
+
 void plem_sim_write(plem_sim *sim) {
-    if (sim->lost) {
-        plem_sim_quick_stop(sim);
-    } else {
-        int32_t seen[PLEM_MAX_JOINTS];
-        uint16_t commands[PLEM_MAX_JOINTS];
+    int32_t seen[PLEM_MAX_JOINTS];
+    uint16_t commands[PLEM_MAX_JOINTS] = {0};
+    if (!sim->lost) {
         for (int i = 0; i < sim->dof; i++) seen[i] = plem_decode_statusword(sim->io_statusword[i]);
         plem_power_commands(&sim->power, seen, commands);
-        apply(sim, commands);
     }
-    advance(sim);
+    plem_sim_exchange(sim, commands);
 }
 
 void plem_sim_serve(plem_sim *sim, const uint16_t *controlwords) {

@@ -329,8 +329,19 @@ def check_candidates(sys_class_net: Path = SYS_CLASS_NET) -> Finding:
                    how=f"rerun with the robot's port, e.g. `plem doctor {example}`")
 
 
+def check_core() -> Finding:
+    """Whether plem's compiled core is built and loads, and how it was built."""
+    what = "plem's compiled real-time core (plem.control._core), built when plem was installed"
+    try:
+        from plem.control import compiled
+    except PlemError as error:
+        return Finding("core.build", False, "error", error.summary, what, error.why, error.how)
+    return _passed("core.build", f"Compiled core: {compiled.describe()}", what,
+                   "the extension loads and its structures match plem's Python view of them")
+
+
 def check_host(interface: str | None = None, priority: int = DEFAULT_PRIORITY) -> list[Finding]:
     """Every check on this machine, with the interface checks for `interface` or a list of candidates."""
-    findings = [check_preempt_rt(), check_rt_priority(priority), check_memlock(), check_raw_sockets(),
+    findings = [check_core(), check_preempt_rt(), check_rt_priority(priority), check_memlock(), check_raw_sockets(),
                 check_isolated_cpus(), check_dma_latency(), check_governor()]
     return findings + (check_interface(interface) if interface else [check_candidates()])

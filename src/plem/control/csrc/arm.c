@@ -1,0 +1,708 @@
+/* One arm's cycle: read the bus, supervise what it measures, take requests, run the mode's controller, check the
+ * command against every limit, write the bus, publish. Everything a person reads about it (fault reasons, refusals)
+ * leaves as codes and numbers on the event and outcome rings; Python words them.
+ */
+#include <math.h>
+#include <stdatomic.h>
+#include <string.h>
+#include <time.h>
+
+#include "plem_core.h"
+
+#define ENABLED_MASK 0x006F
+#define ENABLED_VALUE 0x0027
+#define STATUS_FAULT_BIT 0x0008
+/* A goal time tolerance beyond this many cycles (or infinite) waits this long: about 3 years at 1 kHz. */
+#define MAX_SETTLE_CYCLES (1LL << 47)
+/* Stops are planned this far inside the limits, as every other motion is. */
+#define INSIDE (1.0 - 1e-6)
+#define POSITION 0
+#define VELOCITY 1
+#define EFFORT 2
+#define COMMAND 3
+
+/* The motion slab's layout (plem.ipc.motion_slab): a 64-byte header, then per slot its segment count, final state,
+ * knots and coefficients as float64. */
+#define SLAB_HEADER_BYTES 64
+typedef struct { char magic[8]; uint32_t version, dof, slots, capacity, shared_slots; } slab_header;
+
+static int64_t monotonic_ns(void) {
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (int64_t)now.tv_sec * 1000000000LL + now.tv_nsec;
+}
+
+/* ---- rings ---------------------------------------------------------------------------------------------- */
+
+/* The next free record of a ring the core produces into, or NULL (counted as dropped) when the reader is behind. */
+static void *produce(plem_ring *ring, void *records, size_t size, uint64_t slots) {
+    uint64_t head = ring->head, tail = atomic_load_explicit((_Atomic uint64_t *)&ring->tail, memory_order_acquire);
+    if (head - tail >= slots) {
+        ring->dropped++;
+        return NULL;
+    }
+    void *record = (uint8_t *)records + (head % slots) * size;
+    memset(record, 0, size);
+    return record;
+}
+
+static void publish_record(plem_ring *ring) {
+    atomic_store_explicit((_Atomic uint64_t *)&ring->head, ring->head + 1, memory_order_release);
+}
+
+static void emit(plem_arm *arm, int kind, int cause, int previous, int joint, int detail, uint64_t token,
+                 double v0, double v1, double v2, double v3) {
+    plem_event *event = produce(&arm->events_index, arm->events, sizeof(plem_event), PLEM_EVENT_SLOTS);
+    if (!event) return;
+    event->cycle = arm->cycle, event->monotonic_ns = monotonic_ns(), event->token = token;
+    event->kind = kind, event->cause = cause, event->mode = arm->mode, event->previous_mode = previous;
+    event->joint = joint, event->detail = detail;
+    event->values[0] = v0, event->values[1] = v1, event->values[2] = v2, event->values[3] = v3;
+    publish_record(&arm->events_index);
+}
+
+static void answer(plem_arm *arm, uint64_t token, int stage, int code, int mode, int detail, int joint, double v0,
+                   double v1) {
+    plem_outcome *outcome = produce(&arm->outcomes_index, arm->outcomes, sizeof(plem_outcome), PLEM_OUTCOME_SLOTS);
+    if (!outcome) return;
+    outcome->token = token, outcome->cycle = arm->cycle, outcome->stage = stage, outcome->answer = code;
+    outcome->mode = mode, outcome->detail = detail, outcome->joint = joint;
+    outcome->values[0] = v0, outcome->values[1] = v1;
+    publish_record(&arm->outcomes_index);
+}
+
+static void reject(plem_arm *arm, uint64_t token, int code, int detail, int joint, double v0, double v1) {
+    answer(arm, token, PLEM_REJECTED, code, arm->mode, detail, joint, v0, v1);
+}
+
+/* ---- small pieces --------------------------------------------------------------------------------------- */
+
+static double *row(plem_arm *arm, int r) { return arm->work[r]; }
+
+static int drive_enabled(const plem_arm *arm, int i) {
+    return (arm->io_statusword[i] & ENABLED_MASK) == ENABLED_VALUE;
+}
+
+/* Whether commands reach any drive (a faulted drive ignores its share and holds on its brake). */
+static int can_command(const plem_arm *arm) {
+    if (!arm->communication_ok) return 0;
+    for (int i = 0; i < arm->settings.dof; i++)
+        if (drive_enabled(arm, i)) return 1;
+    return 0;
+}
+
+static void request_power(plem_arm *arm, int state) {
+    arm->power_wanted = state;
+    arm->power_requests++;
+    plem_power_request(&arm->power, state);
+}
+
+static void set_io_mode(plem_arm *arm, int mode) {
+    for (int i = 0; i < arm->settings.dof; i++) arm->io_mode[i] = (int8_t)mode;
+}
+
+/* The command where the arm is, at rest. */
+static void seed_from_measurement(plem_arm *arm) {
+    int n = arm->settings.dof;
+    memcpy(row(arm, COMMAND), row(arm, POSITION), (size_t)n * sizeof(double));
+    memset(row(arm, COMMAND + 1), 0, (size_t)n * sizeof(double));
+    memset(row(arm, COMMAND + 2), 0, (size_t)n * sizeof(double));
+}
+
+/* The command where the arm is and how it moves (free drive: the arm leads, the command follows). */
+static void follow_measurement(plem_arm *arm) {
+    int n = arm->settings.dof;
+    memcpy(row(arm, COMMAND), row(arm, POSITION), (size_t)n * sizeof(double));
+    memcpy(row(arm, COMMAND + 1), row(arm, VELOCITY), (size_t)n * sizeof(double));
+    memset(row(arm, COMMAND + 2), 0, (size_t)n * sizeof(double));
+}
+
+static void leave_free_drive(plem_arm *arm) {
+    set_io_mode(arm, PLEM_CSP);
+    follow_measurement(arm);
+    memset(arm->previous_acceleration, 0, sizeof arm->previous_acceleration);
+}
+
+static void set_mode(plem_arm *arm, int mode, int cause, uint64_t token, int detail) {
+    if (mode == arm->mode) return;
+    int previous = arm->mode;
+    arm->mode = mode;
+    emit(arm, PLEM_EVENT_MODE_CHANGED, cause, previous, -1, detail, token, 0, 0, 0, 0);
+}
+
+/* Centre and half-width of joint i's range: an unlimited joint has centre 0 and half-width inf. */
+static void range_of(const plem_settings *s, int i, double *center, double *half) {
+    if (isfinite(s->min_position[i]) && isfinite(s->max_position[i])) {
+        *center = (s->min_position[i] + s->max_position[i]) / 2.0;
+        *half = (s->max_position[i] - s->min_position[i]) / 2.0;
+    } else {
+        *center = 0.0, *half = INFINITY;
+    }
+}
+
+/* ---- motions -------------------------------------------------------------------------------------------- */
+
+/* The start of slot `slot` of the slab as float64, or NULL when the slab does not have it. */
+static const double *slab_slot(const plem_slab *slab, int dof, int slot, int32_t *capacity) {
+    if (!slab || !slab->base || slab->size < SLAB_HEADER_BYTES) return NULL;
+    slab_header header;
+    memcpy(&header, slab->base, sizeof header);
+    if (memcmp(header.magic, "PLEMMOTN", 8) != 0 || header.version != 2 || (int)header.dof != dof || slot < 0
+        || (uint32_t)slot >= header.slots)
+        return NULL;
+    int64_t values = 1 + 3 * (int64_t)dof + (header.capacity + 1) + (int64_t)header.capacity * PLEM_ORDER * dof;
+    if (SLAB_HEADER_BYTES + (int64_t)header.slots * values * 8 > slab->size) return NULL;
+    *capacity = (int32_t)header.capacity;
+    return (const double *)(slab->base + SLAB_HEADER_BYTES) + (int64_t)slot * values;
+}
+
+/* The running motion as the sampler sees it. */
+static int active_motion(plem_arm *arm, const plem_slab *slab, plem_motion *motion) {
+    int dof = arm->settings.dof;
+    motion->dof = dof, motion->segments = arm->active_segments, motion->cursor = arm->active_cursor;
+    if (arm->active_slot == PLEM_STOP_SLOT) {
+        motion->knots = arm->stop_knots, motion->coefficients = arm->stop_coefficients;
+        motion->final = arm->stop_final;
+        return 1;
+    }
+    int32_t capacity;
+    const double *values = slab_slot(slab, dof, arm->active_slot, &capacity);
+    if (!values) return 0;
+    motion->final = values + 1;
+    motion->knots = values + 1 + 3 * dof;
+    motion->coefficients = values + 2 + 3 * dof + capacity;
+    return 1;
+}
+
+/* A new basis: plans made from the old one are stale from now on (the seqlock keeps readers from tearing it). */
+static void rebase(plem_arm *arm) {
+    plem_basis *b = &arm->basis;
+    _Atomic uint64_t *sequence = (_Atomic uint64_t *)&b->sequence;
+    atomic_store_explicit(sequence, b->sequence + 1, memory_order_relaxed);
+    atomic_thread_fence(memory_order_release);
+    b->generation++;
+    b->slot = arm->active ? arm->active_slot : -1;
+    b->segments = arm->active ? arm->active_segments : 0;
+    b->start_cycle = arm->active ? arm->active_start_cycle : 0;
+    memcpy(b->hold_position, row(arm, COMMAND), (size_t)arm->settings.dof * sizeof(double));
+    atomic_store_explicit(sequence, b->sequence + 1, memory_order_release);
+}
+
+static void end_motion(plem_arm *arm, int outcome, int joint, double v0, double v1) {
+    uint64_t token = arm->active_token;
+    int slot = arm->active_slot;
+    arm->active = 0;
+    rebase(arm);
+    if (arm->mode == PLEM_TRAJECTORY) set_mode(arm, PLEM_HOLD, PLEM_CAUSE_MOTION_FINISHED, token, slot);
+    if (token && outcome) {
+        emit(arm, PLEM_EVENT_MOTION_FINISHED, outcome, -1, joint, outcome, token, v0, v1, 0, 0);
+        answer(arm, token, PLEM_FINISHED, outcome, arm->mode, 0, joint, v0, v1);
+    }
+}
+
+/* Replace whatever runs by the quickest jerk-limited stop from the current command. */
+static void start_stop(plem_arm *arm, const plem_slab *slab) {
+    int n = arm->settings.dof, moving = 0;
+    for (int i = 0; i < n; i++) moving |= row(arm, COMMAND + 1)[i] != 0.0 || row(arm, COMMAND + 2)[i] != 0.0;
+    if (!moving) {
+        rebase(arm);
+        return;
+    }
+    double acceleration[PLEM_MAX_JOINTS], jerk[PLEM_MAX_JOINTS];
+    for (int i = 0; i < n; i++)
+        acceleration[i] = arm->settings.max_acceleration[i] * INSIDE, jerk[i] = arm->settings.max_jerk[i] * INSIDE;
+    arm->stop_segments = plem_plan_stop(n, row(arm, COMMAND), row(arm, COMMAND + 1), row(arm, COMMAND + 2),
+                                        acceleration, jerk, arm->stop_knots, arm->stop_coefficients, arm->stop_final);
+    arm->active = 1, arm->active_slot = PLEM_STOP_SLOT, arm->active_segments = arm->stop_segments;
+    arm->active_token = 0, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1, arm->active_cursor = 0;
+    arm->active_has_path = arm->active_has_goal = 0;
+    for (int r = 0; r < 3; r++)
+        for (int i = 0; i < n; i++) arm->active_final[r][i] = arm->stop_final[r * n + i];
+    plem_motion motion;
+    active_motion(arm, slab, &motion);
+    double out[3 * PLEM_MAX_JOINTS];
+    arm->active_ended = plem_motion_sample(&motion, 0.0, out);
+    for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
+    rebase(arm);
+}
+
+/* ---- faults ----------------------------------------------------------------------------------------------- */
+
+static void fault(plem_arm *arm, const plem_slab *slab, int cause, int joint, int detail, double v0, double v1,
+                  double v2) {
+    if (arm->mode == PLEM_FAULTED) return;
+    int previous = arm->mode;
+    arm->fault_cause = cause;
+    arm->mode = PLEM_FAULTED;
+    emit(arm, PLEM_EVENT_FAULT, cause, previous, joint, detail, 0, v0, v1, v2, 0);
+    arm->have_previous = 0;
+    arm->braking = 0;
+    if (arm->active) {
+        uint64_t token = arm->active_token;
+        arm->active = 0;
+        if (token) answer(arm, token, PLEM_FINISHED, PLEM_ANSWER_FAULT_ABORTED, arm->mode, cause, joint, 0, 0);
+    }
+    if (arm->pending && arm->pending_token) reject(arm, arm->pending_token, PLEM_ANSWER_FAULTED, cause, -1, 0, 0);
+    arm->pending = 0;
+    if (previous == PLEM_FREE_DRIVE) leave_free_drive(arm);
+    if (previous != PLEM_IDLE && can_command(arm)) start_stop(arm, slab);
+    else rebase(arm);
+}
+
+void plem_arm_fault(plem_arm *arm, int cause, double value0, double value1) {
+    fault(arm, NULL, cause, -1, 0, value0, value1, 0);
+}
+
+/* Fault on drive faults, implausible encoder jumps, limit breaches and tracking errors. */
+static void supervise_measurement(plem_arm *arm, const plem_slab *slab) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof, mode = arm->mode;
+    const double *position = row(arm, POSITION), *velocity = row(arm, VELOCITY), *command = row(arm, COMMAND);
+    if (mode != PLEM_IDLE)
+        for (int i = 0; i < n; i++)
+            if (!drive_enabled(arm, i)) {
+                int cause = arm->io_statusword[i] & STATUS_FAULT_BIT ? PLEM_CAUSE_DRIVE_FAULT : PLEM_CAUSE_DRIVE_DISABLED;
+                fault(arm, slab, cause, i, arm->io_statusword[i], arm->io_error_code[i], 0, 0);
+                return;
+            }
+    if (!arm->have_previous) {
+        memcpy(arm->previous_position, position, (size_t)n * sizeof(double));
+        arm->have_previous = 1;
+    }
+    double measure[4][PLEM_MAX_JOINTS], bound[4][PLEM_MAX_JOINTS];
+    for (int i = 0; i < n; i++) {
+        double center, half;
+        range_of(s, i, &center, &half);
+        measure[0][i] = fabs(position[i] - arm->previous_position[i]);
+        measure[1][i] = fabs(position[i] - center);
+        measure[2][i] = fabs(velocity[i]);
+        measure[3][i] = fabs(command[i] - position[i]);
+        bound[0][i] = 2.0 * s->max_velocity[i] * s->dt + 1e-3;
+        bound[1][i] = mode == PLEM_IDLE ? INFINITY : half + s->position_margin;
+        bound[2][i] = mode == PLEM_IDLE ? INFINITY : s->max_velocity[i] * s->velocity_margin + 0.01;
+        bound[3][i] = mode == PLEM_IDLE || mode == PLEM_FREE_DRIVE ? INFINITY : s->tracking_tolerance;
+    }
+    memcpy(arm->previous_position, position, (size_t)n * sizeof(double));
+    for (int r = 0; r < 4; r++)
+        for (int i = 0; i < n; i++) {
+            if (!(measure[r][i] > bound[r][i])) continue;
+            switch (r) {
+            case 0: fault(arm, slab, PLEM_CAUSE_ENCODER_JUMP, i, 0, measure[r][i], bound[r][i], 0); break;
+            case 1: fault(arm, slab, PLEM_CAUSE_POSITION_LIMIT, i, 0, position[i], s->min_position[i],
+                          s->max_position[i]); break;
+            case 2: fault(arm, slab, PLEM_CAUSE_VELOCITY_LIMIT, i, 0, velocity[i], s->max_velocity[i], 0); break;
+            default: fault(arm, slab, PLEM_CAUSE_TRACKING_ERROR, i, 0, measure[r][i], bound[r][i], 0); break;
+            }
+            return;
+        }
+}
+
+/* In FAULT with drives enabled, the drives hold the arm where the stop leaves it. When they cannot (it runs away
+ * from its command or past its velocity limit), disable them so the brakes hold it, and say so. */
+static void supervise_fault_hold(plem_arm *arm) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    for (int r = 2; r < 4; r++)
+        for (int i = 0; i < n; i++) {
+            if (!drive_enabled(arm, i)) continue;   /* a disabled drive's joint is on its brake */
+            double value = r == 2 ? fabs(row(arm, VELOCITY)[i]) : fabs(row(arm, COMMAND)[i] - row(arm, POSITION)[i]);
+            double bound = r == 2 ? s->max_velocity[i] * s->velocity_margin + 0.01 : s->tracking_tolerance;
+            if (!(value > bound)) continue;
+            request_power(arm, PLEM_SWITCH_ON_DISABLED);
+            arm->braking = 1;
+            emit(arm, PLEM_EVENT_WARNING, PLEM_CAUSE_BRAKES_ENGAGED, -1, i, r,
+                 0, r == 2 ? row(arm, VELOCITY)[i] : value, r == 2 ? s->max_velocity[i] : bound, 0, 0);
+            return;
+        }
+}
+
+/* ---- requests ----------------------------------------------------------------------------------------------- */
+
+/* The arm must stand still for `action`; 0 and a refusal when it does not. */
+static int require_standstill(plem_arm *arm, uint64_t token, int action) {
+    int n = arm->settings.dof, fastest = 0, moving = 0;
+    const double *velocity = row(arm, VELOCITY);
+    for (int i = 0; i < n; i++) {
+        if (fabs(velocity[i]) > fabs(velocity[fastest])) fastest = i;
+        moving |= fabs(velocity[i]) > arm->settings.standstill_velocity;
+    }
+    if (!arm->active && !moving) return 1;
+    reject(arm, token, PLEM_ANSWER_MOVING, action, moving ? fastest : -1, fabs(velocity[fastest]), 0);
+    return 0;
+}
+
+static void start_enable(plem_arm *arm, int target, uint64_t token, int after_reset) {
+    set_io_mode(arm, target == PLEM_FREE_DRIVE ? PLEM_CST : PLEM_CSP);
+    if (!after_reset) request_power(arm, PLEM_OPERATION_ENABLED);
+    int64_t timeout = arm->settings.enable_timeout_cycles;
+    arm->pending = 1, arm->pending_target = target, arm->pending_token = token;
+    arm->pending_deadline = arm->cycle + (timeout > 1 ? timeout : 1);
+    arm->pending_enable_sent = !after_reset;
+}
+
+/* The drive states of joints 8k..8k+7, four bits each, as a number a double holds exactly. */
+static double packed_states(const plem_arm *arm, int k) {
+    uint64_t packed = 0;
+    for (int i = 8 * k; i < arm->settings.dof && i < 8 * k + 8; i++)
+        packed |= (uint64_t)plem_decode_statusword(arm->io_statusword[i]) << (4 * (i - 8 * k));
+    return (double)packed;
+}
+
+static void advance_enable(plem_arm *arm) {
+    int n = arm->settings.dof, all_enabled = 1, any_fault = 0;
+    for (int i = 0; i < n; i++) {
+        int state = plem_decode_statusword(arm->io_statusword[i]);
+        all_enabled &= state == PLEM_OPERATION_ENABLED;
+        any_fault |= state == PLEM_FAULT;
+    }
+    if (!arm->pending_enable_sent && !any_fault) {
+        request_power(arm, PLEM_OPERATION_ENABLED);
+        arm->pending_enable_sent = 1;
+    }
+    int target = arm->pending_target;
+    uint64_t token = arm->pending_token;
+    if (all_enabled) {
+        arm->pending = 0;
+        seed_from_measurement(arm);
+        memset(arm->previous_acceleration, 0, sizeof arm->previous_acceleration);
+        rebase(arm);
+        if (arm->mode == PLEM_FAULTED) {
+            int mode = arm->mode;
+            arm->mode = target;   /* the event carries the mode the reset leads to */
+            emit(arm, PLEM_EVENT_FAULT_CLEARED, PLEM_CAUSE_RESET, -1, -1, arm->fault_cause, 0, 0, 0, 0, 0);
+            arm->mode = mode;
+            arm->fault_cause = 0;
+        }
+        set_mode(arm, target, PLEM_CAUSE_DRIVES_ENABLED, 0, 0);
+        if (token) answer(arm, token, PLEM_FINISHED, PLEM_ANSWER_MODE, target, 0, -1, 0, 0);
+    } else if (arm->cycle >= arm->pending_deadline) {
+        arm->pending = 0;
+        request_power(arm, PLEM_SWITCH_ON_DISABLED);
+        if (token) reject(arm, token, PLEM_ANSWER_ENABLE_TIMEOUT, target, -1, packed_states(arm, 0),
+                          packed_states(arm, 1));
+        emit(arm, PLEM_EVENT_COMMAND_REJECTED, PLEM_CAUSE_ENABLE_TIMEOUT, -1, -1, target, token,
+             packed_states(arm, 0), packed_states(arm, 1), 0, 0);
+    }
+}
+
+/* Which modes set_mode may ask for from each mode (TRAJECTORY comes by starting a motion; FAULT is left by reset). */
+static int requestable(int current, int requested) {
+    static const uint8_t allowed[5] = {
+        [PLEM_IDLE] = 1 << PLEM_IDLE | 1 << PLEM_HOLD | 1 << PLEM_FREE_DRIVE,
+        [PLEM_HOLD] = 1 << PLEM_HOLD | 1 << PLEM_IDLE | 1 << PLEM_FREE_DRIVE,
+        [PLEM_TRAJECTORY] = 1 << PLEM_HOLD,
+        [PLEM_FREE_DRIVE] = 1 << PLEM_FREE_DRIVE | 1 << PLEM_HOLD | 1 << PLEM_IDLE,
+        [PLEM_FAULTED] = 0,
+    };
+    return requested >= 0 && requested <= PLEM_FAULTED && (allowed[current] >> requested & 1);
+}
+
+static void request_mode(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
+    int current = arm->mode, requested = c->mode;
+    if (arm->pending) return reject(arm, c->token, PLEM_ANSWER_MODE_PENDING, arm->pending_target, -1, 0, 0);
+    if (!requestable(current, requested)) return reject(arm, c->token, PLEM_ANSWER_TRANSITION, requested, -1, 0, 0);
+    if (requested == current) return answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_MODE, current, 0, -1, 0, 0);
+    if (requested == PLEM_IDLE) {
+        if (!require_standstill(arm, c->token, 0)) return;
+        request_power(arm, PLEM_SWITCH_ON_DISABLED);
+        arm->active = 0;
+        set_mode(arm, PLEM_IDLE, PLEM_CAUSE_SET_MODE_IDLE, 0, 0);
+        seed_from_measurement(arm);
+        answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_MODE, PLEM_IDLE, 0, -1, 0, 0);
+    } else if (current == PLEM_IDLE) {
+        start_enable(arm, requested, c->token, 0);
+    } else if (requested == PLEM_FREE_DRIVE) {
+        if (!require_standstill(arm, c->token, 1)) return;
+        set_io_mode(arm, PLEM_CST);
+        arm->active = 0;
+        set_mode(arm, PLEM_FREE_DRIVE, PLEM_CAUSE_SET_MODE_FREE_DRIVE, 0, 0);
+        answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_MODE, PLEM_FREE_DRIVE, 0, -1, 0, 0);
+    } else {   /* HOLD from free drive or a motion: stop smoothly from where the arm is */
+        if (current == PLEM_FREE_DRIVE) leave_free_drive(arm);
+        else if (arm->active && arm->active_token) end_motion(arm, PLEM_ANSWER_CANCELED, -1, 0, 0);
+        set_mode(arm, PLEM_HOLD, PLEM_CAUSE_SET_MODE_HOLD, 0, 0);
+        start_stop(arm, slab);
+        answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_MODE, PLEM_HOLD, 0, -1, 0, 0);
+    }
+}
+
+static void activate(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
+    int n = arm->settings.dof;
+    if ((arm->mode != PLEM_HOLD && arm->mode != PLEM_TRAJECTORY) || arm->pending)
+        return reject(arm, c->token, PLEM_ANSWER_NOT_HOLDING, arm->pending, -1, 0, 0);
+    int32_t capacity;
+    const double *values = slab_slot(slab, n, c->slot, &capacity);
+    if (!values || c->segments < 0 || c->segments > capacity || (int32_t)values[0] != c->segments)
+        return reject(arm, c->token, PLEM_ANSWER_INVALID_SLOT, c->slot, -1, c->segments, values ? values[0] : -1);
+    if (c->basis != arm->basis.generation || (c->activation >= 0 && arm->cycle != c->activation))
+        return reject(arm, c->token, PLEM_ANSWER_STALE, 0, -1, 0, 0);
+    if (arm->active && arm->active_token) {
+        answer(arm, arm->active_token, PLEM_FINISHED, PLEM_ANSWER_PREEMPTED, arm->mode, 0, -1, 0, 0);
+        emit(arm, PLEM_EVENT_MOTION_FINISHED, PLEM_ANSWER_PREEMPTED, -1, -1, PLEM_ANSWER_PREEMPTED, arm->active_token,
+             0, 0, 0, 0);
+    }
+    arm->active = 1, arm->active_ended = 0, arm->active_slot = c->slot, arm->active_segments = c->segments;
+    arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
+    arm->active_cursor = 0, arm->active_has_path = c->has_path, arm->active_has_goal = c->has_goal;
+    arm->active_goal_time = c->goal_time, arm->active_stopped_velocity = c->stopped_velocity;
+    memcpy(arm->active_path, c->path, sizeof arm->active_path);
+    memcpy(arm->active_goal, c->goal_tolerance, sizeof arm->active_goal);
+    for (int r = 0; r < 3; r++)
+        for (int i = 0; i < n; i++) arm->active_final[r][i] = values[1 + r * n + i];
+    rebase(arm);
+    answer(arm, c->token, PLEM_ACCEPTED, 0, arm->mode, 0, -1, 0, 0);
+    set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, c->token, 0);
+    double duration = c->segments > 0 ? values[1 + 3 * n + c->segments] : 0.0;
+    emit(arm, PLEM_EVENT_MOTION_STARTED, PLEM_CAUSE_MOTION_STARTED, -1, -1, 0, c->token, duration, 0, 0, 0);
+}
+
+static void reset(plem_arm *arm, const plem_command *c) {
+    if (arm->mode != PLEM_FAULTED) return answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_MODE, arm->mode, 0, -1, 0, 0);
+    if (!arm->communication_ok) return reject(arm, c->token, PLEM_ANSWER_RESET_NO_BUS, arm->fault_cause, -1, 0, 0);
+    if (!require_standstill(arm, c->token, 2)) return;
+    arm->active = 0;
+    arm->power_resets++;
+    plem_power_request_reset(&arm->power);
+    start_enable(arm, PLEM_HOLD, c->token, 1);
+}
+
+static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
+    switch (c->op) {
+    case PLEM_OP_START: activate(arm, slab, c); break;
+    case PLEM_OP_SET_MODE: request_mode(arm, slab, c); break;
+    case PLEM_OP_STOP:
+        if (arm->active && arm->active_token && (c->goal == 0 || c->goal == arm->active_token)) {
+            end_motion(arm, PLEM_ANSWER_CANCELED, -1, 0, 0);
+            start_stop(arm, slab);
+        }
+        answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
+        break;
+    case PLEM_OP_RESET: reset(arm, c); break;
+    default: reject(arm, c->token, PLEM_ANSWER_UNKNOWN_OP, c->op, -1, 0, 0);
+    }
+}
+
+/* Take at most PLEM_COMMANDS_PER_CYCLE requests; a start planned to take over at a later cycle waits at the head. */
+static void take_commands(plem_arm *arm, const plem_slab *slab) {
+    plem_ring *ring = &arm->commands_index;
+    for (int taken = 0; taken < PLEM_COMMANDS_PER_CYCLE; taken++) {
+        uint64_t tail = ring->tail, head = atomic_load_explicit((_Atomic uint64_t *)&ring->head, memory_order_acquire);
+        if (tail == head) return;
+        const plem_command *c = &arm->commands[tail % PLEM_COMMAND_SLOTS];
+        if (c->op == PLEM_OP_START && c->activation >= 0 && c->basis == arm->basis.generation
+            && arm->cycle < c->activation)
+            return;
+        execute(arm, slab, c);
+        atomic_store_explicit((_Atomic uint64_t *)&ring->tail, tail + 1, memory_order_release);
+    }
+}
+
+/* ---- control ------------------------------------------------------------------------------------------------ */
+
+/* The running motion leaves its path tolerance: abort it and stop; 1 when it did. */
+static int check_path(plem_arm *arm, const plem_slab *slab) {
+    int n = arm->settings.dof, worst = -1;
+    double excess = -INFINITY;
+    for (int i = 0; i < n; i++) {
+        double error = fabs(row(arm, COMMAND)[i] - row(arm, POSITION)[i]);
+        if (error > arm->active_path[i] && error - arm->active_path[i] > excess) excess = error - arm->active_path[i], worst = i;
+    }
+    if (worst < 0) return 0;
+    end_motion(arm, PLEM_ANSWER_PATH_VIOLATED, worst, fabs(row(arm, COMMAND)[worst] - row(arm, POSITION)[worst]),
+               arm->active_path[worst]);
+    start_stop(arm, slab);
+    return 1;
+}
+
+/* After the last point: succeed once inside the goal tolerance and stopped, abort after goal_time. */
+static void settle(plem_arm *arm) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    if (!arm->active_token) return end_motion(arm, 0, -1, 0, 0);   /* the core's stop: done once it ends */
+    if (arm->settle_deadline < 0) {
+        double cycles = arm->active_goal_time / s->dt;
+        arm->settle_deadline = arm->cycle + (cycles < (double)MAX_SETTLE_CYCLES
+                                             ? (int64_t)fmax(1.0, ceil(cycles)) : MAX_SETTLE_CYCLES);
+    }
+    int inside = 1, stopped = 1, worst = 0;
+    double distance[PLEM_MAX_JOINTS];
+    for (int i = 0; i < n; i++) {
+        distance[i] = fabs(arm->active_final[0][i] - row(arm, POSITION)[i]);
+        if (distance[i] > distance[worst]) worst = i;
+        if (arm->active_has_goal && distance[i] > arm->active_goal[i]) inside = 0;
+        if (fabs(row(arm, VELOCITY)[i]) > arm->active_stopped_velocity) stopped = 0;
+    }
+    if (inside && stopped) end_motion(arm, PLEM_ANSWER_SUCCEEDED, -1, 0, 0);
+    else if (arm->cycle >= arm->settle_deadline)
+        end_motion(arm, PLEM_ANSWER_GOAL_VIOLATED, worst, distance[worst], arm->active_goal_time);
+}
+
+/* Fault when the command leaves the position, velocity or acceleration limits, jerks too hard, or is not a number. */
+static void check_command(plem_arm *arm, const plem_slab *slab) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    double slack = 1.0 + s->command_tolerance, check[4][PLEM_MAX_JOINTS], bound[4][PLEM_MAX_JOINTS];
+    for (int i = 0; i < n; i++) {
+        double center, half;
+        range_of(s, i, &center, &half);
+        check[0][i] = fabs(row(arm, COMMAND)[i] - center);
+        check[1][i] = fabs(row(arm, COMMAND + 1)[i]);
+        check[2][i] = fabs(row(arm, COMMAND + 2)[i]);
+        check[3][i] = fabs(row(arm, COMMAND + 2)[i] - arm->previous_acceleration[i]);
+        bound[0][i] = half * slack + 1e-9;
+        bound[1][i] = s->max_velocity[i] * slack + 1e-9;
+        bound[2][i] = s->max_acceleration[i] * slack + 1e-9;
+        bound[3][i] = s->max_jerk[i] * s->dt * slack + 1e-9;
+        arm->previous_acceleration[i] = row(arm, COMMAND + 2)[i];
+    }
+    for (int r = 0; r < 4; r++)
+        for (int i = 0; i < n; i++) {
+            if (check[r][i] <= bound[r][i]) continue;
+            if (!isfinite(row(arm, COMMAND)[i]) || !isfinite(row(arm, COMMAND + 1)[i])
+                || !isfinite(row(arm, COMMAND + 2)[i])) {
+                follow_measurement(arm);   /* a stop is planned from where the arm really is, never from NaN */
+                fault(arm, slab, PLEM_CAUSE_INVALID_COMMAND, i, 0, 0, 0, 0);
+                return;
+            }
+            static const int causes[4] = {PLEM_CAUSE_COMMAND_POSITION, PLEM_CAUSE_COMMAND_VELOCITY,
+                                          PLEM_CAUSE_COMMAND_ACCELERATION, PLEM_CAUSE_COMMAND_JERK};
+            double value = r == 3 ? check[3][i] / s->dt : row(arm, COMMAND + r)[i];
+            double limit = r == 0 ? s->min_position[i] : r == 1 ? s->max_velocity[i]
+                         : r == 2 ? s->max_acceleration[i] : s->max_jerk[i];
+            fault(arm, slab, causes[r], i, r, value, limit, s->max_position[i]);
+            return;
+        }
+}
+
+static void control(plem_arm *arm, const plem_slab *slab) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof, mode = arm->mode;
+    if (mode == PLEM_IDLE || (mode == PLEM_FAULTED && !can_command(arm))) {
+        seed_from_measurement(arm);
+        if (arm->pending) advance_enable(arm);
+        return;
+    }
+    if (mode == PLEM_FREE_DRIVE) {
+        follow_measurement(arm);
+        plem_gravity(&arm->model, row(arm, POSITION), arm->torque);
+        for (int i = 0; i < n; i++) {
+            double torque = arm->torque[i] - s->damping[i] * row(arm, VELOCITY)[i];
+            arm->torque[i] = fmax(fmin(torque, s->max_effort[i]), -s->max_effort[i]);
+        }
+        return;
+    }
+    if (arm->active) {
+        double t = (double)(arm->cycle - arm->active_start_cycle) * s->dt;
+        int aborted = 0;
+        if (!arm->active_ended) {
+            plem_motion motion;
+            if (active_motion(arm, slab, &motion)) {
+                double out[3 * PLEM_MAX_JOINTS];
+                arm->active_ended = plem_motion_sample(&motion, t, out);
+                arm->active_cursor = motion.cursor;
+                for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
+            } else {
+                arm->active_ended = 1;  /* the slab went away: hold where the motion was */
+            }
+            if (arm->active_has_path) aborted = check_path(arm, slab);
+        }
+        if (arm->active_ended && !aborted) settle(arm);
+    }
+    check_command(arm, slab);
+    if (arm->pending) advance_enable(arm);
+}
+
+/* ---- the bus and publishing --------------------------------------------------------------------------------- */
+
+static int read_bus(plem_arm *arm, plem_sim *sim) {
+    int n = arm->settings.dof;
+    if (!sim) return arm->io_answered;
+    int answered = plem_sim_read(sim);
+    if (answered) {
+        memcpy(arm->io_position, sim->io_position, (size_t)n * sizeof(int64_t));
+        memcpy(arm->io_velocity, sim->io_velocity, (size_t)n * sizeof(int64_t));
+        memcpy(arm->io_torque, sim->io_torque, (size_t)n * sizeof(double));
+        memcpy(arm->io_statusword, sim->io_statusword, (size_t)n * sizeof(uint16_t));
+        memcpy(arm->io_error_code, sim->io_error_code, (size_t)n * sizeof(uint16_t));
+    } else {
+        plem_power_master_lost(&arm->power);
+    }
+    arm->io_answered = answered;
+    return answered;
+}
+
+static void write_bus(plem_arm *arm, plem_sim *sim) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    for (int i = 0; i < n; i++) {
+        arm->io_target_position[i] = (int64_t)rint(row(arm, COMMAND)[i] * s->counts_per_radian[i]) - s->offsets[i];
+        arm->io_velocity_offset[i] = (int64_t)rint(row(arm, COMMAND + 1)[i] * s->counts_per_radian[i]);
+        arm->io_torque_offset[i] = arm->mode == PLEM_FREE_DRIVE ? arm->torque[i] : 0.0;
+    }
+    if (!sim) return;
+    int32_t seen[PLEM_MAX_JOINTS];
+    uint16_t controlwords[PLEM_MAX_JOINTS];
+    for (int i = 0; i < n; i++) seen[i] = plem_decode_statusword(arm->io_statusword[i]);
+    plem_power_commands(&arm->power, seen, controlwords);
+    memcpy(sim->io_target_position, arm->io_target_position, (size_t)n * sizeof(int64_t));
+    memcpy(sim->io_velocity_offset, arm->io_velocity_offset, (size_t)n * sizeof(int64_t));
+    memcpy(sim->io_torque_offset, arm->io_torque_offset, (size_t)n * sizeof(double));
+    memcpy(sim->io_mode, arm->io_mode, (size_t)n);
+    plem_sim_exchange(sim, controlwords);
+}
+
+/* One cycle's state into the seqlock block: sequence odd, the rows and header, sequence even. */
+static void publish(plem_arm *arm, plem_state_block *block) {
+    if (!block || !block->header) return;
+    int n = arm->settings.dof, enabled = arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY
+                                         || arm->mode == PLEM_FREE_DRIVE;
+    _Atomic int64_t *sequence = (_Atomic int64_t *)&block->header[0];
+    int64_t value = atomic_load_explicit(sequence, memory_order_relaxed);
+    atomic_store_explicit(sequence, value + 1, memory_order_relaxed);
+    atomic_thread_fence(memory_order_release);
+    for (int r = 0; r < 6; r++) memcpy(block->values + r * n, row(arm, r), (size_t)n * sizeof(double));
+    block->header[1] = arm->cycle;
+    block->header[2] = monotonic_ns();
+    block->header[3] = arm->mode;
+    block->header[4] = arm->mode == PLEM_FAULTED;
+    block->header[5] = enabled;
+    atomic_store_explicit(sequence, value + 2, memory_order_release);
+}
+
+void plem_arm_init(plem_arm *arm) {
+    arm->mode = PLEM_IDLE;
+    arm->communication_ok = 1;
+    arm->power_wanted = PLEM_SWITCH_ON_DISABLED;
+    plem_power_init(&arm->power, arm->settings.dof);
+    set_io_mode(arm, PLEM_CSP);
+    rebase(arm);
+}
+
+void plem_arm_cycle(plem_arm *arm, plem_sim *sim, const plem_slab *slab, plem_state_block *block) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    if (read_bus(arm, sim)) {
+        if (!arm->communication_ok) arm->communication_ok = 1, arm->have_previous = 0;
+        for (int i = 0; i < n; i++) {
+            row(arm, POSITION)[i] = (double)(arm->io_position[i] + s->offsets[i]) / s->counts_per_radian[i];
+            row(arm, VELOCITY)[i] = (double)arm->io_velocity[i] / s->counts_per_radian[i];
+            row(arm, EFFORT)[i] = arm->io_torque[i];
+        }
+        if (arm->mode != PLEM_FAULTED) supervise_measurement(arm, slab);
+        else if (!arm->braking && can_command(arm)) supervise_fault_hold(arm);
+    } else if (arm->communication_ok) {
+        arm->communication_ok = 0;
+        fault(arm, slab, PLEM_CAUSE_COMMUNICATION_LOST, -1, 0, 0, 0, 0);
+    }
+    take_commands(arm, slab);
+    control(arm, slab);
+    write_bus(arm, sim);
+    arm->cycle++;
+    publish(arm, block);
+}
+
+void plem_arm_report_overruns(plem_arm *arm, int64_t overruns, int64_t missed, int64_t longest, int64_t total,
+                              int64_t window_ms) {
+    emit(arm, PLEM_EVENT_OVERRUN, PLEM_CAUSE_OVERRUN, -1, -1, (int)window_ms, 0, (double)overruns, (double)missed,
+         (double)longest, (double)total);
+}
