@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from plem.control.state import StateBlock
 from plem.fieldbus.bus import DriveState
 from plem.fieldbus.cia402 import Controlword
 
@@ -53,14 +54,7 @@ _ENTERS: dict[DriveState, int] = {
 
 
 def next_controlword(state: DriveState, target: DriveState, previous: int = 0) -> int:
-    """The controlword that moves a drive one step from `state` toward `target` (or keeps it there).
-
-    `target` is one of switch on disabled, ready to switch on, switched on, operation enabled. Upward
-    the drive climbs one state per command; downward it goes straight to the target. From quick stop,
-    not ready or fault reaction the drive is sent to switch on disabled first. In FAULT the answer is the
-    fault reset, which acts on a rising edge of bit 7: when `previous` (the last controlword sent)
-    already has bit 7 set, bit 7 is cleared first and the reset goes out on the next call.
-    """
+    """The reference of plem.fieldbus.cia402.next_controlword."""
     if target not in _ENTERS:
         raise ValueError(f"{target.name} is not a state a controlword can hold a drive in")
     if state is DriveState.FAULT:
@@ -72,11 +66,7 @@ def next_controlword(state: DriveState, target: DriveState, previous: int = 0) -
 
 
 def drive_transition(state: DriveState, controlword: int, previous: int) -> DriveState:
-    """The state a drive goes to when it receives `controlword` after `previous` (the drive's side).
-
-    Not ready and fault reaction end by themselves (transitions 1 and 14); a fault is left only on a
-    rising edge of bit 7 (transition 15). Commands not allowed in a state leave it unchanged.
-    """
+    """The reference of plem.fieldbus.cia402.drive_transition."""
     if state is DriveState.NOT_READY_TO_SWITCH_ON:
         return DriveState.SWITCH_ON_DISABLED
     if state is DriveState.FAULT_REACTION_ACTIVE:
@@ -166,3 +156,13 @@ def sample_polynomial(knots: np.ndarray, coefficients: np.ndarray, final: np.nda
     exponents = np.maximum(powers - np.arange(3)[:, None], 0.0)
     weights = np.array([np.ones(order), powers, powers * (powers - 1)])
     return np.asarray((weights * tau ** exponents) @ coefficients[s])
+
+
+def publish(block: StateBlock, values: np.ndarray, cycle: int, monotonic_ns: int, mode: int, faulted: bool,
+            drives_enabled: bool) -> None:
+    """One cycle's state into a seqlock block as the core writes it: sequence odd, rows and header, sequence even."""
+    header = block.header
+    header[0] += 1
+    np.copyto(block.values, values)
+    header[1:6] = (cycle, monotonic_ns, mode, faulted, drives_enabled)
+    header[0] += 1

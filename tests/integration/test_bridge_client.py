@@ -34,8 +34,10 @@ def driver() -> Iterator[tuple[str, Robot]]:
 
 
 def fault_the_drive(robot: Robot, client: RobotClient, joint: int) -> None:
+    """Fault a drive and wait for the arm's fault and its worded event (the event follows the state by a
+    millisecond: the core reports a code, the driver's service thread words it)."""
     robot.bus.inject_drive_fault(joint, 0x7121)
-    assert wait_until(lambda: client.state().faulted, 10)
+    assert wait_until(lambda: client.state().faulted and client.last_fault() is not None, 10)
 
 
 def plem_state(robot_id: str, *args: str) -> str:

@@ -102,6 +102,18 @@ class CommandHandle:
         return self.result
 
 
+#: A preemption starts this far ahead of the running motion on the first attempt.
+PREEMPTION_LEAD_S = 0.02
+#: Attempts at planning a preemption before the caller is told the state kept changing.
+PLAN_ATTEMPTS = 5
+
+
+def preemption_lead(attempt: int, planning_s: float) -> float:
+    """How far ahead (s) attempt `attempt` starts a preempting motion: doubled on each retry, and after a plan that
+    took `planning_s` (0 on the first attempt) at least one and a half times that, so a slow fit catches up."""
+    return max(PREEMPTION_LEAD_S * 2.0 ** attempt, 1.5 * planning_s)
+
+
 @dataclass(frozen=True)
 class PlanBasis:
     """The loop's motion state a plan starts from, as the core published it.

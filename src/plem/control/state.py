@@ -1,9 +1,9 @@
 """The joint-state block the loop publishes every cycle, readable without tearing (a seqlock).
 
 The block is one float64 array of joint values plus an int64 header, over any writable buffer: plain
-memory for a robot inside a Python process, POSIX shared memory for the RT driver process. The writer
-makes the sequence odd, copies, makes it even again; a reader retries until it copied between two equal
-even sequence values, so it never sees a half-written sample and never blocks the writer.
+memory for a robot inside a Python process, POSIX shared memory for the RT driver process. The writer, the
+compiled core's cycle, makes the sequence odd, copies, makes it even again; a reader retries until it copied
+between two equal even sequence values, so it never sees a half-written sample and never blocks the writer.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from plem.control.modes import Mode
 ROWS = ("position", "velocity", "effort", "command_position", "command_velocity", "command_acceleration")
 
 
-#: Slots of the int64 header, in order (publish and read index them directly: the loop's path stays lean).
+#: Slots of the int64 header, in order (the core writes them in this order; read indexes them directly).
 HEADER = ("sequence", "cycle", "monotonic_ns", "mode", "faulted", "drives_enabled")
 HEADER_SLOTS = len(HEADER)
 
@@ -55,19 +55,6 @@ class StateBlock:
     def nbytes(dof: int) -> int:
         """Bytes a block of `dof` joints occupies, for sizing a shared-memory segment."""
         return HEADER_SLOTS * 8 + len(ROWS) * dof * 8
-
-    def publish(self, values: np.ndarray, cycle: int, monotonic_ns: int, mode: int, faulted: bool,
-                drives_enabled: bool) -> None:
-        """Write one cycle's state (the loop's only writer call)."""
-        header = self.header
-        header[0] += 1
-        np.copyto(self.values, values)
-        header[1] = cycle
-        header[2] = monotonic_ns
-        header[3] = mode
-        header[4] = faulted
-        header[5] = drives_enabled
-        header[0] += 1
 
     def read(self, retries: int = 10_000) -> JointState | None:
         """A consistent copy, or None if nothing was published yet or the writer kept interfering."""

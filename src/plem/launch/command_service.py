@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from plem.control.commands import PLAN_ATTEMPTS, preemption_lead
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
 from plem.errors import CommandRejected, PlemError
@@ -51,9 +52,6 @@ from plem.ipc.requests import (
 from plem.launch.component import announce, begin
 from plem.planning import fit_to_limits
 
-#: A preemption starts this far ahead of the running motion (doubled on each retry), as in `Robot`.
-PREEMPTION_LEAD_S = 0.02
-PLAN_ATTEMPTS = 5
 DRIVER_TIMEOUT_S = 2.0
 #: Clients served at once; more are turned away.
 MAX_CLIENTS = 64
@@ -240,11 +238,14 @@ class CommandService:
         """Plan from the driver's current state and hand the motion over; re-plan when the state moved on."""
         plan = self._planner(request)
         label = "move_joints" if request.op == "move_joints" else "trajectory"
+        planning_s = 0.0
         for attempt in range(PLAN_ATTEMPTS):
             prepared = next(self._tokens)
-            self._write_intake({"op": "prepare", "token": prepared, "lead_s": PREEMPTION_LEAD_S * 2 ** attempt})
+            self._write_intake({"op": "prepare", "token": prepared, "lead_s": preemption_lead(attempt, planning_s)})
             start = np.array(self._await(prepared)["start"], dtype=float)
+            began = time.monotonic()
             motion, note = plan((start[0], start[1], start[2]))
+            planning_s = time.monotonic() - began
             slot = self._take_slot()
             segments = self.slab.write(slot, motion)
             token = next(self._tokens)

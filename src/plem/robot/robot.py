@@ -11,6 +11,7 @@ import logging
 import math
 import sys
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -18,7 +19,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from plem.bridge.planning import LocalPlannerLink, PlanningCalls
-from plem.control.commands import Command, CommandHandle, PlanBasis, ResetFault, SetMode, StartMotion, StopMotion
+from plem.control.commands import (
+    PLAN_ATTEMPTS,
+    Command,
+    CommandHandle,
+    PlanBasis,
+    ResetFault,
+    SetMode,
+    StartMotion,
+    StopMotion,
+    preemption_lead,
+)
 from plem.control.core_thread import CoreThread
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
@@ -46,8 +57,6 @@ if TYPE_CHECKING:
     from plem.description.validate import ValidationReport
     from plem.planning.service import PlannerService
 
-PREEMPTION_LEAD_S = 0.02
-PLAN_ATTEMPTS = 5
 ACCEPT_TIMEOUT_S = 2.0
 MAX_SWITCH_INTERVAL_S = 0.0002
 SWITCH_INTERVALS_PER_CYCLE = 5  # another thread holds the interpreter for at most a fifth of a period
@@ -334,24 +343,28 @@ class Robot(PlanningCalls):
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
         """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
         tolerances = tolerances or TrajectoryTolerances()
+        planning_s = 0.0
         for attempt in range(PLAN_ATTEMPTS):
             basis: PlanBasis = self.runtime.basis
-            activation, start = self._start_state(basis, attempt)
+            lead_s = preemption_lead(attempt, planning_s)
+            activation, start = self._start_state(basis, lead_s)
+            began = time.monotonic()
             motion, note = plan(start)
+            planning_s = time.monotonic() - began
             handle = CommandHandle(label, self._pump)
             self._send(StartMotion(motion, basis, activation, tolerances, handle, label, note))
-            handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else PREEMPTION_LEAD_S * 2 ** attempt))
+            handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else lead_s))
             if not handle.stale:
                 return handle
         raise CommandRejected(f"{label} could not be started", what="the arm's state to settle long enough to plan",
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop() first")
 
-    def _start_state(self, basis: PlanBasis, attempt: int) -> tuple[int | None, StartState]:
+    def _start_state(self, basis: PlanBasis, lead_s: float) -> tuple[int | None, StartState]:
         dof = self.limits.dof
         if basis.motion is None:
             return None, (basis.hold_position.copy(), np.zeros(dof), np.zeros(dof))
-        lead = max(2, math.ceil(PREEMPTION_LEAD_S * 2 ** attempt / self.runtime.dt))
+        lead = max(2, math.ceil(lead_s / self.runtime.dt))
         activation = self.runtime.cycle_count + lead
         t = (activation - basis.motion_start_cycle) * self.runtime.dt
         return activation, basis.motion.state_at(t)

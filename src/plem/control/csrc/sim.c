@@ -154,8 +154,10 @@ static void hard_stop(plem_sim *sim) {
     }
 }
 
+/* When every joint is servoed within its effort limit and nothing pushes, the torque is the inverse dynamics of the
+ * servo's acceleration, so forward dynamics would only give that acceleration back: it is skipped then. */
 static void step_dynamics(plem_sim *sim, const joint_roles *r) {
-    int n = sim->dof, clamp = r->any_torque, pushed = 0;
+    int n = sim->dof, clamp = r->any_torque, pushed = 0, servo_only = 0;
     double *friction = sim->scratch[FRICTION], *a = sim->scratch[SERVO], *work = sim->scratch[WORK], *tau = sim->tau;
     targets(sim, r);
     for (int i = 0; i < n; i++) friction[i] = sim->v[i] * sim->friction[i], pushed |= sim->external[i] != 0.0;
@@ -171,6 +173,7 @@ static void step_dynamics(plem_sim *sim, const joint_roles *r) {
             fit_effort(sim, r, tau);
             clamp = 1;
         }
+        servo_only = !saturated && !r->any_torque && !r->any_held && !pushed;
     }
     for (int i = 0; i < n; i++) {
         if (r->torque[i]) tau[i] = sim->io_torque_offset[i];
@@ -178,7 +181,7 @@ static void step_dynamics(plem_sim *sim, const joint_roles *r) {
         if (!r->running[i]) tau[i] = 0.0;
         work[i] = tau[i] - friction[i] + (pushed ? sim->external[i] : 0.0);
     }
-    plem_forward_dynamics(&sim->model, sim->q, sim->v, work, a);
+    if (!servo_only) plem_forward_dynamics(&sim->model, sim->q, sim->v, work, a);
     if (r->any_held) lock_held(sim, r, work, a);
     for (int i = 0; i < n; i++) {
         sim->v[i] += a[i] * sim->dt;
