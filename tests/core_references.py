@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from plem.control.state import StateBlock
 from plem.fieldbus.bus import DriveState
 from plem.fieldbus.cia402 import Controlword
 
@@ -157,12 +156,3 @@ def sample_polynomial(knots: np.ndarray, coefficients: np.ndarray, final: np.nda
     weights = np.array([np.ones(order), powers, powers * (powers - 1)])
     return np.asarray((weights * tau ** exponents) @ coefficients[s])
 
-
-def publish(block: StateBlock, values: np.ndarray, cycle: int, monotonic_ns: int, mode: int, faulted: bool,
-            drives_enabled: bool) -> None:
-    """One cycle's state into a seqlock block as the core writes it: sequence odd, rows and header, sequence even."""
-    header = block.header
-    header[0] += 1
-    np.copyto(block.values, values)
-    header[1:6] = (cycle, monotonic_ns, mode, faulted, drives_enabled)
-    header[0] += 1

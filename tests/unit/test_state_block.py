@@ -1,5 +1,5 @@
 """The seqlock state block: readers never see a half-written cycle and never block the writer (written here by the
-reference of the core's writer)."""
+Python stand-in for the core's writer)."""
 
 from __future__ import annotations
 
@@ -10,14 +10,13 @@ import numpy as np
 
 from plem.control.modes import Mode
 from plem.control.state import ROWS, StateBlock
-from tests.core_references import publish
 
 
 def test_nothing_published_reads_none_then_a_copy():
     block = StateBlock(6)
     assert block.read() is None
     values = np.arange(len(ROWS) * 6, dtype=float).reshape(len(ROWS), 6)
-    publish(block, values, cycle=7, monotonic_ns=123, mode=int(Mode.HOLD), faulted=False, drives_enabled=True)
+    block.publish(values, cycle=7, monotonic_ns=123, mode=int(Mode.HOLD), faulted=False, drives_enabled=True)
     state = block.read()
     assert state.cycle == 7 and state.mode is Mode.HOLD and state.drives_enabled and not state.faulted
     assert np.array_equal(state.position, values[0]) and np.array_equal(state.command_acceleration, values[5])
@@ -28,7 +27,7 @@ def test_nothing_published_reads_none_then_a_copy():
 def test_block_over_an_external_buffer_is_shared():
     buffer = bytearray(StateBlock.nbytes(7))
     writer, reader = StateBlock(7, buffer), StateBlock(7, buffer)
-    publish(writer, np.ones((len(ROWS), 7)), 1, 0, int(Mode.IDLE), False, False)
+    writer.publish(np.ones((len(ROWS), 7)), 1, 0, int(Mode.IDLE), False, False)
     assert reader.read().cycle == 1
 
 
@@ -45,7 +44,7 @@ def test_concurrent_reader_never_sees_a_torn_sample():
         while not stop.is_set():
             cycle += 1
             values.fill(cycle)  # every value of one sample equals its cycle number
-            publish(block, values, cycle, cycle, int(Mode.TRAJECTORY), False, True)
+            block.publish(values, cycle, cycle, int(Mode.TRAJECTORY), False, True)
 
     writer = threading.Thread(target=write)
     writer.start()

@@ -162,12 +162,6 @@ class ArmRuntime:
         return int(self.arm["cycle"][0])
 
     @property
-    def command(self) -> np.ndarray:
-        """The commanded position, velocity and acceleration rows (a view)."""
-        rows: np.ndarray = self.work[3:6]
-        return rows
-
-    @property
     def basis(self) -> PlanBasis:
         """Where a new motion starts now: the held position, or the running motion (read without tearing)."""
         basis, dof = self._basis, self.setup.dof

@@ -56,6 +56,19 @@ class StateBlock:
         """Bytes a block of `dof` joints occupies, for sizing a shared-memory segment."""
         return HEADER_SLOTS * 8 + len(ROWS) * dof * 8
 
+    def publish(self, values: np.ndarray, cycle: int, monotonic_ns: int, mode: int, faulted: bool,
+                drives_enabled: bool) -> None:
+        """Write one cycle's state as the core does (a stand-in writer: tests and benchmarks of readers)."""
+        header = self.header
+        header[0] += 1
+        np.copyto(self.values, values)
+        header[1] = cycle
+        header[2] = monotonic_ns
+        header[3] = mode
+        header[4] = faulted
+        header[5] = drives_enabled
+        header[0] += 1
+
     def read(self, retries: int = 10_000) -> JointState | None:
         """A consistent copy, or None if nothing was published yet or the writer kept interfering."""
         header = self.header
