@@ -141,40 +141,31 @@ static plem_sim *take_sim(PyObject *object, argument *arg) {
     return sim;
 }
 
-static PyObject *sim_read(PyObject *self, PyObject *object) {
-    (void)self;
+static int sim_write_step(plem_sim *sim) { plem_sim_write(sim); return -1; }
+static int sim_power_off_step(plem_sim *sim) { plem_sim_power_off(sim); return -1; }
+
+/* One of the simulated arm's single-argument operations: True/False for those that answer, None for the rest (-1). */
+static PyObject *on_sim(PyObject *object, int (*operation)(plem_sim *)) {
     argument arg = {{0}, 0};
     plem_sim *sim = take_sim(object, &arg);
-    PyObject *result = sim ? PyBool_FromLong(plem_sim_read(sim)) : NULL;
+    PyObject *result = NULL;
+    if (sim) {
+        int answer = operation(sim);
+        result = answer < 0 ? Py_NewRef(Py_None) : PyBool_FromLong(answer);
+    }
     release(&arg, 1);
     return result;
 }
 
-static PyObject *sim_write(PyObject *self, PyObject *object) {
-    (void)self;
-    argument arg = {{0}, 0};
-    plem_sim *sim = take_sim(object, &arg);
-    if (sim) plem_sim_write(sim);
-    release(&arg, 1);
-    return sim ? Py_NewRef(Py_None) : NULL;
-}
-
+static PyObject *sim_read(PyObject *self, PyObject *object) { (void)self; return on_sim(object, plem_sim_read); }
+static PyObject *sim_write(PyObject *self, PyObject *object) { (void)self; return on_sim(object, sim_write_step); }
 static PyObject *sim_quick_stop(PyObject *self, PyObject *object) {
     (void)self;
-    argument arg = {{0}, 0};
-    plem_sim *sim = take_sim(object, &arg);
-    PyObject *result = sim ? PyBool_FromLong(plem_sim_quick_stop(sim)) : NULL;
-    release(&arg, 1);
-    return result;
+    return on_sim(object, plem_sim_quick_stop);
 }
-
 static PyObject *sim_power_off(PyObject *self, PyObject *object) {
     (void)self;
-    argument arg = {{0}, 0};
-    plem_sim *sim = take_sim(object, &arg);
-    if (sim) plem_sim_power_off(sim);
-    release(&arg, 1);
-    return sim ? Py_NewRef(Py_None) : NULL;
+    return on_sim(object, sim_power_off_step);
 }
 
 static PyObject *sim_serve(PyObject *self, PyObject *args) {
