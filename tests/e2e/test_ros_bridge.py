@@ -400,9 +400,8 @@ def test_killing_the_bridge_mid_motion_leaves_the_arm_and_the_launch_running(rob
         assert not state.faulted and state.drives_enabled
         finished = [event for event in events if event.kind is EventKind.MOTION_FINISHED]
         assert [event.cause for event in finished] == ["succeeded"], finished
-        cycle = state.cycle
-        time.sleep(0.5)
-        assert client.state().cycle - cycle > 0.4 * LOOP_HZ
+        # the loop goes on: judged by its own cycles, not by a wall-clock rate a busy machine may not give it
+        assert client.wait_for_state(timeout=10, after_cycle=state.cycle + int(0.5 * LOOP_HZ)) is not None
         assert not process_gone(driver)
         assert launch.process.poll() is None, launch.describe()
         assert "stopping everything" not in launch.output
