@@ -24,14 +24,14 @@ DRIVES = (DriveParameters(65536, 121.0, 1), DriveParameters(65536, 101.0, -1, ve
 
 @dataclass
 class Slave:
-    """What the bring-up uses of a pysoem slave."""
+    """What the bring-up uses of a slave on the master."""
 
     name: str = "drive"
-    man: int = 0x66F
-    id: int = 0x1
-    rev: int = 0x10000
-    output: bytes = bytes(objects.pdo_bytes(objects.RX_ENTRIES))
-    input: bytes = bytes(objects.pdo_bytes(objects.TX_ENTRIES))
+    vendor_id: int = 0x66F
+    product_code: int = 0x1
+    revision: int = 0x10000
+    outputs: int = objects.pdo_bytes(objects.RX_ENTRIES)
+    inputs: int = objects.pdo_bytes(objects.TX_ENTRIES)
     refuse: tuple[int, int] | None = None
     written: list[tuple[int, int, bytes]] = field(default_factory=list)
 
@@ -52,7 +52,7 @@ def test_the_slaves_must_match_the_joints_in_number_and_ids():
         check_topology([Slave()], JOINTS, DRIVES)
     assert "1 slaves, the arm has 2 joints" in caught.value.summary and "0: drive" in caught.value.why
     with pytest.raises(EtherCATError) as caught:
-        check_topology([Slave(), Slave(id=0x99)], JOINTS, DRIVES)
+        check_topology([Slave(), Slave(product_code=0x99)], JOINTS, DRIVES)
     assert caught.value.summary == "slave 1 (drive) is not the drive of joint1"
     assert "product_code 0x00000001" in caught.value.what and "product_code 0x00000099" in caught.value.why
 
@@ -81,7 +81,7 @@ def test_a_refused_object_names_slave_joint_object_and_size():
 
 def test_a_mapping_of_another_size_is_named():
     with pytest.raises(EtherCATError) as caught:
-        check_mapping([Slave(), Slave(output=bytes(9))], JOINTS)
+        check_mapping([Slave(), Slave(outputs=9)], JOINTS)
     assert caught.value.summary == "slave 1 (drive, joint1) mapped 9 output and 15 input bytes"
 
 

@@ -139,6 +139,10 @@ STATS = _checked("plem_stats", [("cycles", "<i8"), ("overruns", "<i8"), ("missed
                                 ("consecutive_overruns", "<i8"), ("policy", "<i4"), ("priority", "<i4"),
                                 ("sched_error", "<i4"), ("affinity_error", "<i4"), ("cpus", "<u8"),
                                 ("latency", SERIES), ("compute", SERIES)])
+MASTER_STATUS = _checked("plem_master_status", [
+    ("exchanges", "<i8"), ("lost_frames", "<i8"), ("working_counter_errors", "<i8"), ("bad_cycles", "<i8"),
+    ("working_counter", "<i4"), ("expected_working_counter", "<i4"), ("communication_ok", "<i4"), ("pad", "<i4"),
+    ("exchange", SERIES)])
 
 
 def new(dtype: np.dtype[Any]) -> np.ndarray:
@@ -157,4 +161,5 @@ def describe() -> str:
     build: dict[str, Any] = core.build()
     standard = {201112: "C11", 201710: "C17"}.get(int(build["standard"]), f"C ({build['standard']})")
     sanitized = ", AddressSanitizer" if build["sanitized"] else ""
-    return f"{standard}, {build['compiler']}{sanitized}, up to {build['max_joints']} joints"
+    return (f"{standard}, {build['compiler']}{sanitized}, up to {build['max_joints']} joints, "
+            f"EtherCAT on {build['ethercat']}")

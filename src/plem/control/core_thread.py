@@ -1,9 +1,10 @@
-"""The compiled core's real-time thread, for an arm whose bus the core steps itself (the simulated arm).
+"""The compiled core's real-time thread, for an arm whose bus the core steps itself (the simulated arm, EtherCAT).
 
 The thread is created by the core, not by Python's threading: it sets its own SCHED_FIFO priority and CPU
 affinity, sleeps to absolute deadlines, runs the cycle, writes the rt_raw record and its timing, and faults the
 arm on consecutive overruns, all without the interpreter. Python locks the process's memory, holds
-/dev/cpu_dma_latency, and serves the core from a thread of its own: answering command handles and wording events.
+/dev/cpu_dma_latency, and serves the core from a thread of its own: answering command handles, wording events and
+serving the bus beside the cycle (EtherCAT recovery).
 """
 
 from __future__ import annotations
@@ -88,10 +89,12 @@ class CoreThread:
         report.cpus = tuple(cpu for cpu in range(64) if int(stats["cpus"]) >> cpu & 1)
 
     def _serve(self) -> None:
-        """Answer handles and word events until stopped; an error here never reaches the real-time thread."""
+        """Answer handles, word events and serve the bus until stopped; an error here never reaches the real-time
+        thread."""
         while not self._stop.wait(SERVICE_PERIOD_S):
             try:
                 self.runtime.drain()
+                self.runtime.service_bus()
             except Exception as error:  # noqa: BLE001 - the arm runs on; the error is kept for the caller
                 self.error = error
 

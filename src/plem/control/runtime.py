@@ -14,6 +14,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -40,7 +41,7 @@ from plem.control.state import StateBlock
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
 from plem.control.wording import CAUSES, Reported, Wording
 from plem.errors import CommandRejected
-from plem.fieldbus.bus import BusSetup, DriveState, IBus
+from plem.fieldbus.bus import BusSetup, DriveState, IBus, SteppedBus
 from plem.ipc.motion_slab import MotionSlab, MotionSlabError
 from plem.ipc.ring import SlotRing
 
@@ -91,7 +92,7 @@ def _record_value(value: float) -> float:
 class ArmRuntime:
     """The per-cycle logic of one arm on one bus, in the compiled core."""
 
-    def __init__(self, bus: IBus, setup: BusSetup, limits: ArmLimits, joint_offsets: np.ndarray,
+    def __init__(self, bus: IBus | SteppedBus, setup: BusSetup, limits: ArmLimits, joint_offsets: np.ndarray,
                  free_drive: FreeDriveController, settings: RuntimeSettings | None = None,
                  state_block: StateBlock | None = None, events: EventLog | None = None,
                  slab: MotionSlab | None = None, raw_ring: SlotRing | None = None,
@@ -113,15 +114,17 @@ class ArmRuntime:
         self._write_settings(arm["settings"], free_drive)
         arm["model"] = compiled_model(free_drive.dynamics.model, self.joint_names)
         simulated = getattr(bus, "simulated_arm", None)
-        arm["settings"]["bus"] = simulated is not None
+        master = getattr(bus, "core_master", None)
+        arm["settings"]["bus"] = simulated is not None or master is not None
         compiled.core.arm_init(self.arm)
         self.slab = slab or MotionSlab.private(dof)
         #: The timing of the core's real-time thread, when it runs the cycles.
         self.stats = compiled.new(compiled.STATS)
         self._core = compiled.core.Core(self.arm, self.state_block.header, self.state_block.values, self.slab.buffer,
-                                        simulated, None if raw_ring is None else raw_ring.buffer, self.stats)
+                                        simulated, None if raw_ring is None else raw_ring.buffer, self.stats, master)
         #: The bus is written in Python: the core cannot step it from its own thread, a Python loop runs the cycles.
-        self.python_bus = simulated is None
+        self.python_bus = simulated is None and master is None
+        self._handed_over = master is None   # an EtherCAT bus keeps its watchdogs fed until the core's first cycle
         self._applied_power = (0, 0)   # the core's power requests and resets passed on to a Python bus
         self._wording = Wording(self.joint_names, self.settings.enable_timeout_s, self.settings.standstill_velocity,
                                 self.dt, max_consecutive_overruns)
@@ -187,25 +190,43 @@ class ArmRuntime:
         return PolynomialMotion(arm["stop_knots"][:segments + 1].copy(), coefficients,
                                 arm["stop_final"][:3 * dof].reshape(3, dof))
 
+    def drive_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Copies of what the drives last reported to the cycle: encoder counts, statuswords, error codes."""
+        io = self._io
+        return io["position"].copy(), io["statusword"].copy(), io["error_code"].copy()
+
     # -- one cycle ---------------------------------------------------------------------------------
     def cycle(self) -> None:
         """One period: the core's cycle (a Python bus read before and written after it), then its reports."""
         if self.python_bus:
             self._exchange_before()
+        self._hand_over()
         self._core.cycle()
         if self.python_bus:
             self._exchange_after()
         self.drain()
 
+    def _hand_over(self) -> None:
+        """Before the core's first exchange on a bus that keeps itself alive until then: stop that."""
+        if not self._handed_over:
+            cast(SteppedBus, self.bus).hand_over()
+            self._handed_over = True
+
+    def service_bus(self) -> None:
+        """Outside the cycle, often: what the bus does beside the core's exchanges (e.g. EtherCAT recovery)."""
+        service = getattr(self.bus, "service", None)
+        if service is not None:
+            service()
+
     def _exchange_before(self) -> None:
-        bus, io = self.bus, self._io
+        bus, io = cast(IBus, self.bus), self._io
         answered = bus.read()
         for name in _BUS_INPUTS:
             io[name][:] = getattr(bus.io, name)
         self.arm["io_answered"] = answered
 
     def _exchange_after(self) -> None:
-        bus, io, arm = self.bus, self._io, self.arm[0]
+        bus, io, arm = cast(IBus, self.bus), self._io, self.arm[0]
         for name in _BUS_OUTPUTS:
             getattr(bus.io, name)[:] = io[name]
         requests, resets = int(arm["power_requests"]), int(arm["power_resets"])
@@ -241,6 +262,7 @@ class ArmRuntime:
     def start_thread(self, period_ns: int, priority: int, cpus: int, max_consecutive_overruns: int,
                      window_ns: int) -> None:
         """The core's real-time thread runs the cycles from now on (priority 0: no real-time scheduling)."""
+        self._hand_over()
         self._core.start(period_ns, priority, cpus, max_consecutive_overruns, window_ns)
 
     def stop_thread(self) -> None:

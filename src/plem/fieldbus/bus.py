@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -96,6 +96,37 @@ class BusStatus:
     lost_frames: int = 0
     working_counter_errors: int = 0
     detail: str = ""
+
+
+class SteppedBus(Protocol):
+    """A bus whose cycle the compiled core steps itself (the EtherCAT master): Python opens and closes it, reads
+    its status, hands it to the core (`core_master`) and serves it beside the cycle."""
+
+    @property
+    def status(self) -> BusStatus:
+        """Working counter, lost frames, and who fell silent while communication is lost."""
+        ...
+
+    @property
+    def core_master(self) -> Any:
+        """What the core exchanges through."""
+        ...
+
+    def open(self, setup: BusSetup) -> None:
+        """Bring the drives up, disabled; raises a PlemError when it cannot."""
+        ...
+
+    def close(self) -> None:
+        """Release the bus once the core no longer cycles it; drives are left disabled."""
+        ...
+
+    def hand_over(self) -> None:
+        """The core's cycle exchanges from now on."""
+        ...
+
+    def service(self) -> None:
+        """Work beside the cycle (e.g. recovery), called often from a thread that is not real-time."""
+        ...
 
 
 @runtime_checkable

@@ -219,7 +219,8 @@ class DriverService:
         interval = (histogram_summary(latency - self._previous[0]), histogram_summary(compute - self._previous[1]))
         self._previous = (latency, compute)
         report = robot.loop.report
-        bus, round_trip = robot.bus.status, getattr(robot.bus, "round_trip", None)
+        bus, exchange = robot.bus.status, getattr(robot.bus, "exchange", None)
+        encoders, statuswords, error_codes = robot.runtime.drive_inputs()
         record = {
             "monotonic_ns": time.monotonic_ns(), "cycles": stats.cycles, "overruns": stats.overruns,
             "missed_periods": stats.missed_periods, "mode": robot.mode.name.lower(),
@@ -236,10 +237,10 @@ class DriverService:
             "bus": {"lost_frames": bus.lost_frames, "working_counter_errors": bus.working_counter_errors,
                     "working_counter": bus.working_counter,
                     "expected_working_counter": bus.expected_working_counter,
-                    "round_trip": asdict(round_trip.whole_run()) if round_trip is not None else None},
-            "encoders": robot.bus.io.position.tolist(),
+                    "exchange": asdict(exchange.whole_run()) if exchange is not None else None},
+            "encoders": encoders.tolist(),
             "drives": [{"state": decode_statusword(int(word)).name.lower(), "error_code": int(code)}
-                       for word, code in zip(robot.bus.io.statusword, robot.bus.io.error_code, strict=True)],
+                       for word, code in zip(statuswords, error_codes, strict=True)],
             "joint_offsets": robot.runtime.offsets.tolist(),
         }
         self.channels.rings["stats"].write(json.dumps(record, default=_plain).encode())

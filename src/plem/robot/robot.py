@@ -44,7 +44,7 @@ from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, MoveItCode, PlanningError, PlemError, RobotFault
-from plem.fieldbus.bus import BusSetup, IBus
+from plem.fieldbus.bus import BusSetup, IBus, SteppedBus
 from plem.ipc.motion_slab import MotionSlab
 from plem.ipc.request_bounds import point_count
 from plem.ipc.ring import SlotRing
@@ -92,8 +92,9 @@ def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]
 class Robot(PlanningCalls):
     """A built arm: bus opened, limits and dynamics loaded, loop ready to run; with an SRDF, plans in this process."""
 
-    def __init__(self, config: SerialArmConfig, bus: IBus, runtime: ArmRuntime, loop: CycleLoop | CoreThread,
-                 description_package: str, dynamics: ArmDynamics, report: ValidationReport | None = None) -> None:
+    def __init__(self, config: SerialArmConfig, bus: IBus | SteppedBus, runtime: ArmRuntime,
+                 loop: CycleLoop | CoreThread, description_package: str, dynamics: ArmDynamics,
+                 report: ValidationReport | None = None) -> None:
         self.report = report
         self.config = config
         self.bus = bus
@@ -499,7 +500,7 @@ class RobotBuilder:
             loop = CoreThread(runtime, loop_settings, on_warning=lambda text: _warn(runtime, text))
         return Robot(config, bus, runtime, loop, str(package), dynamics, report)
 
-    def _bus(self, config: SerialArmConfig) -> IBus:
+    def _bus(self, config: SerialArmConfig) -> IBus | SteppedBus:
         bus = self.bus or config.custom_bus
         if bus is None:
             from plem.fieldbus.ethercat.master import EtherCATBus

@@ -614,24 +614,29 @@ static void control(plem_arm *arm, const plem_slab *slab) {
 
 /* ---- the bus and publishing --------------------------------------------------------------------------------- */
 
-static int read_bus(plem_arm *arm, plem_sim *sim) {
+static int read_bus(plem_arm *arm, const plem_bus *bus) {
     int n = arm->settings.dof;
-    if (!sim) return arm->io_answered;
-    int answered = plem_sim_read(sim);
-    if (answered) {
-        memcpy(arm->io_position, sim->io_position, (size_t)n * sizeof(int64_t));
-        memcpy(arm->io_velocity, sim->io_velocity, (size_t)n * sizeof(int64_t));
-        memcpy(arm->io_torque, sim->io_torque, (size_t)n * sizeof(double));
-        memcpy(arm->io_statusword, sim->io_statusword, (size_t)n * sizeof(uint16_t));
-        memcpy(arm->io_error_code, sim->io_error_code, (size_t)n * sizeof(uint16_t));
+    plem_sim *sim = bus->sim;
+    if (!sim && !bus->master) return arm->io_answered;
+    int answered;
+    if (sim) {
+        answered = plem_sim_read(sim);
+        if (answered) {
+            memcpy(arm->io_position, sim->io_position, (size_t)n * sizeof(int64_t));
+            memcpy(arm->io_velocity, sim->io_velocity, (size_t)n * sizeof(int64_t));
+            memcpy(arm->io_torque, sim->io_torque, (size_t)n * sizeof(double));
+            memcpy(arm->io_statusword, sim->io_statusword, (size_t)n * sizeof(uint16_t));
+            memcpy(arm->io_error_code, sim->io_error_code, (size_t)n * sizeof(uint16_t));
+        }
     } else {
-        plem_power_master_lost(&arm->power);
+        answered = plem_master_read(bus->master, arm);
     }
+    if (!answered) plem_power_master_lost(&arm->power);
     arm->io_answered = answered;
     return answered;
 }
 
-static void write_bus(plem_arm *arm, plem_sim *sim) {
+static void write_bus(plem_arm *arm, const plem_bus *bus) {
     const plem_settings *s = &arm->settings;
     int n = s->dof;
     for (int i = 0; i < n; i++) {
@@ -639,11 +644,16 @@ static void write_bus(plem_arm *arm, plem_sim *sim) {
         arm->io_velocity_offset[i] = (int64_t)rint(row(arm, COMMAND + 1)[i] * s->counts_per_radian[i]);
         arm->io_torque_offset[i] = arm->mode == PLEM_FREE_DRIVE ? arm->torque[i] : 0.0;
     }
-    if (!sim) return;
+    plem_sim *sim = bus->sim;
+    if (!sim && !bus->master) return;
     int32_t seen[PLEM_MAX_JOINTS];
     uint16_t controlwords[PLEM_MAX_JOINTS];
     for (int i = 0; i < n; i++) seen[i] = plem_decode_statusword(arm->io_statusword[i]);
     plem_power_commands(&arm->power, seen, controlwords);
+    if (!sim) {
+        plem_master_write(bus->master, arm, controlwords);
+        return;
+    }
     memcpy(sim->io_target_position, arm->io_target_position, (size_t)n * sizeof(int64_t));
     memcpy(sim->io_velocity_offset, arm->io_velocity_offset, (size_t)n * sizeof(int64_t));
     memcpy(sim->io_torque_offset, arm->io_torque_offset, (size_t)n * sizeof(double));
@@ -678,10 +688,10 @@ void plem_arm_init(plem_arm *arm) {
     rebase(arm);
 }
 
-void plem_arm_cycle(plem_arm *arm, plem_sim *sim, const plem_slab *slab, plem_state_block *block) {
+void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block) {
     const plem_settings *s = &arm->settings;
     int n = s->dof;
-    if (read_bus(arm, sim)) {
+    if (read_bus(arm, bus)) {
         if (!arm->communication_ok) arm->communication_ok = 1, arm->have_previous = 0;
         for (int i = 0; i < n; i++) {
             row(arm, POSITION)[i] = (double)(arm->io_position[i] + s->offsets[i]) / s->counts_per_radian[i];
@@ -696,7 +706,7 @@ void plem_arm_cycle(plem_arm *arm, plem_sim *sim, const plem_slab *slab, plem_st
     }
     take_commands(arm, slab);
     control(arm, slab);
-    write_bus(arm, sim);
+    write_bus(arm, bus);
     arm->cycle++;
     publish(arm, block);
 }

@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "master_binding.h"
 #include "plem_core.h"
 #include "thread.h"
 
@@ -301,6 +302,8 @@ static PyObject *drive_transition(PyObject *self, PyObject *args) {
 typedef struct {
     PyObject_HEAD
     argument arm, header, values, slab, sim, raw, stats;
+    PyObject *master_object;         /* the Master the bus exchanges through, kept alive while held */
+    plem_bus bus;
     plem_slab slab_view;
     plem_state_block block;
     plem_raw_ring raw_view;
@@ -317,12 +320,15 @@ static void core_stop_thread(Core *core) {
     pthread_join(core->thread, NULL);
     Py_END_ALLOW_THREADS
     core->running = 0;
+    if (core->bus.master) core->bus.master->in_cycle = 0;
 }
 
 static void core_release(Core *core) {
     core_stop_thread(core);
     argument *held[7] = {&core->arm, &core->header, &core->values, &core->slab, &core->sim, &core->raw, &core->stats};
     for (int i = 0; i < 7; i++) release(held[i], 1);
+    core->bus = (plem_bus){NULL, NULL};
+    Py_CLEAR(core->master_object);
 }
 
 static void core_dealloc(Core *core) {
@@ -348,10 +354,10 @@ static int take_raw(Core *core, PyObject *raw, int dof) {
 }
 
 static int core_init(Core *core, PyObject *args, PyObject *kwargs) {
-    static char *keywords[] = {"arm", "header", "values", "slab", "sim", "raw", "stats", NULL};
-    PyObject *arm, *header, *values, *slab, *sim = Py_None, *raw = Py_None, *stats = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOO", keywords, &arm, &header, &values, &slab, &sim, &raw,
-                                     &stats))
+    static char *keywords[] = {"arm", "header", "values", "slab", "sim", "raw", "stats", "master", NULL};
+    PyObject *arm, *header, *values, *slab, *sim = Py_None, *raw = Py_None, *stats = Py_None, *master = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOOO", keywords, &arm, &header, &values, &slab, &sim, &raw,
+                                     &stats, &master))
         return -1;
     core_release(core);
     plem_arm *a = take(arm, &core->arm, sizeof(plem_arm), 1, "arm");
@@ -374,6 +380,18 @@ static int core_init(Core *core, PyObject *args, PyObject *kwargs) {
             PyErr_Format(PyExc_ValueError, "sim: %d joints for an arm of %d", s->dof, dof);
             goto fail;
         }
+        core->bus.sim = s;
+    }
+    if (master != Py_None) {
+        plem_master *m = plem_master_of(master);
+        if (!m) goto fail;
+        if (sim != Py_None || m->dof != dof) {
+            PyErr_Format(PyExc_ValueError, "master: prepared for %d drives for an arm of %d, and no sim beside it",
+                         m->dof, dof);
+            goto fail;
+        }
+        core->bus.master = m;
+        core->master_object = Py_NewRef(master);
     }
     if (raw != Py_None && !take_raw(core, raw, dof)) goto fail;
     if (stats != Py_None && !take(stats, &core->stats, sizeof(plem_stats), 1, "stats")) goto fail;
@@ -398,7 +416,9 @@ static int core_ready(Core *core) {
 static PyObject *core_cycle(Core *core, PyObject *unused) {
     (void)unused;
     if (!core_ready(core)) return NULL;
-    plem_arm_cycle(core->arm.view.buf, core->sim.held ? core->sim.view.buf : NULL, &core->slab_view, &core->block);
+    if (core->bus.master && (!core->bus.master->open || core->bus.master->in_cycle))
+        return PyErr_Format(PyExc_RuntimeError, "the core's EtherCAT master is closed or cycled by another core");
+    plem_arm_cycle(core->arm.view.buf, &core->bus, &core->slab_view, &core->block);
     Py_RETURN_NONE;
 }
 
@@ -432,11 +452,18 @@ static PyObject *core_start(Core *core, PyObject *args, PyObject *kwargs) {
     if (period <= 0 || window <= 0 || overruns < 1 || priority < 0 || priority > 99)
         return PyErr_Format(PyExc_ValueError, "start: period %lld ns, window %lld ns, %d overruns, priority %d",
                             period, window, overruns, priority);
-    core->loop = (plem_loop){core->arm.view.buf, core->sim.held ? core->sim.view.buf : NULL, &core->slab_view,
-                             &core->block, core->raw.held ? &core->raw_view : NULL, core->stats.view.buf,
-                             period, window, cpus, priority, overruns, 0};
+    plem_master *master = core->bus.master;
+    if (master && (!master->open || master->in_cycle))
+        return PyErr_Format(PyExc_RuntimeError, "the core's EtherCAT master is closed or cycled by another core");
+    core->loop = (plem_loop){core->arm.view.buf, core->bus, &core->slab_view, &core->block,
+                             core->raw.held ? &core->raw_view : NULL, core->stats.view.buf, period, window, cpus,
+                             priority, overruns, 0};
+    if (master) master->in_cycle = 1;
     int error = pthread_create(&core->thread, NULL, plem_loop_run, &core->loop);
-    if (error) return PyErr_Format(PyExc_OSError, "the real-time thread could not be created: %s", strerror(error));
+    if (error) {
+        if (master) master->in_cycle = 0;
+        return PyErr_Format(PyExc_OSError, "the real-time thread could not be created: %s", strerror(error));
+    }
     core->running = 1;
     Py_RETURN_NONE;
 }
@@ -479,8 +506,9 @@ static PyTypeObject CORE_TYPE = {
     .tp_name = "plem.control._core.Core",
     .tp_basicsize = sizeof(Core),
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "Core(arm, header, values, slab, sim=None, raw=None, stats=None): one arm's cycle over the buffers it "
-              "holds, run by the caller or by the core's own real-time thread.",
+    .tp_doc = "Core(arm, header, values, slab, sim=None, raw=None, stats=None, master=None): one arm's cycle over "
+              "the buffers it holds, on the simulated arm, an EtherCAT master or process data the caller exchanges, "
+              "run by the caller or by the core's own real-time thread.",
     .tp_new = PyType_GenericNew,
     .tp_init = (initproc)core_init,
     .tp_dealloc = (destructor)core_dealloc,
@@ -597,6 +625,12 @@ static const field STATS_FIELDS[] = {
     FIELD(plem_stats, sched_error), FIELD(plem_stats, affinity_error), FIELD(plem_stats, cpus),
     FIELD(plem_stats, latency), FIELD(plem_stats, compute), {NULL, 0, 0}};
 
+static const field MASTER_STATUS_FIELDS[] = {
+    FIELD(plem_master_status, exchanges), FIELD(plem_master_status, lost_frames),
+    FIELD(plem_master_status, working_counter_errors), FIELD(plem_master_status, bad_cycles),
+    FIELD(plem_master_status, working_counter), FIELD(plem_master_status, expected_working_counter),
+    FIELD(plem_master_status, communication_ok), FIELD(plem_master_status, exchange), {NULL, 0, 0}};
+
 typedef struct { const char *name; long value; } constant;
 
 #define CONSTANT(name) {#name, name}
@@ -624,7 +658,11 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_CAUSE_RESET), CONSTANT(PLEM_CAUSE_BRAKES_ENGAGED), CONSTANT(PLEM_CAUSE_ENABLE_TIMEOUT),
     CONSTANT(PLEM_STOP_SLOT), CONSTANT(PLEM_COMMAND_SLOTS),
     CONSTANT(PLEM_OUTCOME_SLOTS), CONSTANT(PLEM_EVENT_SLOTS), CONSTANT(PLEM_COMMANDS_PER_CYCLE),
-    CONSTANT(PLEM_HISTOGRAM_BINS), CONSTANT(PLEM_WINDOW), {NULL, 0}};
+    CONSTANT(PLEM_HISTOGRAM_BINS), CONSTANT(PLEM_WINDOW), CONSTANT(PLEM_RX_CONTROLWORD),
+    CONSTANT(PLEM_RX_TARGET_POSITION), CONSTANT(PLEM_RX_VELOCITY_OFFSET), CONSTANT(PLEM_RX_TORQUE_OFFSET),
+    CONSTANT(PLEM_RX_MODE), CONSTANT(PLEM_RX_BYTES), CONSTANT(PLEM_TX_STATUSWORD), CONSTANT(PLEM_TX_POSITION),
+    CONSTANT(PLEM_TX_VELOCITY), CONSTANT(PLEM_TX_TORQUE), CONSTANT(PLEM_TX_ERROR_CODE), CONSTANT(PLEM_TX_MODE_DISPLAY),
+    CONSTANT(PLEM_TX_BYTES), {NULL, 0}};
 
 static PyObject *constants_dict(void) {
     PyObject *table = PyDict_New();
@@ -654,7 +692,8 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},
-        {"plem_series", SERIES_FIELDS, sizeof(plem_series)}, {"plem_stats", STATS_FIELDS, sizeof(plem_stats)}};
+        {"plem_series", SERIES_FIELDS, sizeof(plem_series)}, {"plem_stats", STATS_FIELDS, sizeof(plem_stats)},
+        {"plem_master_status", MASTER_STATUS_FIELDS, sizeof(plem_master_status)}};
     PyObject *result = Py_BuildValue("{s:i,s:i,s:i}", "max_joints", PLEM_MAX_JOINTS, "order", PLEM_ORDER,
                                      "stop_segments", PLEM_STOP_SEGMENTS);
     for (size_t i = 0; result && i < sizeof STRUCTURES / sizeof STRUCTURES[0]; i++) {
@@ -675,12 +714,13 @@ static PyObject *build(PyObject *self, PyObject *unused) {
 #else
     const int sanitized = 0;
 #endif
-    return Py_BuildValue("{s:s,s:l,s:O,s:i}", "compiler", "gcc " __VERSION__, "standard", (long)__STDC_VERSION__,
-                         "sanitized", sanitized ? Py_True : Py_False, "max_joints", PLEM_MAX_JOINTS);
+    return Py_BuildValue("{s:s,s:l,s:O,s:i,s:s}", "compiler", "gcc " __VERSION__, "standard", (long)__STDC_VERSION__,
+                         "sanitized", sanitized ? Py_True : Py_False, "max_joints", PLEM_MAX_JOINTS, "ethercat",
+                         "SOEM " PLEM_SOEM_VERSION);
 }
 
 static PyMethodDef METHODS[] = {
-    {"build", build, METH_NOARGS, "How the core was built: compiler, C standard, sanitizers."},
+    {"build", build, METH_NOARGS, "How the core was built: compiler, C standard, sanitizers, EtherCAT master."},
     {"layout", layout, METH_NOARGS, "Offset and size of every field of every structure, and each one's size."},
     {"inverse_dynamics", inverse_dynamics, METH_VARARGS, "inverse_dynamics(model, q, v, a, tau_out)"},
     {"gravity", gravity, METH_VARARGS, "gravity(model, q, tau_out)"},
@@ -713,6 +753,7 @@ static struct PyModuleDef MODULE = {PyModuleDef_HEAD_INIT, "_core", "plem's comp
 PyMODINIT_FUNC PyInit__core(void) {
     if (PyType_Ready(&CORE_TYPE) < 0) return NULL;
     PyObject *module = PyModule_Create(&MODULE);
-    if (module && PyModule_AddObjectRef(module, "Core", (PyObject *)&CORE_TYPE) < 0) Py_CLEAR(module);
+    if (module && (PyModule_AddObjectRef(module, "Core", (PyObject *)&CORE_TYPE) < 0 || plem_add_master(module) < 0))
+        Py_CLEAR(module);
     return module;
 }

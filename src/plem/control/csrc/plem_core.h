@@ -294,7 +294,7 @@ typedef struct {
 /* Fixed settings of one arm (SI units), written by Python before the first cycle. */
 typedef struct {
     int32_t dof;
-    int32_t bus;                     /* 0: process data exchanged by the caller; 1: the simulated arm */
+    int32_t bus;                     /* 0: process data exchanged by the caller; 1: the core steps the bus */
     double dt;
     double tracking_tolerance;       /* rad between command and measurement before a fault */
     double velocity_margin;          /* measured |v| may exceed max_velocity by this factor */
@@ -406,11 +406,25 @@ typedef struct {
     double *values;
 } plem_state_block;
 
+/* The bus a cycle steps itself: the simulated arm, or an EtherCAT master (master.h); with neither, the caller
+ * exchanges process data through the arm's io_* fields. */
+struct plem_master;
+typedef struct {
+    plem_sim *sim;
+    struct plem_master *master;
+} plem_bus;
+
+/* The master's read: the answer to last cycle's frame into the arm's io_* (the last good inputs stand in for a
+ * bad answer); 0 once bad_cycles_to_fault answers in a row were bad. */
+int plem_master_read(struct plem_master *master, plem_arm *arm);
+/* The master's write: the arm's targets and `controlwords` into the outputs, and the frame sent. */
+void plem_master_write(struct plem_master *master, const plem_arm *arm, const uint16_t *controlwords);
+
 /* Make a fresh arm ready for its first cycle (settings and model already written). */
 void plem_arm_init(plem_arm *arm);
-/* One cycle: read the bus (the simulated arm, or process data the caller put in io_*), supervise, take requests,
- * control, check the command against every limit, write the bus, publish. */
-void plem_arm_cycle(plem_arm *arm, plem_sim *sim, const plem_slab *slab, plem_state_block *block);
+/* One cycle: read the bus (the simulated arm, the EtherCAT master, or process data the caller put in io_*),
+ * supervise, take requests, control, check the command against every limit, write the bus, publish. */
+void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block);
 /* Fault from outside the cycle (consecutive overruns, a failing caller), with two numbers for the reason. */
 void plem_arm_fault(plem_arm *arm, int cause, double value0, double value1);
 /* The summary of one overrun window, as an event. */

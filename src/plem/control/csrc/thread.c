@@ -1,5 +1,5 @@
-/* The real-time thread: absolute deadlines, one cycle per period, timing statistics, the rt_raw record and the
- * overrun fault. It never touches the Python interpreter; Python reads what it writes from memory. */
+/* The real-time thread: absolute deadlines, one cycle per period, timing statistics (compute without the time on
+ * the EtherCAT wire), the rt_raw record and the overrun fault. It never touches the Python interpreter; Python reads what it writes from memory. */
 #include <errno.h>
 #include <pthread.h>
 #include <sched.h>
@@ -7,6 +7,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "master.h"
 #include "plem_core.h"
 #include "thread.h"
 
@@ -93,10 +94,11 @@ void *plem_loop_run(void *argument) {
     while (!atomic_load_explicit(&loop->stop, memory_order_acquire)) {
         sleep_until(deadline);
         int64_t woke = now_ns();
-        plem_arm_cycle(arm, loop->sim, loop->slab, loop->block);
+        plem_arm_cycle(arm, &loop->bus, loop->slab, loop->block);
         if (loop->raw) plem_raw_write(loop->raw, loop->block, dof, woke - deadline, previous_compute);
         int64_t done = now_ns();
-        previous_compute = done - woke;
+        /* compute: the cycle's own work; the time on the wire is the master's to report */
+        previous_compute = done - woke - (loop->bus.master ? loop->bus.master->wire_ns : 0);
         plem_series_add(&stats->latency, woke - deadline);
         plem_series_add(&stats->compute, previous_compute);
         atomic_store_explicit((_Atomic int64_t *)&stats->cycles, stats->cycles + 1, memory_order_release);

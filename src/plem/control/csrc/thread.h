@@ -9,7 +9,7 @@
 
 typedef struct {
     plem_arm *arm;
-    plem_sim *sim;
+    plem_bus bus;
     const plem_slab *slab;
     plem_state_block *block;
     plem_raw_ring *raw;               /* NULL: no rt_raw record */

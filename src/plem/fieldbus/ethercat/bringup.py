@@ -1,10 +1,13 @@
-"""Bringing an EtherCAT segment up to OP and down again on pysoem, with an error for every step that fails.
+"""Bringing an EtherCAT segment up to OP and down again on the core's SOEM master, with an error for every step
+that fails.
 
 Opening: the interface and the raw-socket permission are checked, SOEM enumerates the slaves, the slaves
 found are compared with the drives the arm expects (one CiA402 drive per joint, in order, with the ids
 the description package gives), the PDO assignment of `objects` is written by SDO in PREOP, the process
 data is mapped and its size checked, distributed clocks are set up where the slaves have them, and the
 segment goes SAFEOP → OP within timeouts, naming each slave's AL status code when a transition fails.
+The master is the one the real-time cycle then exchanges through (`plem.control._core.Master`): one SOEM
+context per interface, never two.
 """
 
 from __future__ import annotations
@@ -17,8 +20,9 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
+from plem.control.compiled import core
 from plem.description.drives import DriveParameters
 from plem.errors import ConfigError, PlemError
 from plem.fieldbus.ethercat import objects
@@ -26,20 +30,71 @@ from plem.fieldbus.ethercat.host import Finding, check_raw_sockets
 from plem.fieldbus.network_interface import check_network_interface
 
 ETHERLAB_CONF = Path("/opt/etherlab/etc/ethercat.conf")
-STATE_TIMEOUT_S = 5.0          # for each of SAFEOP and OP to be reached by every slave
+STATE_TIMEOUT_S = 5.0          # for each of PREOP, SAFEOP and OP to be reached by every slave
 REG_AL_STATUS = 0x0130
 REG_ESC_FEATURES = 0x0008
 DC_SUPPORTED = 0x0004
+INIT_STATE, PREOP_STATE, SAFEOP_STATE, OP_STATE = 0x01, 0x02, 0x04, 0x08
+#: Longest wait for a register read's answer (µs).
+REGISTER_TIMEOUT_US = 2000
 
 
 class EtherCATError(PlemError):
     """The EtherCAT segment could not be brought up, or does not match the arm."""
 
 
-def _pysoem() -> Any:
-    import pysoem
+class Slave(Protocol):
+    """What the bring-up uses of a slave: its identity, mapped sizes (bytes) and SDO access."""
 
-    return pysoem
+    @property
+    def name(self) -> str: ...  # noqa: D102
+    @property
+    def vendor_id(self) -> int: ...  # noqa: D102
+    @property
+    def product_code(self) -> int: ...  # noqa: D102
+    @property
+    def revision(self) -> int: ...  # noqa: D102
+    @property
+    def outputs(self) -> int: ...  # noqa: D102
+    @property
+    def inputs(self) -> int: ...  # noqa: D102
+    def sdo_read(self, index: int, subindex: int) -> bytes: ...  # noqa: D102
+    def sdo_write(self, index: int, subindex: int, data: bytes) -> None: ...  # noqa: D102
+
+
+@dataclass(frozen=True)
+class SegmentSlave:
+    """One slave of the master, as enumeration (and the mapping, once done) found it; `position` counts from 0."""
+
+    master: Any
+    position: int
+    name: str
+    vendor_id: int
+    product_code: int
+    revision: int
+    outputs: int
+    inputs: int
+    coe: bool
+
+    def sdo_read(self, index: int, subindex: int) -> bytes:
+        """Up to 4 bytes of an object (the sizes plem reads)."""
+        data: bytes = self.master.sdo_read(self.position + 1, index, subindex, 4)
+        return data
+
+    def sdo_write(self, index: int, subindex: int, data: bytes) -> None:
+        """Write an object by SDO (the slave in PREOP)."""
+        self.master.sdo_write(self.position + 1, index, subindex, data)
+
+    def register(self, address: int, size: int = 2) -> int | None:
+        """A little-endian ESC register, None when the slave does not answer."""
+        data = self.master.read_register(self.position + 1, address, size, REGISTER_TIMEOUT_US)
+        return None if data is None else int.from_bytes(data, "little")
+
+
+def segment_slaves(master: Any) -> tuple[SegmentSlave, ...]:
+    """The master's slaves in network order."""
+    return tuple(SegmentSlave(master, i, s["name"], s["vendor"], s["product"], s["revision"], s["outputs"],
+                              s["inputs"], s["coe"]) for i, s in enumerate(master.slaves()))
 
 
 def default_interface(master_index: int, conf: Path = ETHERLAB_CONF) -> str | None:
@@ -104,9 +159,9 @@ def check_access(interface: str) -> None:
 
 
 def open_master(interface: str) -> Any:
-    """A pysoem master on `interface`, after checking that the interface can carry EtherCAT and may be opened."""
+    """The core's master on `interface`, after checking that the interface can carry EtherCAT and may be opened."""
     check_access(interface)
-    master = _pysoem().Master()
+    master = core.Master()
     try:
         master.open(interface)
     except ConnectionError as error:
@@ -137,10 +192,10 @@ def _hex(value: int | None) -> str:
     return "any" if value is None else f"0x{value:08X}"
 
 
-def check_topology(slaves: Sequence[Any], joint_names: Sequence[str], drives: Sequence[DriveParameters]) -> None:
+def check_topology(slaves: Sequence[Slave], joint_names: Sequence[str], drives: Sequence[DriveParameters]) -> None:
     """One drive per joint in order, with the description's vendor/product/revision where it gives them."""
     if len(slaves) != len(joint_names):
-        listing = "; ".join(f"{i}: {s.name} (vendor 0x{s.man:08X}, product 0x{s.id:08X})"
+        listing = "; ".join(f"{i}: {s.name} (vendor 0x{s.vendor_id:08X}, product 0x{s.product_code:08X})"
                             for i, s in enumerate(slaves))
         raise EtherCATError(
             f"the EtherCAT segment has {len(slaves)} slaves, the arm has {len(joint_names)} joints",
@@ -150,8 +205,8 @@ def check_topology(slaves: Sequence[Any], joint_names: Sequence[str], drives: Se
                 "the description package of this arm")
     for position, (slave, joint, drive) in enumerate(zip(slaves, joint_names, drives, strict=True)):
         wrong = [(name, expected, found) for name, expected, found in (
-            ("vendor_id", drive.vendor_id, slave.man), ("product_code", drive.product_code, slave.id),
-            ("revision", drive.revision, slave.rev)) if expected is not None and expected != found]
+            ("vendor_id", drive.vendor_id, slave.vendor_id), ("product_code", drive.product_code, slave.product_code),
+            ("revision", drive.revision, slave.revision)) if expected is not None and expected != found]
         if wrong:
             found = ", ".join(f"{name} 0x{value:08X}" for name, _, value in wrong)
             expected = ", ".join(f"{name} {_hex(value)}" for name, value, _ in wrong)
@@ -163,11 +218,11 @@ def check_topology(slaves: Sequence[Any], joint_names: Sequence[str], drives: Se
                     "description package's ros2_control block (`plem ethercat scan` shows each slave's ids)")
 
 
-def _sdo_error(slave: Any, position: int, joint: str, index: int, subindex: int, error: Exception) -> EtherCATError:
+def _sdo_error(slave: Slave, position: int, joint: str, index: int, subindex: int, error: Exception) -> EtherCATError:
     entry = objects.ENTRIES_BY_OBJECT.get((index, subindex))
     name = f" ({entry.name}, {entry.bits} bits)" if entry else ""
-    abort = getattr(error, "abort_code", None)
-    detail = f"SDO abort 0x{abort:08X}: {getattr(error, 'desc', error)}" if abort is not None else str(error)
+    abort, words = error.args if isinstance(error, core.SdoError) else (0, str(error))
+    detail = f"SDO abort 0x{abort:08X}: {words}" if abort else words
     return EtherCATError(
         f"slave {position} ({slave.name}, {joint}) refused object 0x{index:04X}:{subindex}{name}",
         what="a CiA402 drive in cyclic synchronous position that accepts plem's PDO assignment (RxPDO 0x6040, "
@@ -177,14 +232,14 @@ def _sdo_error(slave: Any, position: int, joint: str, index: int, subindex: int,
             "cannot map one needs a firmware or configuration change); `plem ethercat scan` shows the drive")
 
 
-def _read_u32(slave: Any, position: int, joint: str, index: int) -> int:
+def _read_u32(slave: Slave, position: int, joint: str, index: int) -> int:
     try:
         return int(struct.unpack("<I", slave.sdo_read(index, 0)[:4].ljust(4, b"\0"))[0])
-    except Exception as error:  # pysoem raises SdoError, MailboxError or PacketError
+    except RuntimeError as error:  # the master's SdoError: an abort, no answer or a mailbox error
         raise _sdo_error(slave, position, joint, index, 0, error) from error
 
 
-def assign_process_data(slave: Any, position: int, joint: str) -> int:
+def assign_process_data(slave: Slave, position: int, joint: str) -> int:
     """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode;
     its rated torque (mN·m)."""
     device_type = _read_u32(slave, position, joint, objects.DEVICE_TYPE)
@@ -199,7 +254,7 @@ def assign_process_data(slave: Any, position: int, joint: str) -> int:
     def write(index: int, subindex: int, data: bytes) -> None:
         try:
             slave.sdo_write(index, subindex, data)
-        except Exception as error:  # pysoem raises SdoError, MailboxError or PacketError
+        except RuntimeError as error:  # the master's SdoError: an abort, no answer or a mailbox error
             raise _sdo_error(slave, position, joint, index, subindex, error) from error
 
     for assign, pdo, entries in ((objects.RX_ASSIGN, objects.RX_PDO, objects.RX_ENTRIES),
@@ -215,11 +270,11 @@ def assign_process_data(slave: Any, position: int, joint: str) -> int:
     return _read_u32(slave, position, joint, objects.RATED_TORQUE)
 
 
-def check_mapping(slaves: Sequence[Any], joint_names: Sequence[str]) -> None:
+def check_mapping(slaves: Sequence[Slave], joint_names: Sequence[str]) -> None:
     """Every slave's mapped process data has exactly the size of plem's PDOs."""
     rx, tx = objects.pdo_bytes(objects.RX_ENTRIES), objects.pdo_bytes(objects.TX_ENTRIES)
     for position, (slave, joint) in enumerate(zip(slaves, joint_names, strict=True)):
-        outputs, inputs = len(slave.output), len(slave.input)
+        outputs, inputs = slave.outputs, slave.inputs
         if (outputs, inputs) != (rx, tx):
             raise EtherCATError(
                 f"slave {position} ({slave.name}, {joint}) mapped {outputs} output and {inputs} input bytes",
@@ -232,7 +287,7 @@ def check_mapping(slaves: Sequence[Any], joint_names: Sequence[str]) -> None:
 def slave_states(master: Any) -> list[tuple[int, int]]:
     """(AL state, AL status code) of every slave, read afresh."""
     master.read_state()
-    return [(slave.state, slave.al_status) for slave in master.slaves]
+    return [(slave["state"], slave["al_status"]) for slave in master.slaves()]
 
 
 def state_name(state: int) -> str:
@@ -245,20 +300,18 @@ def state_name(state: int) -> str:
 def reach_state(master: Any, state: int, joint_names: Sequence[str], *, while_waiting: Callable[[], None] | None = None,
                 timeout_s: float = STATE_TIMEOUT_S) -> None:
     """Request `state` of every slave and wait for it, exchanging process data meanwhile when asked to."""
-    master.state = state
-    master.write_state()
+    master.write_state(state)
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if while_waiting is not None:
             while_waiting()
         if master.state_check(state, 5000) == state:
             return
-    pysoem = _pysoem()
-    states = zip(master.slaves, slave_states(master), strict=True)
-    stuck = [(i, slave, st, code) for i, (slave, (st, code)) in enumerate(states) if st != state]
-    detail = "; ".join(f"slave {i} ({slave.name}, {joint_names[i] if i < len(joint_names) else '?'}) is in "
-                       f"{state_name(st)}, AL status 0x{code:04X} ({pysoem.al_status_code_to_string(code)})"
-                       for i, slave, st, code in stuck)
+    states = zip(master.slaves(), slave_states(master), strict=True)
+    stuck = [(i, slave["name"], st, code) for i, (slave, (st, code)) in enumerate(states) if st != state]
+    detail = "; ".join(f"slave {i} ({name}, {joint_names[i] if i < len(joint_names) else '?'}) is in "
+                       f"{state_name(st)}, AL status 0x{code:04X} ({core.al_status_text(code)})"
+                       for i, name, st, code in stuck)
     raise EtherCATError(
         f"the EtherCAT slaves did not reach {state_name(state)} within {timeout_s:g} s",
         what=f"every drive in {state_name(state)}",
@@ -268,30 +321,23 @@ def reach_state(master: Any, state: int, joint_names: Sequence[str], *, while_wa
             "power-cycle the drives and launch again")
 
 
-def setup_distributed_clocks(master: Any, cycle_time_ns: int) -> list[bool]:
+def setup_distributed_clocks(master: Any, slaves: Sequence[SegmentSlave], cycle_time_ns: int) -> list[bool]:
     """SYNC0 at the cycle time on every slave that has distributed clocks; which slaves have them."""
     if not master.config_dc():
-        return [False] * len(master.slaves)
-    pysoem = _pysoem()
+        return [False] * len(slaves)
     has_dc = []
-    for slave in master.slaves:
-        try:
-            features = struct.unpack("<H", slave._fprd(REG_ESC_FEATURES, 2))[0]  # noqa: SLF001 — register read
-        except pysoem.WkcError:  # a slave that does not answer a register read has no usable clock
-            features = 0
-        has_dc.append(bool(features & DC_SUPPORTED))
+    for slave in slaves:  # a slave that does not answer a register read has no usable clock
+        has_dc.append(bool((slave.register(REG_ESC_FEATURES) or 0) & DC_SUPPORTED))
         if has_dc[-1]:
-            slave.dc_sync(1, cycle_time_ns)
+            master.dc_sync0(slave.position + 1, True, cycle_time_ns)
     return has_dc
 
 
 def close_master(master: Any) -> None:
     """Bring every slave down to INIT (outputs off first: SAFEOP) and release the interface; never raises."""
-    pysoem = _pysoem()
-    for state in (pysoem.SAFEOP_STATE, pysoem.INIT_STATE):
+    for state in (SAFEOP_STATE, INIT_STATE):
         try:
-            master.state = state
-            master.write_state()
+            master.write_state(state)
             master.state_check(state, 50000)
         except Exception:  # noqa: BLE001 - the segment may already be gone; closing goes on
             pass
@@ -304,7 +350,7 @@ class Segment:
     """What opening found: the master, its slaves in joint order, rated torques (mN·m) and DC support."""
 
     master: Any
-    slaves: tuple[Any, ...]
+    slaves: tuple[SegmentSlave, ...]
     rated_torque_mnm: tuple[int, ...]
     distributed_clocks: tuple[bool, ...]
 
@@ -321,24 +367,22 @@ def bring_up(interface: str, joint_names: Sequence[str], drives: Sequence[DriveP
                           why=f"{len(drives)} drives for {len(joint_names)} joints",
                           how="add the <param> tags to each <joint> of the description package's ros2_control "
                               "block (docs/ethercat.md), then `plem validate` the package")
-    pysoem = _pysoem()
     master = open_master(interface)
     try:
         find_slaves(master, interface)
-        slaves = tuple(master.slaves)
+        slaves = segment_slaves(master)
         check_topology(slaves, joint_names, drives)
-        rated: list[int] = [0] * len(slaves)
-        for position, slave in enumerate(slaves):
-            def configure(_: int, position: int = position, slave: Any = slave) -> None:
-                rated[position] = assign_process_data(slave, position, joint_names[position])
-            slave.config_func = configure
+        reach_state(master, PREOP_STATE, joint_names)
+        rated = tuple(assign_process_data(slave, position, joint_names[position])
+                      for position, slave in enumerate(slaves))
         master.config_map()
+        slaves = segment_slaves(master)
         check_mapping(slaves, joint_names)
-        dc = setup_distributed_clocks(master, cycle_time_ns)
-        reach_state(master, pysoem.SAFEOP_STATE, joint_names)
+        dc = setup_distributed_clocks(master, slaves, cycle_time_ns)
+        reach_state(master, SAFEOP_STATE, joint_names)
         first_exchange(master)
-        reach_state(master, pysoem.OP_STATE, joint_names, while_waiting=lambda: first_exchange(master))
-        return Segment(master, slaves, tuple(rated), tuple(dc))
+        reach_state(master, OP_STATE, joint_names, while_waiting=lambda: first_exchange(master))
+        return Segment(master, slaves, rated, tuple(dc))
     except BaseException:
         close_master(master)
         raise

@@ -1,15 +1,14 @@
-"""`EtherCATBus`: the IBus of a real arm, one CiA402 drive per joint in cyclic synchronous position, on pysoem.
+"""`EtherCATBus`: a real arm's drives, one CiA402 drive per joint in cyclic synchronous position, on the core's master.
 
-One exchange per cycle: `write()` packs the outputs, sends the frame and waits for it to come back, at
-most `RECEIVE_SHARE` of the cycle (a later answer counts as lost, so the loop never blocks past its
-deadline); the next cycle's `read()` decodes what came back. The working counter is checked every cycle:
-lost frames and wrong counters are counted in `status`, the round trip of every exchange in
-`round_trip`; the last good inputs stand in for a bad cycle, and `bad_cycles_to_fault` consecutive bad
-cycles make `read()` fail, which faults the arm naming the slaves that stopped answering. While frames
-come back with a short working counter (a slave fell to SAFEOP, e.g. on its watchdog), the bus asks the
-slaves for OP again every `RECOVERY_PERIOD_S`, acknowledging their errors: one broadcast register write,
-with the drives kept disabled, so a reset can enable them once the counter is whole. No mailbox traffic
-runs while the segment is in OP.
+Python opens the segment (`bringup`) and closes it; in between, the compiled core's cycle exchanges the process
+data through the same SOEM master: it receives the answer to last cycle's frame, decodes it, runs the arm and
+sends the next frame, checking the working counter every cycle. Lost frames and short working counters are
+counted (`status`), the last good inputs stand in for a bad cycle, and `bad_cycles_to_fault` bad cycles in a
+row fault the arm; `status.detail` then names the slaves that stopped answering. While frames come back with a
+short working counter (a slave fell to SAFEOP, e.g. on its watchdog), `service()` (the core's service thread)
+asks every slave for OP again every `RECOVERY_PERIOD_S`, acknowledging their errors: one broadcast register
+write, the drives kept disabled, so a reset can enable them once the counter is whole. From OP until the core's
+first cycle a keepalive thread exchanges frames, so no watchdog expires in between.
 """
 
 from __future__ import annotations
@@ -22,20 +21,30 @@ from typing import Any
 
 import numpy as np
 
-from plem.control.timing import TimingSeries
+from plem.control.compiled import CONSTANTS, MASTER_STATUS
+from plem.control.timing import CoreSeries
 from plem.errors import PlemError
 from plem.fieldbus.bus import BusIO, BusSetup, BusStatus, DriveState
 from plem.fieldbus.cia402 import PowerSequencer, decode_statusword
 from plem.fieldbus.ethercat import objects
-from plem.fieldbus.ethercat.bringup import REG_AL_STATUS, Segment, bring_up, close_master, interface_lock
+from plem.fieldbus.ethercat.bringup import (
+    OP_STATE,
+    REG_AL_STATUS,
+    Segment,
+    bring_up,
+    close_master,
+    interface_lock,
+)
 
 #: Consecutive cycles without a good working counter that fault the arm (10 ms at 1 kHz).
 DEFAULT_BAD_CYCLES_TO_FAULT = 10
-#: Longest wait for a frame to come back, as a share of the cycle time.
-RECEIVE_SHARE = 0.5
+#: Longest wait for last cycle's answer, as a share of the cycle time (it has had a whole period to come back).
+RECEIVE_SHARE = 0.1
+#: Longest wait for an answer outside the cycle (bring-up, keepalive, shut-down), µs.
+EXCHANGE_TIMEOUT_US = 2000
 #: While frames come back but some slave is out of OP, ask every slave for OP (acknowledging errors) this often.
 RECOVERY_PERIOD_S = 0.2
-OP_WITH_ACKNOWLEDGE = 0x18
+OP_WITH_ACKNOWLEDGE = OP_STATE | 0x10
 #: Cycles `close()` exchanges at most while the drives switch off, before the slaves leave OP.
 CLOSING_CYCLES = 50
 
@@ -43,8 +52,24 @@ _RX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.RX_ENTRIES])
 _TX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.TX_ENTRIES])
 
 
+def _check_pdo_layout() -> None:
+    """The core packs the PDOs at the offsets `objects` assigns: compare both sides once, at import."""
+    expected = {f"PLEM_RX_{name.upper()}": at for name, at in objects.offsets(objects.RX_ENTRIES).items()}
+    expected |= {f"PLEM_TX_{name.removesuffix('_actual').upper()}": at
+                 for name, at in objects.offsets(objects.TX_ENTRIES).items()}
+    expected |= {"PLEM_RX_BYTES": _RX_DTYPE.itemsize, "PLEM_TX_BYTES": _TX_DTYPE.itemsize}
+    differing = sorted(name for name, at in expected.items() if CONSTANTS.get(name) != at)
+    if differing:
+        raise PlemError("the compiled core packs EtherCAT process data differently from plem's PDO assignment",
+                        what="the same byte offsets on both sides", why=f"differing: {', '.join(differing)}",
+                        how="reinstall plem so its core is compiled from the same sources: `pip install -e .`")
+
+
+_check_pdo_layout()
+
+
 class EtherCATBus:
-    """The arm's drives on an EtherCAT segment (IBus); `setup.drives` gives ids, gearing and direction."""
+    """The arm's drives on an EtherCAT segment; `setup.drives` gives ids, gearing and direction."""
 
     def __init__(self, *, bad_cycles_to_fault: int = DEFAULT_BAD_CYCLES_TO_FAULT) -> None:
         if not isinstance(bad_cycles_to_fault, int) or bad_cycles_to_fault < 1:
@@ -53,175 +78,147 @@ class EtherCATBus:
                             how=f"use the default, {DEFAULT_BAD_CYCLES_TO_FAULT}")
         self.bad_cycles_to_fault = bad_cycles_to_fault
         self.io = BusIO(0)
-        self.status = BusStatus()
         self.segment: Segment | None = None
-        self.round_trip = TimingSeries(10_000)
         self._held = contextlib.ExitStack()
-        self._wkc = 0
+        self._status: np.ndarray | None = None
+        self._detail = ""
+        self._recovered_at = 0.0
+        self._keepalive: _Keepalive | None = None
 
-    # ---- IBus -------------------------------------------------------------------------------------
+    @property
+    def core_master(self) -> Any:
+        """The master the core's cycle exchanges through (None while closed)."""
+        return None if self.segment is None else self.segment.master
+
+    @property
+    def exchange(self) -> CoreSeries | None:
+        """Time each cycle spends in SOEM's receive and send (None while closed)."""
+        return None if self._status is None else CoreSeries(self._status[0]["exchange"])
+
+    # ---- opening and closing ----------------------------------------------------------------------
 
     def open(self, setup: BusSetup) -> None:
         """Bring the drives of `setup` to OP on `setup.network_interface`, disabled and holding where they are."""
         n = setup.dof
         self.io = BusIO(n)
-        self._rx = np.zeros(n, dtype=_RX_DTYPE)
-        self._tx = np.zeros(n, dtype=_TX_DTYPE)
-        self._power = PowerSequencer(n)
-        self._bad = 0
-        self._decoded = np.zeros(n, dtype=np.uint16)  # the statuswords `_seen` was decoded from
-        self._seen = [decode_statusword(0)] * n
         cycle_ns = round(setup.cycle_time_s * 1e9)
-        self._receive_timeout_us = max(50, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE))
-        self._recovery_cycles = max(1, round(RECOVERY_PERIOD_S / setup.cycle_time_s))
         with contextlib.ExitStack() as held:
             held.enter_context(interface_lock(setup.network_interface, f"an RT driver (master {setup.master_index})"))
-            self.segment = bring_up(setup.network_interface, setup.joint_names, setup.drives, cycle_ns,
-                                    self._hold_exchange)
+            segment = bring_up(setup.network_interface, setup.joint_names, setup.drives, cycle_ns, _hold_exchange)
+            held.callback(close_master, segment.master)
+            gear = np.array([d.gear_ratio for d in setup.drives])
+            direction = np.array([d.direction for d in setup.drives])
+            units = np.array(segment.rated_torque_mnm) / 1e6 * gear * direction
+            segment.master.prepare([float(u) for u in units], self.bad_cycles_to_fault,
+                                   max(20, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE)))
             self._held = held.pop_all()
-        self._slaves = self.segment.slaves
-        self._master = self.segment.master
-        self._expected = self._master.expected_wkc
-        gear = np.array([d.gear_ratio for d in setup.drives])
-        direction = np.array([d.direction for d in setup.drives])
-        self._newton_metres_per_unit = np.array(self.segment.rated_torque_mnm) / 1e6 * gear * direction
-        self._units_per_newton_metre = np.divide(1.0, self._newton_metres_per_unit,
-                                                 out=np.zeros(n), where=self._newton_metres_per_unit != 0)
-        self.status = BusStatus(expected_working_counter=self._expected)
-        self.round_trip = TimingSeries(10_000)
+        self.segment = segment
+        self._status = np.frombuffer(segment.master.status, dtype=MASTER_STATUS)
         self._decode()
         self.io.target_position[:] = self.io.position
-        self._send()
-        self._period_s = setup.cycle_time_s
-        self._keepalive = _Keepalive(self._send, setup.cycle_time_s)
+        self._keepalive = _Keepalive(lambda: _hold_exchange(segment.master), setup.cycle_time_s)
+
+    def hand_over(self) -> None:
+        """The core's cycle exchanges from now on: stop the keepalive (returns once its last exchange ended)."""
+        if self._keepalive is not None:
+            self._keepalive.stop()
+            self._keepalive = None
 
     def close(self) -> None:
-        """Disable the drives (switch on disabled), then bring the slaves to SAFEOP and INIT; safe to repeat."""
-        segment, self.segment = self.segment, None
+        """Disable the drives (switch on disabled), then bring the slaves to SAFEOP and INIT; safe to repeat.
+
+        Call it once the core's cycle has stopped exchanging."""
+        segment = self.segment
         if segment is None:
             return
-        self._keepalive.stop()
+        self.hand_over()
         try:
-            self._power.request(DriveState.SWITCH_ON_DISABLED)
-            for _ in range(CLOSING_CYCLES):
-                time.sleep(self._period_s)
-                self._send()
-                if self._wkc == self._expected:
-                    self._decode()
-                if all(state is DriveState.SWITCH_ON_DISABLED or state is DriveState.FAULT for state in self._seen):
-                    break
+            self._switch_off(segment.master)
         except Exception:  # noqa: BLE001 - the segment may be gone: the drives stop on their watchdog
             pass
         finally:
-            close_master(segment.master)
+            self.segment = None
             self._held.close()
 
-    def read(self) -> bool:
-        """The answer to the last exchange into `io`; False after `bad_cycles_to_fault` bad cycles in a row."""
-        if self._keepalive.running:
-            self._keepalive.stop()
-        status, wkc = self.status, self._wkc
-        status.working_counter = wkc
-        if wkc == self._expected:
-            self._decode()
-            if self._bad:
-                self._bad = 0
-                status.communication_ok = True
-                status.detail = ""
-            return True
-        if wkc <= 0:
-            status.lost_frames += 1
-        else:
-            status.working_counter_errors += 1
-        self._bad += 1
-        if wkc > 0 and self._bad % self._recovery_cycles == 0:
-            self._request_operational()
-        if self._bad < self.bad_cycles_to_fault:
-            return True
-        if status.communication_ok:
-            status.communication_ok = False
-            status.detail = self._silent_slaves(wkc)
-            self._power.master_lost()
-        return False
+    def _switch_off(self, master: Any) -> None:
+        """Exchange frames whose controlwords take every drive to switch on disabled, holding where it is."""
+        power = PowerSequencer(len(self.io.position))
+        power.request(DriveState.SWITCH_ON_DISABLED)
+        period = 0.001
+        for _ in range(CLOSING_CYCLES):
+            seen = [decode_statusword(int(word)) for word in self.io.statusword]
+            if all(state in (DriveState.SWITCH_ON_DISABLED, DriveState.FAULT) for state in seen):
+                return
+            outputs = np.zeros(len(seen), dtype=_RX_DTYPE)
+            outputs["controlword"] = power.commands(seen)
+            outputs["target_position"] = self.io.position
+            outputs["mode"] = 8
+            for slave, record in enumerate(outputs, start=1):
+                master.set_outputs(slave, record.tobytes())
+            if master.exchange(EXCHANGE_TIMEOUT_US) == self.status.expected_working_counter:
+                self._decode()
+            time.sleep(period)
 
-    def write(self) -> None:
-        """Exchange this cycle's targets and the controlwords that move each drive toward the wanted state."""
-        self._send()
-
-    def drive_state(self, drive: int) -> DriveState:
-        """The power state of one drive, from its last statusword."""
-        return self._seen[drive]
-
-    def enable(self) -> None:
-        """Request operation enabled on every drive (shutdown → switch on → enable operation)."""
-        self._power.request(DriveState.OPERATION_ENABLED)
-
-    def disable(self) -> None:
-        """Request switch on disabled on every drive."""
-        self._power.request(DriveState.SWITCH_ON_DISABLED)
-
-    def fault_reset(self) -> None:
-        """One fault-reset edge (controlword bit 7) to every drive in fault."""
-        self._power.request_reset()
-
-    # ---- internals --------------------------------------------------------------------------------
-
-    def _hold_exchange(self, master: Any) -> None:
-        """While the segment comes up: frames with zero outputs (drives disabled) keep the watchdogs fed."""
-        master.send_processdata()
-        master.receive_processdata(2000)
+    # ---- what Python reads of the bus ---------------------------------------------------------------
 
     def _decode(self) -> None:
-        tx, io = self._tx, self.io
-        for i, slave in enumerate(self._slaves):
-            tx[i] = np.frombuffer(slave.input, dtype=_TX_DTYPE, count=1)[0]
-        io.statusword[:] = tx["statusword"]
-        io.position[:] = tx["position_actual"]
-        io.velocity[:] = tx["velocity_actual"]
-        np.multiply(tx["torque_actual"], self._newton_metres_per_unit, out=io.torque)
-        io.error_code[:] = tx["error_code"]
-        if not np.array_equal(io.statusword, self._decoded):
-            self._seen = [decode_statusword(int(sw)) for sw in io.statusword]
-            self._decoded[:] = io.statusword
+        """The inputs of the last exchange outside the cycle into `io`."""
+        segment, io = self.segment, self.io
+        if segment is None:
+            return
+        inputs = np.frombuffer(b"".join(segment.master.inputs(i + 1) for i in range(len(segment.slaves))),
+                               dtype=_TX_DTYPE)
+        io.statusword[:] = inputs["statusword"]
+        io.position[:] = inputs["position_actual"]
+        io.velocity[:] = inputs["velocity_actual"]
+        io.error_code[:] = inputs["error_code"]
 
-    def _send(self) -> None:
-        rx, io = self._rx, self.io
-        rx["controlword"] = self._power.commands(self._seen)
-        rx["target_position"] = io.target_position
-        rx["velocity_offset"] = io.velocity_offset
-        rx["torque_offset"] = np.clip(np.rint(io.torque_offset * self._units_per_newton_metre), -32768, 32767)
-        rx["mode"] = io.mode
-        for slave, record in zip(self._slaves, rx, strict=True):
-            slave.output = record.tobytes()
-        master = self._master
-        sent = time.perf_counter_ns()
-        master.send_processdata()
-        self._wkc = master.receive_processdata(self._receive_timeout_us)
-        self.round_trip.add(time.perf_counter_ns() - sent)
+    @property
+    def status(self) -> BusStatus:
+        """The cycle's figures: working counter, lost frames, and while communication is lost, who fell silent."""
+        if self._status is None:
+            return BusStatus()
+        figures = self._status[0]
+        ok = bool(figures["communication_ok"])
+        if ok:
+            self._detail = ""
+        elif not self._detail:
+            self._detail = self._silent_slaves(int(figures["working_counter"]), int(figures["bad_cycles"]))
+        return BusStatus(communication_ok=ok, working_counter=int(figures["working_counter"]),
+                         expected_working_counter=int(figures["expected_working_counter"]),
+                         lost_frames=int(figures["lost_frames"]),
+                         working_counter_errors=int(figures["working_counter_errors"]), detail=self._detail)
 
-    def _request_operational(self) -> None:
-        """Ask every slave for OP, acknowledging an error (slaves already in OP stay there)."""
-        master = self._master
-        master.state = OP_WITH_ACKNOWLEDGE
-        master.write_state()
+    def drive_state(self, drive: int) -> DriveState:
+        """The power state of one drive, from the statusword last read outside the cycle."""
+        return decode_statusword(int(self.io.statusword[drive]))
 
-    def _silent_slaves(self, wkc: int) -> str:
+    def service(self) -> None:
+        """Outside the cycle, often: while frames come back short, ask the slaves for OP every RECOVERY_PERIOD_S."""
+        if self._status is None or self.segment is None:
+            return
+        figures = self._status[0]
+        if int(figures["bad_cycles"]) == 0 or int(figures["working_counter"]) <= 0:
+            return
+        now = time.monotonic()
+        if now - self._recovered_at >= RECOVERY_PERIOD_S:
+            self._recovered_at = now
+            self.segment.master.write_state(OP_WITH_ACKNOWLEDGE)
+
+    def _silent_slaves(self, wkc: int, bad: int) -> str:
         """Which slaves stopped answering, read from their AL status registers once, at the fault."""
-        if wkc <= 0:
-            head = f"no frame came back for {self._bad} cycles"
-        else:
-            head = f"working counter {wkc} instead of {self._expected} for {self._bad} cycles"
-        from pysoem import WkcError
-
+        head = (f"no frame came back for {bad} cycles" if wkc <= 0 else
+                f"working counter {wkc} instead of {int(self._status[0]['expected_working_counter'])} "
+                f"for {bad} cycles") if self._status is not None else "no frame came back"
+        if self.segment is None:
+            return head
         silent, states = [], []
-        for position, slave in enumerate(self._slaves):
-            try:
-                state = int.from_bytes(slave._fprd(REG_AL_STATUS, 2, 1000), "little")  # noqa: SLF001 — register read
-            except WkcError:  # no answer: this slave is the one that stopped
-                silent.append(str(position))
-                continue
-            if state & 0x0F != 0x08:
-                states.append(f"slave {position} in state 0x{state:02X}")
+        for slave in self.segment.slaves:
+            state = slave.register(REG_AL_STATUS)
+            if state is None:  # no answer: this slave is the one that stopped
+                silent.append(str(slave.position))
+            elif state & 0x0F != OP_STATE:
+                states.append(f"slave {slave.position} in state 0x{state:02X}")
         parts = [head]
         if silent:
             parts.append(f"slave{'s' if len(silent) > 1 else ''} {', '.join(silent)} did not answer")
@@ -229,14 +226,19 @@ class EtherCATBus:
         return "; ".join(parts)
 
 
+def _hold_exchange(master: Any) -> None:
+    """While the segment comes up and until the core cycles: frames with the outputs as they are (drives
+    disabled), so the watchdogs stay fed."""
+    master.exchange(EXCHANGE_TIMEOUT_US)
+
+
 class _Keepalive:
-    """Exchanges process data every cycle from OP until the loop's first cycle, so no watchdog expires between."""
+    """Exchanges process data every cycle from OP until the core's first cycle, so no watchdog expires between."""
 
     def __init__(self, exchange: Callable[[], None], period_s: float) -> None:
         self._exchange, self._period = exchange, period_s
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="plem-ethercat-keepalive", daemon=True)
-        self.running = True
         self._thread.start()
 
     def _run(self) -> None:
@@ -245,8 +247,6 @@ class _Keepalive:
 
     def stop(self) -> None:
         """Stop exchanging; returns once the thread's last exchange has ended."""
-        self.running = False
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join()
-

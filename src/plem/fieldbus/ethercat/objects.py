@@ -65,3 +65,12 @@ ENTRIES_BY_OBJECT: dict[tuple[int, int], PdoEntry] = {(e.index, e.subindex): e f
 def pdo_bytes(entries: tuple[PdoEntry, ...]) -> int:
     """Size in bytes of a PDO made of `entries`."""
     return sum(e.bits for e in entries) // 8
+
+
+def offsets(entries: tuple[PdoEntry, ...]) -> dict[str, int]:
+    """Byte offset of each entry in a PDO made of `entries` (packed, in order)."""
+    found, at = {}, 0
+    for entry in entries:
+        found[entry.name] = at
+        at += entry.bits // 8
+    return found

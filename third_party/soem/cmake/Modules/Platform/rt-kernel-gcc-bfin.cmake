@@ -1,0 +1,3 @@
+
+set(MACHINE "-mcpu=bf537")
+set(LDFLAGS "-T${RT_KERNEL_PATH}/bsp/${BSP}/${BSP}.ld")
