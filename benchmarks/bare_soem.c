@@ -18,7 +18,7 @@
 #include "ethercat.h"
 
 #define PERIOD_NS 1000000LL
-#define RECEIVE_TIMEOUT_US 100
+#define RECEIVE_TIMEOUT_US 500
 #define MAX_ENTRIES 16
 
 static char iomap[4096];

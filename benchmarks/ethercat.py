@@ -20,7 +20,7 @@ What runs:
               plem        a fresh launch as in the soak, a trajectory running; its exchange and wake-up figures.
               bare        benchmarks/bare_soem.c, compiled here against third_party/soem: SOEM's red_test shape in
                           C, bringing the segment up with plem's PDO assignment, then at SCHED_FIFO 98 and 1 kHz:
-                          absolute clock_nanosleep, receive last cycle's answer (100 µs at most, as plem), enable
+                          absolute clock_nanosleep, receive last cycle's answer (500 µs at most, as plem), enable
                           the drives holding where they are, send.
               cyclictest  cyclictest -m -p98 --policy=fifo -t1 -i1000 -D<window> (benchmarks/loop_latency.py).
             Ratios within each pair: plem exchange p50 and p99 / bare's; plem wake-up p99 / cyclictest's.

@@ -113,3 +113,25 @@ def test_the_master_refuses_what_it_cannot_do_in_words(interface: str):
     finally:
         master.close()
     assert not master.is_open
+
+
+def test_closing_after_the_core_stops_switches_enabled_drives_off_where_they_stand(interface: str):
+    robot = ethercat_robot(interface)
+    robot.start()
+    try:
+        robot.set_mode(Mode.HOLD)
+        result = robot.move_joints(np.array([0.1, 0.1, -0.1, 0.1, 0.1, 0.1]), speed_scale=0.5).wait(30)
+        assert result.outcome is TrajectoryOutcome.SUCCEEDED, result.message
+        assert wait_until(lambda: np.max(np.abs(robot.state().velocity)) < 1e-4, 10)
+        before = np.array(Control(INDEX).state()["positions"])
+        assert robot.mode is Mode.HOLD                     # the drives are enabled, holding
+        robot.loop.stop()                                  # the core's thread ends without disabling them,
+        robot.bus.close()                                  # well within the drives' 100 ms watchdog
+        after = Control(INDEX).state()
+        assert all(word & 0x4F == 0x40 for word in after["statuswords"]), [hex(w) for w in after["statuswords"]]
+        assert np.allclose(after["positions"], before, atol=1e-4), (after["positions"], before)
+    finally:
+        if robot.bus.core_master is None:   # closed above: only the core's buffers are left to release
+            robot.runtime.close()
+        else:
+            robot.shutdown()

@@ -1,5 +1,6 @@
 """The simulated arm driven the way the loop drives a bus: read() and write() once per simulated cycle."""
 
+import re
 from functools import cache
 
 import numpy as np
@@ -9,6 +10,7 @@ from plem.control.kinematics import ArmDynamics
 from plem.description.validate import Stage, validate_package
 from plem.errors import CommandRejected, ConfigError, PlemError
 from plem.fieldbus import BusSetup, DriveState, IBus, MockBus, OperationMode
+from plem.fieldbus.mock import start_position
 
 CPR = 2**19 / (2 * np.pi) * 100  # 19-bit encoder behind a 1:100 gear
 DT = 0.001
@@ -256,6 +258,44 @@ def test_cst_torque_is_clamped_and_joints_stop_at_their_limits():
     assert bus.io.torque[0] == pytest.approx(5.0)
     assert bus.true_positions[0] == pytest.approx(3.0543261909900767)
     assert bus.true_velocities[0] == 0.0
+
+
+# ---- where the simulated arm starts -------------------------------------------------------------------------
+def shifted_urdf(lower: float, upper: float) -> str:
+    """The Indy7 v2 with joint1's range moved to [lower, upper]."""
+    text = urdf()
+    start = text.index('<joint name="joint1"')
+    end = text.index("</joint>", start)
+    joint = text[start:end]
+    limit = joint[joint.index("<limit"):joint.index("/>", joint.index("<limit")) + 2]
+    moved = re.sub(r'lower="[^"]*"', f'lower="{lower}"', re.sub(r'upper="[^"]*"', f'upper="{upper}"', limit))
+    return text[:start] + joint.replace(limit, moved) + text[end:]
+
+
+def test_the_simulated_arm_starts_inside_every_range():
+    home = (0.1, 0.9, -0.2, 0.0, 0.3, 0.0)
+    bus = MockBus(6, urdf())
+    bus.open(setup())
+    assert np.allclose(bus.true_positions, 0.0)                # zero is inside every range: zero
+    bus = MockBus(6, shifted_urdf(0.5, 1.5))
+    bus.open(BusSetup(setup().joint_names, setup().counts_per_radian, DT, home_position=home))
+    assert np.allclose(bus.true_positions, home)               # zero is not, the SRDF's home is
+    bus = MockBus(6, shifted_urdf(0.5, 1.5))
+    bus.open(BusSetup(setup().joint_names, setup().counts_per_radian, DT, home_position=(0.0,) * 6))
+    model = ArmDynamics(shifted_urdf(0.5, 1.5), setup().joint_names)
+    lower, upper = (limit[model.model_indices] for limit in (model.model.lowerPositionLimit,
+                                                             model.model.upperPositionLimit))
+    q = bus.true_positions                                     # neither: the middle of each range
+    assert np.allclose(q, (lower + upper) / 2) and np.isclose(q[1], 1.0), q
+    bus = MockBus(6, shifted_urdf(0.5, 1.5), initial_positions=[0.0, 0.7, 0, 0, 0, 0])
+    bus.open(setup())
+    assert np.allclose(bus.true_positions, [0.0, 0.7, 0, 0, 0, 0])   # what the caller asked for, as given
+
+
+def test_start_position_of_unbounded_and_one_sided_ranges():
+    inf = np.inf
+    lower, upper = np.array([-inf, 0.2, -inf, 0.1]), np.array([inf, inf, -0.3, 0.5])
+    assert np.allclose(start_position(lower, upper, None), [0.0, 0.2, -0.3, 0.3])
 
 
 # ---- follower mode (no URDF) --------------------------------------------------------------------

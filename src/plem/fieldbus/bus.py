@@ -45,6 +45,7 @@ class BusSetup:
 
     `counts_per_radian` is signed: negative where a drive counts against the joint's axis. `drives` are
     the description package's drive parameters (ids, gearing, direction), empty when it has none.
+    `home_position` is the SRDF's `home` pose in joint order, when it names every joint.
     """
 
     joint_names: tuple[str, ...]
@@ -54,6 +55,7 @@ class BusSetup:
     network_interface: str = "eth0"
     master_index: int = 0
     drives: tuple[DriveParameters, ...] = ()
+    home_position: tuple[float, ...] | None = None
 
     @property
     def dof(self) -> int:

@@ -91,6 +91,23 @@ def _number(name: str, value: float, *, positive: bool = False, error: type[Plem
                 why=f"got {value!r}", how=f"pass {name} as a {kind} number")
 
 
+def start_position(lower: np.ndarray, upper: np.ndarray, home: Sequence[float] | None) -> np.ndarray:
+    """Where a simulated arm starts, inside every joint's range: at zero where zero is inside every range, else at
+    `home` (the SRDF's) when it is, else at the middle of each range (zero where a range is unbounded)."""
+    zero = np.zeros(len(lower))
+
+    def inside(q: np.ndarray) -> bool:
+        return bool(np.all((lower <= q) & (q <= upper)))
+
+    if inside(zero):
+        return zero
+    if home is not None and inside(np.asarray(home, dtype=float)):
+        return np.asarray(home, dtype=float)
+    bounded = np.isfinite(lower) & np.isfinite(upper)
+    return np.where(bounded, (np.where(bounded, lower, 0) + np.where(bounded, upper, 0)) / 2,
+                    np.clip(zero, lower, upper))
+
+
 class MockBus:
     """A simulated arm behind the IBus interface: CiA402 drives, encoders, and rigid-body or first-order joints."""
 
@@ -118,6 +135,7 @@ class MockBus:
         self._deceleration = _number("quick_stop_deceleration", quick_stop_deceleration, positive=True)
         self._open = False
         self._dynamics = False
+        self._start_given = initial_positions is not None
         self._sim = self._new_sim(_joint_array("initial_positions", 0.0 if initial_positions is None
                                                else initial_positions, dof))
         self.io = BusIO(dof)
@@ -190,6 +208,8 @@ class MockBus:
         view["raw_zero"][:] = self._raw_zero
         view["friction"][:] = self._friction
         self._set_limits(arm, setup.joint_names)
+        if not self._start_given:
+            view["q"][:] = start_position(view["lower"], view["upper"], setup.home_position)
         if arm is not None:
             from plem.control.kinematics import compiled_model
 

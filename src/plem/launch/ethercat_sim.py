@@ -14,7 +14,7 @@ from plem.errors import ConfigError
 from plem.fieldbus.ethercat.virtual.emulator import Arm, VirtualNetwork
 from plem.launch.component import announce, run_component
 from plem.launch.plan import RobotPlan, plan_robot
-from plem.robot.robot import arm_joint_names, startup_urdf
+from plem.robot.robot import arm_joint_names, home_position, startup_urdf
 
 
 def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) -> Arm:
@@ -31,7 +31,8 @@ def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) ->
         raise ConfigError("wrong number of encoder zeros for the virtual network",
                           what=f"one raw encoder reading at home per joint ({len(joint_names)})",
                           why=f"got {len(encoder_zero)}", how=f"give {len(joint_names)} whole numbers")
-    return Arm(joint_names, urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero)
+    return Arm(joint_names, urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero,
+               home_position(plan.report, joint_names))
 
 
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:

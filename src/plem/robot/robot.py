@@ -83,6 +83,12 @@ def startup_urdf(report: ValidationReport) -> tuple[UrdfModel, str]:
     return report.urdf, report.urdf_xml
 
 
+def home_position(report: ValidationReport, joint_names: Sequence[str]) -> tuple[float, ...] | None:
+    """The SRDF's `home` pose in the order of `joint_names`, when the package has one naming every joint."""
+    home = report.srdf.poses(joint_names).get("home") if report.srdf is not None else None
+    return None if home is None else tuple(home)
+
+
 def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]:
     """The arm's joints in drive order: the preset's names, else the URDF's actuated joints."""
     model = config.MODEL
@@ -477,7 +483,7 @@ class RobotBuilder:
                                             (DEFAULT_COUNTS_PER_RADIAN,) * config.dof)
         bus = self._bus(config)
         setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, urdf_xml,
-                         config.network_interface, config.master_index, drives)
+                         config.network_interface, config.master_index, drives, home_position(report, joint_names))
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
         dynamics = ArmDynamics(urdf_xml, joint_names)
         state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)

@@ -347,10 +347,20 @@ static PyObject *master_prepare(Master *self, PyObject *args, PyObject *kwargs) 
     Py_RETURN_NONE;
 }
 
+/* The master's status as a read-only buffer that keeps the master alive while a view of it exists. */
+static int master_getbuffer(Master *self, Py_buffer *view, int flags) {
+    if (!self->master) {
+        PyErr_SetString(PyExc_BufferError, "the EtherCAT master was not initialised");
+        return -1;
+    }
+    return PyBuffer_FillInfo(view, (PyObject *)self, &self->master->status, sizeof(plem_master_status), 1, flags);
+}
+
+static PyBufferProcs MASTER_BUFFER = {.bf_getbuffer = (getbufferproc)master_getbuffer};
+
 static PyObject *master_status(Master *self, void *closure) {
     (void)closure;
-    if (!self->master) Py_RETURN_NONE;
-    return PyMemoryView_FromMemory((char *)&self->master->status, sizeof(plem_master_status), PyBUF_READ);
+    return PyMemoryView_FromObject((PyObject *)self);
 }
 
 static PyObject *master_is_open(Master *self, void *closure) {
@@ -404,6 +414,7 @@ PyTypeObject PLEM_MASTER_TYPE = {
     .tp_doc = "Master(): the EtherCAT master of one interface, on SOEM v1.4.0.",
     .tp_methods = MASTER_METHODS,
     .tp_getset = MASTER_GETSET,
+    .tp_as_buffer = &MASTER_BUFFER,
     .tp_init = (initproc)master_init,
     .tp_new = PyType_GenericNew,
 };

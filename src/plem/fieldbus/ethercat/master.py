@@ -38,8 +38,9 @@ from plem.fieldbus.ethercat.bringup import (
 
 #: Consecutive cycles without a good working counter that fault the arm (10 ms at 1 kHz).
 DEFAULT_BAD_CYCLES_TO_FAULT = 10
-#: Longest wait for last cycle's answer, as a share of the cycle time (it has had a whole period to come back).
-RECEIVE_SHARE = 0.1
+#: Longest wait for last cycle's answer, as a share of the cycle time: it has had a whole period to come back, and
+#: an answer up to half a period later still arrives in time for this cycle's work.
+RECEIVE_SHARE = 0.5
 #: Longest wait for an answer outside the cycle (bring-up, keepalive, shut-down), µs.
 EXCHANGE_TIMEOUT_US = 2000
 #: While frames come back but some slave is out of OP, ask every slave for OP (acknowledging errors) this often.
@@ -142,6 +143,7 @@ class EtherCATBus:
 
     def _switch_off(self, master: Any) -> None:
         """Exchange frames whose controlwords take every drive to switch on disabled, holding where it is."""
+        self._decode()   # what the drives reported last, to the core's cycle or to the keepalive
         power = PowerSequencer(len(self.io.position))
         power.request(DriveState.SWITCH_ON_DISABLED)
         period = 0.001

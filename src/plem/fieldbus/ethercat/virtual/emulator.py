@@ -1,7 +1,7 @@
 """The virtual EtherCAT network of one arm: its emulated drives serving frames, and the control of its faults.
 
 `VirtualNetwork.run()` creates the veth pair and namespace, serves the emulated segment on the drive end
-until stopped, and removes the network again. A master (plem's, or a bare pysoem script) opens the
+until stopped, and removes the network again. A master (plem's, or another SOEM program) opens the
 master end like a wired port. A control socket takes fault injections while it runs; `Control` is its
 client (tests, `plem ethercat inject`).
 """
@@ -55,13 +55,15 @@ class Arm:
     drives: tuple[DriveParameters, ...]
     cycle_time_s: float
     encoder_zero: tuple[int, ...] | None = None
+    home_position: tuple[float, ...] | None = None
 
 
 class ClockedDrives(EmulatedDrives):
     """The emulated drives, stepped by frames and, when frames stop, by their own clock; thread-safe."""
 
     def __init__(self, arm: Arm) -> None:
-        super().__init__(arm.joint_names, arm.urdf_xml, arm.drives, arm.cycle_time_s, raw_zero=arm.encoder_zero)
+        super().__init__(arm.joint_names, arm.urdf_xml, arm.drives, arm.cycle_time_s, raw_zero=arm.encoder_zero,
+                         home_position=arm.home_position)
         self.lock = threading.Lock()
         self.cycle_time_s = arm.cycle_time_s
         self.last_step = time.monotonic()
