@@ -73,7 +73,7 @@ def test_the_core_thread_exchanges_with_the_drives_and_moves_them(interface: str
     master = robot.bus.core_master
     with robot:
         robot.set_mode(Mode.HOLD)
-        with pytest.raises(RuntimeError, match="core thread exchanges"):
+        with pytest.raises(RuntimeError, match="exchanges process data"):
             master.sdo_read(1, 0x1000, 0, 4)            # the cycle owns the master while it runs
         target = np.array([0.2, -0.15, 0.1, 0.3, -0.2, 0.25])
         result = robot.move_joints(target, speed_scale=0.5).wait(30)

@@ -5,8 +5,8 @@
 #include <math.h>
 #include <stdatomic.h>
 #include <string.h>
-#include <time.h>
 
+#include "clock.h"
 #include "plem_core.h"
 
 #define ENABLED_MASK 0x006F
@@ -25,12 +25,6 @@
  * knots and coefficients as float64. */
 #define SLAB_HEADER_BYTES 64
 typedef struct { char magic[8]; uint32_t version, dof, slots, capacity, shared_slots; } slab_header;
-
-static int64_t monotonic_ns(void) {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (int64_t)now.tv_sec * 1000000000LL + now.tv_nsec;
-}
 
 /* ---- rings ---------------------------------------------------------------------------------------------- */
 
@@ -54,7 +48,7 @@ static void emit(plem_arm *arm, int kind, int cause, int previous, int joint, in
                  double v0, double v1, double v2, double v3) {
     plem_event *event = produce(&arm->events_index, arm->events, sizeof(plem_event), PLEM_EVENT_SLOTS);
     if (!event) return;
-    event->cycle = arm->cycle, event->monotonic_ns = monotonic_ns(), event->token = token;
+    event->cycle = arm->cycle, event->monotonic_ns = plem_now_ns(), event->token = token;
     event->kind = kind, event->cause = cause, event->mode = arm->mode, event->previous_mode = previous;
     event->joint = joint, event->detail = detail;
     event->values[0] = v0, event->values[1] = v1, event->values[2] = v2, event->values[3] = v3;
@@ -672,7 +666,7 @@ static void publish(plem_arm *arm, plem_state_block *block) {
     atomic_thread_fence(memory_order_release);
     for (int r = 0; r < 6; r++) memcpy(block->values + r * n, row(arm, r), (size_t)n * sizeof(double));
     block->header[1] = arm->cycle;
-    block->header[2] = monotonic_ns();
+    block->header[2] = plem_now_ns();
     block->header[3] = arm->mode;
     block->header[4] = arm->mode == PLEM_FAULTED;
     block->header[5] = enabled;

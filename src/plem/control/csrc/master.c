@@ -3,15 +3,9 @@
 #include <math.h>
 #include <stdatomic.h>
 #include <string.h>
-#include <time.h>
 
+#include "clock.h"
 #include "master.h"
-
-static int64_t now_ns(void) {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (int64_t)now.tv_sec * 1000000000LL + now.tv_nsec;
-}
 
 void plem_master_init(plem_master *m) {
     m->context = (ecx_contextt){
@@ -61,9 +55,9 @@ int plem_master_read(plem_master *m, plem_arm *arm) {
         decode(m, arm);
         return s->communication_ok;
     }
-    int64_t start = now_ns();
+    int64_t start = plem_now_ns();
     int wkc = ecx_receive_processdata(&m->context, m->receive_timeout_us);
-    m->wire_ns = now_ns() - start;
+    m->wire_ns = plem_now_ns() - start;
     m->outstanding = 0;
     s->working_counter = wkc;
     if (wkc == s->expected_working_counter) {
@@ -91,12 +85,25 @@ void plem_master_write(plem_master *m, const plem_arm *arm, const uint16_t *cont
         put16(out + PLEM_RX_TORQUE_OFFSET, (uint16_t)(int16_t)units);
         out[PLEM_RX_MODE] = (uint8_t)arm->io_mode[i];
     }
-    int64_t start = now_ns();
+    int64_t start = plem_now_ns();
     ecx_send_processdata(&m->context);
-    m->wire_ns += now_ns() - start;
+    m->wire_ns += plem_now_ns() - start;
     m->outstanding = 1;
     count(&m->status.exchanges);
     plem_series_add(&m->status.exchange, m->wire_ns);
+}
+
+void *plem_master_keepalive(void *argument) {
+    plem_master *m = argument;
+    int64_t deadline = plem_now_ns();
+    while (!atomic_load_explicit(&m->keepalive_stop, memory_order_acquire)) {
+        deadline += m->keepalive_period_ns;
+        plem_sleep_until(deadline);
+        plem_master_exchange(m, m->keepalive_timeout_us);
+        int64_t late = plem_now_ns() - deadline;
+        if (late > m->keepalive_period_ns) deadline += late / m->keepalive_period_ns * m->keepalive_period_ns;
+    }
+    return NULL;
 }
 
 int plem_master_exchange(plem_master *m, int timeout_us) {

@@ -8,6 +8,8 @@
 #ifndef PLEM_MASTER_H
 #define PLEM_MASTER_H
 
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "ethercat.h"
@@ -64,15 +66,23 @@ typedef struct plem_master {
     int32_t receive_timeout_us;      /* longest wait for last cycle's answer */
     int32_t bad_cycles_to_fault;
     int32_t outstanding;             /* a frame was sent whose answer has not been received */
-    int32_t in_cycle;                /* a core thread exchanges through this master */
+    int32_t in_cycle;                /* a core thread, or the keepalive, exchanges through this master */
     double newton_metres_per_unit[PLEM_MAX_JOINTS];   /* torque objects (per mille of rated) to N·m at the joint */
     int64_t wire_ns;                 /* the current cycle's time in receive and send */
     plem_master_status status;
+    /* the keepalive: frames every period from OP until a core cycles, on a thread that needs no interpreter */
+    pthread_t keepalive;
+    atomic_int keepalive_stop;
+    int32_t keepalive_running;
+    int32_t keepalive_timeout_us;
+    int64_t keepalive_period_ns;
 } plem_master;
 
 /* A fresh master's context wired to its own storage (no socket yet). */
 void plem_master_init(plem_master *master);
 /* Send the outputs and wait for their answer (bring-up and shut-down, outside the cycle); the working counter. */
 int plem_master_exchange(plem_master *master, int timeout_us);
+/* The keepalive thread's body: an exchange every keepalive_period_ns until keepalive_stop. */
+void *plem_master_keepalive(void *master);
 
 #endif

@@ -19,7 +19,19 @@ typedef struct {
 
 static PyObject *SDO_ERROR;
 
+/* Stop the keepalive thread and wait for it, without the interpreter lock (it never needs it). */
+static void stop_keepalive(plem_master *m) {
+    if (!m || !m->keepalive_running) return;
+    atomic_store_explicit(&m->keepalive_stop, 1, memory_order_release);
+    Py_BEGIN_ALLOW_THREADS
+    pthread_join(m->keepalive, NULL);
+    Py_END_ALLOW_THREADS
+    m->keepalive_running = 0;
+    m->in_cycle = 0;
+}
+
 static void master_dealloc(Master *self) {
+    stop_keepalive(self->master);
     if (self->master) {
         if (self->master->open) ecx_close(&self->master->context);
         PyMem_RawFree(self->master);
@@ -56,7 +68,8 @@ static plem_master *usable(Master *self) {
         return NULL;
     }
     if (m->in_cycle) {
-        PyErr_SetString(PyExc_RuntimeError, "a core thread exchanges process data through this master");
+        PyErr_SetString(PyExc_RuntimeError, "the core's cycle (or the keepalive before it) exchanges process data "
+                                            "through this master");
         return NULL;
     }
     return m;
@@ -90,6 +103,7 @@ static PyObject *master_open(Master *self, PyObject *args) {
 static PyObject *master_close(Master *self, PyObject *unused) {
     (void)unused;
     plem_master *m = self->master;
+    stop_keepalive(m);
     if (m && m->in_cycle) return PyErr_Format(PyExc_RuntimeError, "stop the core thread before closing its master");
     if (m && m->open) {
         Py_BEGIN_ALLOW_THREADS
@@ -319,6 +333,33 @@ static PyObject *master_set_outputs(Master *self, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+static PyObject *master_start_keepalive(Master *self, PyObject *args) {
+    long long period;
+    int timeout;
+    if (!PyArg_ParseTuple(args, "Li", &period, &timeout)) return NULL;
+    plem_master *m = usable(self);
+    if (!m) return NULL;
+    if (period <= 0 || timeout < 0)
+        return PyErr_Format(PyExc_ValueError, "keepalive: period %lld ns > 0, timeout %d µs >= 0", period, timeout);
+    m->keepalive_period_ns = period;
+    m->keepalive_timeout_us = timeout;
+    atomic_store_explicit(&m->keepalive_stop, 0, memory_order_relaxed);
+    m->in_cycle = 1;
+    int error = pthread_create(&m->keepalive, NULL, plem_master_keepalive, m);
+    if (error) {
+        m->in_cycle = 0;
+        return PyErr_Format(PyExc_OSError, "the keepalive thread could not be created: %s", strerror(error));
+    }
+    m->keepalive_running = 1;
+    Py_RETURN_NONE;
+}
+
+static PyObject *master_stop_keepalive(Master *self, PyObject *unused) {
+    (void)unused;
+    stop_keepalive(self->master);
+    Py_RETURN_NONE;
+}
+
 static PyObject *master_prepare(Master *self, PyObject *args, PyObject *kwargs) {
     static char *keywords[] = {"torque_units", "bad_cycles_to_fault", "receive_timeout_us", NULL};
     PyObject *units;
@@ -401,6 +442,11 @@ static PyMethodDef MASTER_METHODS[] = {
      "exchange(timeout_us): send the outputs, wait for the answer; the working counter."},
     {"inputs", (PyCFunction)master_inputs, METH_VARARGS, "inputs(slave): the slave's input bytes."},
     {"set_outputs", (PyCFunction)master_set_outputs, METH_VARARGS, "set_outputs(slave, data)."},
+    {"start_keepalive", (PyCFunction)master_start_keepalive, METH_VARARGS,
+     "start_keepalive(period_ns, timeout_us): exchange every period on a thread of the master's own, until "
+     "stop_keepalive(), so no watchdog expires before a core cycles."},
+    {"stop_keepalive", (PyCFunction)master_stop_keepalive, METH_NOARGS,
+     "Stop the keepalive; returns once its last exchange has ended. Safe to repeat."},
     {"prepare", (PyCFunction)(void (*)(void))master_prepare, METH_VARARGS | METH_KEYWORDS,
      "prepare(torque_units, bad_cycles_to_fault, receive_timeout_us): ready for a core's cycle."},
     {NULL, NULL, 0, NULL}};

@@ -1,12 +1,11 @@
 /* The real-time thread: absolute deadlines, one cycle per period, timing statistics (compute without the time on
  * the EtherCAT wire), the rt_raw record and the overrun fault. It never touches the Python interpreter; Python reads what it writes from memory. */
-#include <errno.h>
 #include <pthread.h>
 #include <sched.h>
 #include <stdatomic.h>
 #include <string.h>
-#include <time.h>
 
+#include "clock.h"
 #include "master.h"
 #include "plem_core.h"
 #include "thread.h"
@@ -15,12 +14,6 @@
 #define RING_SLOTS_OFFSET 64
 #define RING_SLOT_HEADER 16
 #define RAW_SCALARS 7
-
-static int64_t now_ns(void) {
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (int64_t)now.tv_sec * 1000000000LL + now.tv_nsec;
-}
 
 void plem_series_add(plem_series *s, int64_t value) {
     if (value < 0) value = 0;
@@ -76,27 +69,21 @@ static void set_up_thread(plem_loop *loop) {
     memset((uint8_t *)stack, 0, sizeof stack);
 }
 
-static void sleep_until(int64_t deadline) {
-    struct timespec at = {.tv_sec = deadline / 1000000000LL, .tv_nsec = deadline % 1000000000LL};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &at, NULL) == EINTR) {
-    }
-}
-
 void *plem_loop_run(void *argument) {
     plem_loop *loop = argument;
     plem_stats *stats = loop->stats;
     plem_arm *arm = loop->arm;
     int dof = arm->settings.dof;
     int64_t period = loop->period_ns, previous_compute = 0;
-    int64_t window_start = now_ns(), window_overruns = 0, window_missed = 0, longest_run = 0;
+    int64_t window_start = plem_now_ns(), window_overruns = 0, window_missed = 0, longest_run = 0;
     set_up_thread(loop);
-    int64_t deadline = now_ns() + period;
+    int64_t deadline = plem_now_ns() + period;
     while (!atomic_load_explicit(&loop->stop, memory_order_acquire)) {
-        sleep_until(deadline);
-        int64_t woke = now_ns();
+        plem_sleep_until(deadline);
+        int64_t woke = plem_now_ns();
         plem_arm_cycle(arm, &loop->bus, loop->slab, loop->block);
         if (loop->raw) plem_raw_write(loop->raw, loop->block, dof, woke - deadline, previous_compute);
-        int64_t done = now_ns();
+        int64_t done = plem_now_ns();
         /* compute: the cycle's own work; the time on the wire is the master's to report */
         previous_compute = done - woke - (loop->bus.master ? loop->bus.master->wire_ns : 0);
         plem_series_add(&stats->latency, woke - deadline);

@@ -8,15 +8,14 @@ row fault the arm; `status.detail` then names the slaves that stopped answering.
 short working counter (a slave fell to SAFEOP, e.g. on its watchdog), `service()` (the core's service thread)
 asks every slave for OP again every `RECOVERY_PERIOD_S`, acknowledging their errors: one broadcast register
 write, the drives kept disabled, so a reset can enable them once the counter is whole. From OP until the core's
-first cycle a keepalive thread exchanges frames, so no watchdog expires in between.
+first cycle the master's own keepalive thread (C, never waiting for the interpreter) exchanges frames, so no
+watchdog expires in between however long Python takes to build the rest of the robot.
 """
 
 from __future__ import annotations
 
 import contextlib
-import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -84,7 +83,6 @@ class EtherCATBus:
         self._status: np.ndarray | None = None
         self._detail = ""
         self._recovered_at = 0.0
-        self._keepalive: _Keepalive | None = None
 
     @property
     def core_master(self) -> Any:
@@ -117,13 +115,12 @@ class EtherCATBus:
         self._status = np.frombuffer(segment.master.status, dtype=MASTER_STATUS)
         self._decode()
         self.io.target_position[:] = self.io.position
-        self._keepalive = _Keepalive(lambda: _hold_exchange(segment.master), setup.cycle_time_s)
+        segment.master.start_keepalive(cycle_ns, EXCHANGE_TIMEOUT_US)
 
     def hand_over(self) -> None:
         """The core's cycle exchanges from now on: stop the keepalive (returns once its last exchange ended)."""
-        if self._keepalive is not None:
-            self._keepalive.stop()
-            self._keepalive = None
+        if self.segment is not None:
+            self.segment.master.stop_keepalive()
 
     def close(self) -> None:
         """Disable the drives (switch on disabled), then bring the slaves to SAFEOP and INIT; safe to repeat.
@@ -229,26 +226,6 @@ class EtherCATBus:
 
 
 def _hold_exchange(master: Any) -> None:
-    """While the segment comes up and until the core cycles: frames with the outputs as they are (drives
-    disabled), so the watchdogs stay fed."""
+    """While the segment comes up: frames with the outputs as they are (drives disabled), so the watchdogs stay
+    fed."""
     master.exchange(EXCHANGE_TIMEOUT_US)
-
-
-class _Keepalive:
-    """Exchanges process data every cycle from OP until the core's first cycle, so no watchdog expires between."""
-
-    def __init__(self, exchange: Callable[[], None], period_s: float) -> None:
-        self._exchange, self._period = exchange, period_s
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="plem-ethercat-keepalive", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.wait(self._period):
-            self._exchange()
-
-    def stop(self) -> None:
-        """Stop exchanging; returns once the thread's last exchange has ended."""
-        self._stop.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join()
