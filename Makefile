@@ -42,8 +42,8 @@ run: $(STAMP)
 
 # Unit and integration tests on two workers; the end-to-end tests, whose launches run real-time loops, one at a time.
 test: $(TEST_STAMP)
-	$(BIN)/pytest -q -m "not slow" -n 2 tests/unit tests/integration
-	$(BIN)/pytest -q -m "not slow" tests/e2e
+	$(BIN)/pytest -q -m "not slow" -n 2 --durations=10 tests/unit tests/integration
+	$(BIN)/pytest -q -m "not slow" --durations=20 tests/e2e
 
 lint: $(TEST_STAMP)
 	$(BIN)/ruff check src tests benchmarks
