@@ -1,7 +1,7 @@
 """plem's EtherCAT master (the core's, SOEM v1.4.0) on the virtual network, against a bare C SOEM loop on the same
 emulator and cyclictest.
 
-Usage: python benchmarks/ethercat.py [--soak-minutes 10] [--pairs 15] [--window 8] [--quick]
+Usage: python benchmarks/ethercat.py [--soak-minutes 10] [--pairs 15] [--window 8] [--quick] [--bare-soak]
 Needs root (SCHED_FIFO, raw sockets, network namespaces) and gcc. Installs Debian's rt-tests when `cyclictest` is
 missing. --quick: a 1-minute soak and 3 pairs of 3 s windows (a smoke run). The full run takes about
 10 + 15 x (3 x 8 s + start-up) = 20 minutes.
@@ -15,7 +15,8 @@ What runs:
             statistics after minus before, wake-up latency of every cycle from the rt_raw ring): frames lost,
             working-counter errors, faults, the exchange (the time a cycle spends in SOEM's receive of last
             cycle's answer and its send of the next frame) p50/p99/max, wake-up p99/p99.9, compute p99 (the
-            cycle without the exchange), and the emulator's CPU (% of one core).
+            cycle without the exchange), and the emulator's CPU (% of one core). With --bare-soak the bare loop
+            below then runs as long on the same network, for its bad cycles over the same span.
   pairs     --pairs times, the order rotating: plem, bare, cyclictest, each for --window s.
               plem        a fresh launch as in the soak, a trajectory running; its exchange and wake-up figures.
               bare        benchmarks/bare_soem.c, compiled here against third_party/soem: SOEM's red_test shape in
@@ -153,6 +154,7 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=15)
     parser.add_argument("--window", type=float, default=8.0)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--bare-soak", action="store_true", help="soak the bare C loop as long, after plem's")
     args = parser.parse_args()
     if args.quick:
         args.soak_minutes, args.pairs, args.window = 1.0, 3, 3.0
@@ -178,6 +180,11 @@ def main() -> None:
             print(f"  target 0 lost frames, 0 faults: {launching.verdict(soak['lost'] == 0 and not soak['fault'])}; "
                   f"compute p99 <= 20 µs: {launching.verdict(soak['compute_p99'] <= 20)}", flush=True)
             bare_program = build_bare(directory)
+            if args.bare_soak:
+                bare = bare_window(bare_program, args.soak_minutes * 60)
+                print(f"bare soak ({args.soak_minutes:g} min, holding): {bare['cycles']} cycles, bad cycles "
+                      f"{bare['bad']}; exchange p50 {bare['exchange_p50']:.0f} µs, p99 {bare['exchange_p99']:.0f} µs, "
+                      f"max {bare['exchange_max']:.0f} µs; wake-up p99 {bare['latency_p99']:.0f} µs", flush=True)
             exchange50, exchange99, wake, compute = [], [], [], []
             sides = ("plem", "bare", "cyclictest")
             for pair in range(args.pairs):
