@@ -188,10 +188,6 @@ class EtherCATBus:
                          lost_frames=int(figures["lost_frames"]),
                          working_counter_errors=int(figures["working_counter_errors"]), detail=self._detail)
 
-    def drive_state(self, drive: int) -> DriveState:
-        """The power state of one drive, from the statusword last read outside the cycle."""
-        return decode_statusword(int(self.io.statusword[drive]))
-
     def service(self) -> None:
         """Outside the cycle, often: while frames come back short, ask the slaves for OP every RECOVERY_PERIOD_S."""
         if self._status is None or self.segment is None:
