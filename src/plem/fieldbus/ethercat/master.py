@@ -83,6 +83,7 @@ class EtherCATBus:
         self._status: np.ndarray | None = None
         self._detail = ""
         self._recovered_at = 0.0
+        self._period_s = 0.001
 
     @property
     def core_master(self) -> Any:
@@ -101,6 +102,7 @@ class EtherCATBus:
         n = setup.dof
         self.io = BusIO(n)
         cycle_ns = round(setup.cycle_time_s * 1e9)
+        self._period_s = setup.cycle_time_s
         with contextlib.ExitStack() as held:
             held.enter_context(interface_lock(setup.network_interface, f"an RT driver (master {setup.master_index})"))
             segment = bring_up(setup.network_interface, setup.joint_names, setup.drives, cycle_ns, _hold_exchange)
@@ -143,7 +145,6 @@ class EtherCATBus:
         self._decode()   # what the drives reported last, to the core's cycle or to the keepalive
         power = PowerSequencer(len(self.io.position))
         power.request(DriveState.SWITCH_ON_DISABLED)
-        period = 0.001
         for _ in range(CLOSING_CYCLES):
             seen = [decode_statusword(int(word)) for word in self.io.statusword]
             if all(state in (DriveState.SWITCH_ON_DISABLED, DriveState.FAULT) for state in seen):
@@ -156,7 +157,7 @@ class EtherCATBus:
                 master.set_outputs(slave, record.tobytes())
             if master.exchange(EXCHANGE_TIMEOUT_US) == self.status.expected_working_counter:
                 self._decode()
-            time.sleep(period)
+            time.sleep(self._period_s)
 
     # ---- what Python reads of the bus ---------------------------------------------------------------
 
