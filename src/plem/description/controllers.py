@@ -16,8 +16,8 @@ from typing import Any
 
 import yaml
 
-from plem.core.config.yaml_document import load_yaml
 from plem.description.generate import BROADCASTER_TYPE, FREE_DRIVE_TYPE, TRAJECTORY_TYPE, controllers_yaml
+from plem.description.package_yaml import read_package_yaml
 from plem.errors import ConfigError
 
 #: The role of each controller type plem runs.
@@ -131,4 +131,4 @@ def read_controllers(path: Path | None, joints: Sequence[str], cycle_time_us: in
     if path is None:
         return controllers_from(yaml.safe_load(controllers_yaml(list(joints), cycle_time_us)), joints,
                                 "the generated controllers.yaml")
-    return controllers_from(load_yaml(path, "controllers.yaml"), joints, str(path))
+    return controllers_from(read_package_yaml(path, "controllers.yaml").root, joints, str(path))

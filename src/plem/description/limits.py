@@ -13,9 +13,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from plem.core.config.loader import ConfigLoader
 from plem.core.config.yaml_document import YamlDocument
 from plem.description.model import Joint
+from plem.description.package_yaml import read_package_yaml
 from plem.description.problems import Findings
 from plem.errors import ConfigError
 
@@ -121,7 +121,7 @@ def _number(value: Any) -> float | None:
 def read_joint_limits(path: Path, found: Findings) -> dict[str, JointLimit]:
     """Parse and check the file on its own (cross-checks with the URDF live in the validator)."""
     try:
-        document = ConfigLoader.get_instance().document(path)
+        document = read_package_yaml(path, "joint_limits.yaml")
     except ConfigError as error:
         found.add("limits.yaml", error, path)
         return {}

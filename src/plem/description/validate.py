@@ -17,7 +17,6 @@ from pathlib import Path
 
 from lxml import etree
 
-from plem.core.config.loader import ConfigLoader
 from plem.core.config.yaml_document import YamlDocument
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
@@ -44,6 +43,7 @@ from plem.description.model import (
     read_xml_file,
     rendered_line_note,
 )
+from plem.description.package_yaml import read_package_yaml
 from plem.description.problems import DescriptionError, Findings
 from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
@@ -556,7 +556,7 @@ def _check_limits_against_urdf(report: ValidationReport, urdf: UrdfModel) -> Non
             found.error("limits.missing_joint", f"joint_limits.yaml has no entry for {name}",
                         what="an entry for every actuated URDF joint", why=f"{name} is missing",
                         how=f"add joint_limits.{name} with min/max_position, max_velocity, max_acceleration",
-                        file=path, line=ConfigLoader.get_instance().document(path).line("joint_limits"))
+                        file=path, line=read_package_yaml(path, "joint_limits.yaml").line("joint_limits"))
             continue
         _compare_with_urdf(report, limits[name], joint, path)
     for name, limit in limits.items():
@@ -624,7 +624,7 @@ def _read_mapping(path: Path | None, area: str, found: Findings) -> YamlDocument
     if path is None:
         return None
     try:
-        document = ConfigLoader.get_instance().document(path)
+        document = read_package_yaml(path, f"{area}.yaml")
     except ConfigError as error:
         found.add(f"{area}.yaml", error, path)
         return None

@@ -289,21 +289,13 @@ class Supervisor:
 
     # -- stop --------------------------------------------------------------------------------------
     def _stop_all(self) -> None:
-        """Stop children in reverse start order: each driver stops its arm, then exits."""
+        """Stop children in reverse start order: each driver stops its arm, then exits; a virtual EtherCAT
+        network only after every driver ended, as its drives answer the driver's stop until the end."""
         if any(child.ready for child in self.children):
             self.say("stopping: the arms stop smoothly and their drives are disabled")
-        for child in reversed(self.children):
-            if child.process.poll() is None:
-                child.process.send_signal(signal.SIGTERM)
-        for child in reversed(self.children):
-            try:
-                child.process.wait(STOP_TIMEOUT_S)
-                if child.ready:
-                    self.say(f"{child.label} stopped ({child.exit_description()})")
-            except subprocess.TimeoutExpired:
-                child.process.kill()
-                child.process.wait()
-                self.say(f"{child.label} did not stop within {STOP_TIMEOUT_S:.0f} s and was killed")
+        networks = [child for child in self.children if child.component == "ethercat_sim"]
+        self._stop_children([child for child in self.children if child not in networks])
+        self._stop_children(networks)
         self.children.clear()
         for plan in self.plans:
             remove_description(plan.robot_id)
@@ -312,6 +304,21 @@ class Supervisor:
             client.close()
         self._clients.clear()
         self._event_streams.clear()
+
+    def _stop_children(self, children: list[Child]) -> None:
+        """SIGTERM to `children` (in reverse start order), then wait for each; kill what does not stop in time."""
+        for child in reversed(children):
+            if child.process.poll() is None:
+                child.process.send_signal(signal.SIGTERM)
+        for child in reversed(children):
+            try:
+                child.process.wait(STOP_TIMEOUT_S)
+                if child.ready:
+                    self.say(f"{child.label} stopped ({child.exit_description()})")
+            except subprocess.TimeoutExpired:
+                child.process.kill()
+                child.process.wait()
+                self.say(f"{child.label} did not stop within {STOP_TIMEOUT_S:.0f} s and was killed")
 
 
 def status_line(robot_id: str, client: RobotClient) -> str:

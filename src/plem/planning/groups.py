@@ -11,9 +11,9 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from plem.core.config.loader import ConfigLoader
 from plem.description.generate import SOLVER_DEFAULTS
 from plem.description.model import SrdfGroup, SrdfModel, UrdfModel
+from plem.description.package_yaml import read_package_yaml
 from plem.description.validate import KNOWN_SOLVERS
 from plem.errors import ConfigError
 
@@ -101,7 +101,7 @@ def _read_settings(path: Path | None) -> tuple[dict[str, KinematicsSettings], li
     """kinematics.yaml per group; a value of the wrong kind is a ConfigError naming the file and line."""
     if path is None:
         return {}, []
-    document = ConfigLoader.get_instance().document(path)
+    document = read_package_yaml(path, "kinematics.yaml")
     warnings: list[str] = []
     settings: dict[str, KinematicsSettings] = {}
     root = document.root if isinstance(document.root, dict) else {}

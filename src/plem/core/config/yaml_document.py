@@ -11,6 +11,7 @@ nested aliases ("billion laughs") expand to billions of values; both are refused
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,9 @@ from plem.errors import ConfigError
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _constructor = yaml.constructor.SafeConstructor()
 KeyPath = tuple[str, ...]
+#: Constructors of local scalar tags (`!degrees 90`) a reader accepts: the scalar's text in, its value out; a
+#: ValueError's message becomes the error at the scalar's line.
+ScalarTags = Mapping[str, Callable[[str], Any]]
 
 #: Limits on a YAML file plem reads: no configuration, limits or controllers file comes near them.
 MAX_YAML_BYTES = 4 * 1024 * 1024
@@ -41,7 +45,7 @@ class _DuplicateKey(Exception):
         self.key, self.line, self.first = key, line, first
 
 
-def _build(node: yaml.Node, path: KeyPath, lines: dict[KeyPath, int]) -> Any:
+def _build(node: yaml.Node, path: KeyPath, lines: dict[KeyPath, int], tags: ScalarTags) -> Any:
     """Plain value of `node`, recording the 1-based line of every key and list item under `path`."""
     if isinstance(node, yaml.MappingNode):
         _constructor.flatten_mapping(node)
@@ -53,15 +57,21 @@ def _build(node: yaml.Node, path: KeyPath, lines: dict[KeyPath, int]) -> Any:
             if key in result:
                 raise _DuplicateKey(str(key), key_node.start_mark.line + 1, lines[child])
             lines[child] = key_node.start_mark.line + 1
-            result[key] = _build(value_node, child, lines)
+            result[key] = _build(value_node, child, lines, tags)
         return result
     if isinstance(node, yaml.SequenceNode):
         items = []
         for index, item in enumerate(node.value):
             child = (*path, str(index))
             lines[child] = item.start_mark.line + 1
-            items.append(_build(item, child, lines))
+            items.append(_build(item, child, lines, tags))
         return items
+    if isinstance(node, yaml.ScalarNode) and node.tag in tags:
+        try:
+            return tags[node.tag](node.value)
+        except ValueError as error:
+            raise yaml.constructor.ConstructorError(None, None, f"{node.tag} {node.value!r}: {error}",
+                                                    node.start_mark) from None
     return _constructor.construct_object(node, deep=True)
 
 
@@ -189,13 +199,14 @@ def _count_values(text: str, path: Path) -> None:
                            "the aliases up to here expand to more values than that (an alias bomb?)")
 
 
-def parse_yaml(text: str, path: Path) -> YamlDocument:
-    """Parse `text` read from `path`; syntax problems, duplicate keys and exceeded limits become a ConfigError."""
+def parse_yaml(text: str, path: Path, tags: ScalarTags | None = None) -> YamlDocument:
+    """Parse `text` read from `path` (with the local scalar `tags` given); syntax problems, duplicate keys and
+    exceeded limits become a ConfigError."""
     lines: dict[KeyPath, int] = {}
     try:
         _check_shape(text, path)
         node = yaml.compose(text, Loader=_Loader)
-        root = _build(node, (), lines) if node is not None else None
+        root = _build(node, (), lines, tags or {}) if node is not None else None
     except _DuplicateKey as dup:
         raise _syntax_error(path, f"{path}:{dup.line}", f"key '{dup.key}' repeats the one on line {dup.first}",
                             dup.line) from None
@@ -212,9 +223,10 @@ def parse_yaml(text: str, path: Path) -> YamlDocument:
     return YamlDocument(path=path, root=root, lines=lines)
 
 
-def read_yaml(path: Path, role: str = "YAML file") -> YamlDocument:
-    """Read and parse `path`: a regular UTF-8 file of at most MAX_YAML_BYTES, else a ConfigError saying which."""
-    return parse_yaml(read_regular_text(path, MAX_YAML_BYTES, role), path)
+def read_yaml(path: Path, role: str = "YAML file", tags: ScalarTags | None = None) -> YamlDocument:
+    """Read and parse `path` (as `parse_yaml` does): a regular UTF-8 file of at most MAX_YAML_BYTES, else a
+    ConfigError saying which."""
+    return parse_yaml(read_regular_text(path, MAX_YAML_BYTES, role), path, tags)
 
 
 def load_yaml(path: Path, role: str = "YAML file") -> Any:
