@@ -345,26 +345,23 @@ class Planner:
         accept = self.collisions.is_free if options.avoid_collisions else None
         budget = group.settings.budget_s
         solutions: list[np.ndarray] = []
-        attempts, best = 0, None
+        attempts = 0
         seed = q_start
         deadline = began + min(options.timeout_s / 2, budget * GOAL_SOLUTIONS)
-        while len(solutions) < GOAL_SOLUTIONS and time.perf_counter() < deadline:
+        while True:  # one search at least, however little time is left
             result = solver.solve(target, seed, timeout_s=min(budget, max(deadline - time.perf_counter(), 1e-4)),
                                   position_only=goal.position_only, accept=accept, rng=self._rng)
             attempts += result.attempts
             if result.success:
                 if not any(np.abs(result.positions - q).max() < 1e-3 for q in solutions):
                     solutions.append(result.positions)
-            else:
-                best = result if best is None or _residual(result) < _residual(best) else best
-                if not solutions:
-                    break
+            elif not solutions:
+                raise self._no_solution(group, goal.link or group.tip_link, result, attempts, budget)
+            if len(solutions) >= GOAL_SOLUTIONS or time.perf_counter() >= deadline:
+                break
             seed = q_start.copy()
             seed[indices] = self._rng.uniform(np.maximum(self._lower[indices], -2 * np.pi),
                                               np.minimum(self._upper[indices], 2 * np.pi))
-        if not solutions:
-            assert best is not None  # the loop ran at least once and found nothing
-            raise self._no_solution(group, goal.link or group.tip_link, best, attempts, budget)
         return sorted(solutions, key=lambda q: float(np.abs(q - q_start).max()))  # the nearest first
 
     def _no_solution(self, group: PlanningGroup, link: str, best: IkResult, attempts: int, budget: float
@@ -373,12 +370,12 @@ class Planner:
         reached = best.position_error <= POSE_TOLERANCE and best.orientation_error <= POSE_TOLERANCE
         if reached:
             contacts = ", ".join(f"{a} with {b}" for a, b in self.collisions.contacts(best.positions)[:4])
-            why = (f"{attempts} seeds tried in {budget * 1e3:.0f} ms; every solution found is in collision "
+            why = (f"{attempts} seeds tried in {budget * 1e3:.3g} ms; every solution found is in collision "
                    f"(e.g. {contacts or 'a collision'})")
             how = ("move the objects named (plem scene, apply_planning_scene), choose another pose, or allow more "
                    "time (kinematics_solver_timeout in kinematics.yaml, timeout in the request)")
         else:
-            why = (f"{attempts} seeds tried in {budget * 1e3:.0f} ms; the closest came within "
+            why = (f"{attempts} seeds tried in {budget * 1e3:.3g} ms; the closest came within "
                    f"{best.position_error * 1e3:.3g} mm and {np.degrees(best.orientation_error):.3g}° of the pose")
             how = ("check the pose is within the arm's reach and in the right frame (--frame, header.frame_id); allow "
                    "more time (kinematics_solver_timeout in kinematics.yaml, timeout in the request)")
@@ -436,8 +433,3 @@ def pose_of(placement: pin.SE3) -> Pose:
     x, y, z, w = (float(v) for v in pin.Quaternion(placement.rotation).coeffs())
     p = placement.translation
     return Pose((float(p[0]), float(p[1]), float(p[2])), (x, y, z, w))
-
-
-def _residual(result: IkResult) -> tuple[float, float]:
-    """How far an IK answer is from its pose, position first."""
-    return result.position_error, result.orientation_error

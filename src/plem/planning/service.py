@@ -69,9 +69,10 @@ class PlannerService:
             with self._lock:
                 return {"id": request_id, "result": operation(request)}
         except PlemError as error:
-            payload = error.to_dict()
-            payload.setdefault("code", int(MoveItCode.FAILURE))
-            return {"id": request_id, "error": payload}
+            return {"id": request_id, "error": _error_payload(error)}
+        except Exception as error:  # noqa: BLE001 - a request that trips over a bug is answered; the planner serves on
+            _log.exception("planner request %r failed", request.get("op"))
+            return {"id": request_id, "error": _error_payload(internal_error(request.get("op"), error))}
 
     # -- operations ---------------------------------------------------------------------------------------
     def _describe(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -210,10 +211,20 @@ class PlannerService:
                 for payload in frames:
                     connection.settimeout(None)
                     try:
-                        connection.sendall(frame(json.dumps(self._answer(payload)).encode()))
+                        connection.sendall(frame(self._reply(payload)))
                     except OSError:
                         return
                     connection.settimeout(ACCEPT_POLL_S)
+
+    def _reply(self, payload: bytes) -> bytes:
+        """The encoded answer to one frame; an answer that cannot be encoded becomes that request's error."""
+        answer = self._answer(payload)
+        try:
+            return json.dumps(answer).encode()
+        except (TypeError, ValueError) as error:
+            _log.exception("the answer to a planner request could not be encoded")
+            failure = internal_error("answer", error)
+            return json.dumps({"id": answer.get("id"), "error": _error_payload(failure)}).encode()
 
     def _answer(self, payload: bytes) -> dict[str, Any]:
         try:
@@ -225,3 +236,21 @@ class PlannerService:
         if not isinstance(request, dict):
             request = {"op": None}
         return self.handle(request)
+
+
+def internal_error(operation: object, error: Exception) -> PlanningError:
+    """The answer to a request the planner failed on by a fault of its own (a bug): what failed, and that the
+    planner goes on serving."""
+    return PlanningError(f"the planner failed on this {operation} request",
+                         what=f"an answer to the {operation} request",
+                         why=f"{type(error).__name__}: {str(error)[:300] or 'no message'} (the planner's log has "
+                             "the traceback; it goes on serving other requests)",
+                         how="retry with other values, and report this with the planner's log (plem launch prints it)",
+                         code=MoveItCode.FAILURE)
+
+
+def _error_payload(error: PlemError) -> dict[str, Any]:
+    """An error as the 'error' of a reply, with MoveIt's code (FAILURE when the error has none)."""
+    payload = error.to_dict()
+    payload.setdefault("code", int(MoveItCode.FAILURE))
+    return payload

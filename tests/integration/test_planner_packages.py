@@ -1,0 +1,133 @@
+"""The planner on the shapes real arms' description packages take: a tiny IK budget (kinematics.yaml), named
+states spelled otherwise than `home`, joint limits without acceleration or jerk.
+
+Each package is the built-in Indy7 v2 with one file edited the way an upstream package writes it.
+"""
+
+from __future__ import annotations
+
+import threading
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from plem.bridge.planning import PlannerLink
+from plem.description.validate import validate_package
+from plem.errors import MoveItCode, PlanningError
+from plem.ipc.command_socket import listen, remove_own_socket
+from plem.planning.goals import PoseGoal
+from plem.planning.poses import Pose
+from plem.planning.protocol import goal_json
+from plem.planning.service import PlannerService
+from tests.integration.packages import copy_builtin
+from tests.integration.test_planner import Arm
+
+Edit = Callable[[Path], None]
+
+
+def edited(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, *edits: Edit) -> Path:
+    """The built-in Indy7 v2 package copied under tmp_path (found first by name), with `edits` applied."""
+    folder = tmp_path / "packages"
+    monkeypatch.setenv("PLEM_PACKAGE_PATH", str(folder))
+    root = copy_builtin("indy7_v2", folder)
+    for edit in edits:
+        edit(root)
+    return root
+
+
+def replace_in(relative: str, old: str, new: str) -> Edit:
+    """An edit replacing `old` (which must occur) by `new` in one file of the package."""
+    def edit(root: Path) -> None:
+        path = root / relative
+        text = path.read_text()
+        assert old in text, f"{old!r} not in {path}"
+        path.write_text(text.replace(old, new))
+    return edit
+
+
+TINY_IK_BUDGET = replace_in("config/kinematics.yaml", "kinematics_solver_timeout: 0.05",
+                            "kinematics_solver_timeout: 0.0001")
+
+
+class Still:
+    """An arm state source the requests below never need (each gives its start state)."""
+
+    def live_state(self) -> object:
+        raise AssertionError("the requests give their own start state")
+
+
+@dataclass
+class Served:
+    """A planner serving on a real planner socket, and a client's link to it."""
+
+    arm: Arm
+    service: PlannerService
+    link: PlannerLink
+
+
+@pytest.fixture
+def served(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Served]:
+    """A planner with a 0.1 ms IK budget serving on a real planner socket, and a client's link to it."""
+    arm = Arm(validate_package(edited(tmp_path, monkeypatch, TINY_IK_BUDGET)))
+    assert arm.planner.group().settings.timeout_s == 0.0001
+    robot_id = f"planner_{uuid.uuid4().hex[:8]}"
+    service = PlannerService(arm.planner, Still())  # type: ignore[arg-type]
+    server, stop = listen(robot_id, service="planner"), threading.Event()
+    serving = threading.Thread(target=service.serve, args=(server, stop), daemon=True)
+    serving.start()
+    link = PlannerLink(robot_id)
+    try:
+        yield Served(arm, service, link)
+    finally:
+        link.close()
+        stop.set()
+        serving.join(5)
+        server.close()
+        remove_own_socket(robot_id, "planner")
+
+
+def test_ik_out_of_time_is_an_answer_and_the_planner_serves_on(served: Served) -> None:
+    """With 0.1 ms of IK the time is gone before the goal search starts: that search still runs once and its
+    failure is the answer (it was an AssertionError that closed the connection)."""
+    arm, link = served.arm, served.link
+    start = list(map(float, arm.home))
+    far = PoseGoal(Pose((5.0, 0.0, 0.0)))
+    with pytest.raises(PlanningError) as caught:
+        link.request("plan", start=start, goal=goal_json(far))
+    error = caught.value
+    assert error.code == MoveItCode.NO_IK_SOLUTION, error.render()
+    assert "0.3 ms" in error.why and "closest came within" in error.why
+    assert "kinematics_solver_timeout" in error.how and "did not answer" not in error.summary
+    near = arm.tool(arm.home)
+    plan = link.request("plan", start=start, goal=goal_json(PoseGoal(near, position_only=True)))
+    assert plan["fraction"] == 1.0 and plan["points"]
+    named = link.request("plan", start=start, goal={"named": "zero"})
+    assert named["points"][-1]["positions"] == pytest.approx([0.0] * 6, abs=1e-9)
+
+
+def test_a_request_that_trips_over_a_bug_is_answered_and_the_planner_serves_on(
+        served: Served, monkeypatch: pytest.MonkeyPatch) -> None:
+    arm, link = served.arm, served.link
+    start = list(map(float, arm.home))
+
+    def broken(*args: object, **kwargs: object) -> object:
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(arm.planner, "fk", broken)
+    with pytest.raises(PlanningError) as caught:
+        link.request("fk", positions=start, links=["tcp"])
+    error = caught.value
+    assert error.code == MoveItCode.FAILURE and "fk request" in error.summary
+    assert "ZeroDivisionError: float division by zero" in error.why and error.how
+    monkeypatch.undo()
+    answer = link.request("fk", positions=start, links=["tcp"])
+    assert answer["tcp"]["position"] == pytest.approx(list(arm.tool(arm.home).position))
+    monkeypatch.setitem(served.service._operations, "describe", lambda request: {"value": object()})
+    with pytest.raises(PlanningError) as caught:  # a result JSON cannot carry is that request's error
+        link.request("describe")
+    assert "TypeError" in caught.value.why and "answer request" in caught.value.summary
+    monkeypatch.undo()
+    assert link.request("describe")["joint_names"] == list(arm.joint_names)
