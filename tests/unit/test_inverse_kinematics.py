@@ -10,6 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from plem.control.kinematics import JointSpace
 from plem.control.limits import ArmLimits
 from plem.description.validate import validate_package
 from plem.errors import MoveItCode, PlanningError
@@ -23,16 +24,17 @@ TIMEOUT_S = 0.5
 
 
 class Arm:
-    """A model, its limits in pinocchio's order, an IK solver to its tool frame, and forward kinematics."""
+    """A model, its limits in pinocchio's joint order, an IK solver to its tool frame, and forward kinematics."""
 
     def __init__(self, model: pin.Model, tip: str, lower: np.ndarray, upper: np.ndarray,
                  joints: range | None = None) -> None:
         self.model, self.tip, self.lower, self.upper = model, tip, lower, upper
         self.data = model.createData()
-        self.solver = IkSolver(model, joints or range(model.nq), tip, lower, upper)
+        self.space = JointSpace(model)
+        self.solver = IkSolver(model, joints or range(model.nv), tip, lower, upper)
 
     def pose(self, q: np.ndarray) -> pin.SE3:
-        pin.framesForwardKinematics(self.model, self.data, q)
+        pin.framesForwardKinematics(self.model, self.data, self.space.configuration(q))
         return self.data.oMf[self.model.getFrameId(self.tip)].copy()
 
     def random(self, rng: np.random.Generator) -> np.ndarray:
@@ -178,22 +180,33 @@ def test_a_group_of_some_joints_moves_only_those(indy7: Arm):
     assert errors(indy7, result.positions, indy7.pose(goal))[0] <= TOLERANCE
 
 
-def test_an_arm_on_a_floating_base_solves_for_its_joints_with_the_base_kept(indy7: Arm):
+def test_a_continuous_joint_is_solved_as_an_unwrapped_angle_nearest_the_seed():
+    """Pinocchio holds a continuous joint as (cos, sin): IK takes and gives its angle, a whole number of turns from
+    the goal's, the one nearest the seed."""
     report = validate_package(INDY7)
     assert report.urdf_xml is not None
-    model = pin.buildModelFromXML(report.urdf_xml, pin.JointModelFreeFlyer())  # nq 13, nv 12: q and v differ
-    lower = np.concatenate((np.full(7, -np.inf), indy7.lower))
-    upper = np.concatenate((np.full(7, np.inf), indy7.upper))
-    arm = Arm(model, "tcp", lower, upper, joints=range(7, 13))
-    base = pin.SE3ToXYZQUAT(pin.SE3(pin.exp3(np.array([0.1, 0.2, 0.3])), np.array([1.0, 2.0, 0.5])))
-    goal = np.concatenate((base, [0.3, -0.5, 1.2, 0.1, 0.8, -2.0]))
-    seed = np.concatenate((base, np.zeros(6)))
+    urdf = report.urdf_xml.replace('<joint name="joint5" type="revolute">', '<joint name="joint5" type="continuous">')
+    model = pin.buildModelFromXML(urdf)
+    assert (model.nq, model.nv) == (7, 6)
+    limits = ArmLimits.from_joint_limits(report.limits, [f"joint{i}" for i in range(6)])
+    lower, upper = limits.min_position.copy(), limits.max_position.copy()
+    lower[5], upper[5] = -np.inf, np.inf
+    arm = Arm(model, "tcp", lower, upper)
+    goal = np.array([0.3, -0.5, 1.2, 0.1, 0.8, 5.0])
+    seed = np.array([0.25, -0.4, 1.1, 0.0, 0.7, 4.0 + 4 * math.pi])
     result = arm.solver.solve(arm.pose(goal), seed, timeout_s=TIMEOUT_S, rng=np.random.default_rng(9))
-    assert result.success
-    np.testing.assert_array_equal(result.positions[:7], base)
-    assert max(errors(arm, result.positions, arm.pose(goal))) <= TOLERANCE
-    with pytest.raises(IkInputError, match="single-axis"):
-        IkSolver(model, range(0, 13), "tcp", lower, upper)
+    assert result.success and max(errors(arm, result.positions, arm.pose(goal))) <= TOLERANCE
+    turns = (result.positions[5] - goal[5]) / (2 * math.pi)
+    assert round(turns) == 2 and abs(turns - 2) < 1e-3, result.positions  # the seed's turn, not pinocchio's (-π, π]
+
+
+def test_a_model_with_a_floating_base_is_refused():
+    report = validate_package(INDY7)
+    assert report.urdf_xml is not None
+    model = pin.buildModelFromXML(report.urdf_xml, pin.JointModelFreeFlyer())
+    with pytest.raises(IkInputError, match="single-axis") as raised:
+        IkSolver(model, range(6, 12), "tcp", np.full(12, -np.inf), np.full(12, np.inf))
+    assert "root_joint" in raised.value.why and raised.value.how
 
 
 def test_a_nan_target_is_refused_with_what_why_and_how(indy7: Arm):

@@ -25,7 +25,8 @@ A large position error drives the joint at its URDF velocity limit, and when the
 the effort limits the servoed accelerations are scaled down together, so a step command moves the arm
 to the target without oscillating. Cyclic-sync velocity tracks the velocity offset the same way;
 cyclic-sync torque applies the torque offset, clamped to the effort limit. Braked and jammed joints are
-locked in the dynamics (the rest moves as the constrained arm would); positions stop at the URDF limits.
+locked in the dynamics (the rest moves as the constrained arm would); positions stop at the URDF limits
+(continuous joints have none: their angle goes on turning, unwrapped).
 Without dynamics every joint follows its target with a first-order lag and velocity is the derivative;
 torques read 0 and cyclic-sync torque holds the joint still.
 
@@ -398,9 +399,7 @@ class MockBus:
             for drive, name in enumerate(joint_names):
                 joint = model.joints[model.getJointId(name)]
                 effort[drive], speed[drive] = model.effortLimit[joint.idx_v], model.velocityLimit[joint.idx_v]
-                low, high = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
-                if low < high:
-                    lower[drive], upper[drive] = low, high
+            lower, upper = arm.position_bounds()
             effort[~(effort > 0)] = math.inf
             speed[~(speed > 0)] = math.inf
         if self._effort_override is not None:

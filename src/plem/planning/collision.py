@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
+from plem.control.kinematics import JointSpace
 from plem.core.paths import resolve_package_uri
 from plem.description.model import parse_xml
 from plem.description.problems import DescriptionError
@@ -92,13 +93,15 @@ def _triangle_mesh(mesh: TriangleMesh) -> coal.BVHModelOBBRSS:
 class CollisionChecker:
     """Whether a configuration of the arm collides with itself or the planning scene, and which pairs do.
 
-    `q` is pinocchio's configuration vector of `model` (built by the caller from `urdf_xml`). One checker is
+    `q` holds one position per joint of `model` (built by the caller from `urdf_xml`) in pinocchio's joint order
+    (`JointSpace`: a continuous joint's angle, unwrapped). One checker is
     not thread-safe: it owns pinocchio's and coal's working data, so each planning thread builds its own.
     """
 
     def __init__(self, model: pin.Model, urdf_xml: str, disabled_pairs: Iterable[tuple[str, str]]) -> None:
         self._model = model
         self._data = model.createData()
+        self._space = JointSpace(model)
         self._robot = _robot_geometry(model, urdf_xml)
         self._links = tuple(frame.name for frame in model.frames if frame.type == pin.FrameType.BODY)
         self._owners = tuple(model.frames[g.parentFrame].name for g in self._robot.geometryObjects)
@@ -247,11 +250,13 @@ class CollisionChecker:
 
     def is_free(self, q: np.ndarray) -> bool:
         """Whether the arm at `q` touches neither itself nor the scene; stops at the first collision found."""
-        return not pin.computeCollisions(self._model, self._data, self._broad_phase, q, True)
+        return not pin.computeCollisions(self._model, self._data, self._broad_phase, self._space.configuration(q),
+                                         True)
 
     def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Every colliding pair at `q`, each once, by link name and object name (link first)."""
-        pin.computeCollisions(self._model, self._data, self._geometry, self._geometry_data, q, False)
+        pin.computeCollisions(self._model, self._data, self._geometry, self._geometry_data,
+                              self._space.configuration(q), False)
         results = self._geometry_data.collisionResults
         return list(dict.fromkeys(self._pair_names[k] for k in range(len(self._pair_names))
                                   if results[k].isCollision()))

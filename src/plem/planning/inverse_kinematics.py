@@ -17,6 +17,7 @@ import eigenpy
 import numpy as np
 import pinocchio as pin
 
+from plem.control.kinematics import CONTINUOUS_TYPES, JointSpace
 from plem.errors import MoveItCode, PlanningError
 
 #: Iterations one seed may take before the next seed is tried (seeds that converge almost all do so within 30).
@@ -42,7 +43,8 @@ NEAR_FACTOR = 2.0
 ROTATION_TOLERANCE = 1e-6
 TURN = 2 * math.pi
 #: Joint types of pinocchio whose position is an angle, so that a whole turn gives the same pose.
-REVOLUTE_TYPES = frozenset({"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned"})
+REVOLUTE_TYPES = frozenset({"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+                            *CONTINUOUS_TYPES})
 
 
 class IkInputError(PlanningError):
@@ -53,8 +55,8 @@ class IkInputError(PlanningError):
 class IkResult:
     """The configuration IK found (or the best one tried), whether it reaches the target, and its residual.
 
-    `positions` is the full configuration in pinocchio's order; when `success` is false it is the one nearest the
-    target of those tried (one that reaches the target but that `accept` refused counts too).
+    `positions` holds every joint's position in pinocchio's joint order (`JointSpace`); when `success` is false
+    it is the one nearest the target of those tried (one that reaches the target but that `accept` refused counts too).
     """
 
     positions: np.ndarray
@@ -88,6 +90,9 @@ def _damped_step(jacobian: np.ndarray, error: np.ndarray, damping: float, choles
 class IkSolver:
     """Numerical IK of one group's joints for the pose of one frame.
 
+    Positions, seeds, `joints` (indices of the group's joints among them) and limits are one number per joint in
+    pinocchio's joint order (`JointSpace`): a continuous joint is an angle with infinite limits, and its solution
+    is the equivalent angle nearest the seed.
     Not thread-safe: it owns pinocchio data and solver buffers; each thread builds its own.
     """
 
@@ -101,13 +106,19 @@ class IkSolver:
         self._model = model
         self._data = model.createData()
         self._tip = model.getFrameId(tip_frame)
-        self._indices, self._columns, revolute = _group_columns(model, [int(index) for index in joints])
-        self._whole = bool(model.nq == model.nv == len(self._indices)
-                           and np.array_equal(self._indices, np.arange(model.nq)))
+        self._space = JointSpace(model)
+        if self._space.multi_axis:
+            raise IkInputError("IK moves single-axis joints only",
+                               what="a model of revolute, continuous, prismatic and fixed joints",
+                               why=f"the model has multi-axis joints: {', '.join(self._space.multi_axis)}",
+                               how="describe the arm without floating or planar joints in the URDF",
+                               code=MoveItCode.INVALID_GROUP_NAME)
+        self._indices, revolute = _group_joints(model, [int(index) for index in joints])
+        self._whole = bool(model.nv == len(self._indices) and np.array_equal(self._indices, np.arange(model.nv)))
         lower, upper = np.array(lower, dtype=float), np.array(upper, dtype=float)
-        if lower.shape != (model.nq,) or upper.shape != (model.nq,) or not bool(np.all(lower <= upper)):
+        if lower.shape != (model.nv,) or upper.shape != (model.nv,) or not bool(np.all(lower <= upper)):
             raise IkInputError("the joint limits do not fit the model",
-                               what=f"{model.nq} lower and upper position limits, lower <= upper",
+                               what=f"{model.nv} lower and upper position limits, lower <= upper",
                                why=f"lower {lower.tolist()}, upper {upper.tolist()}",
                                how="give every joint of the group lower <= upper in the URDF or joint_limits.yaml",
                                code=MoveItCode.INVALID_ROBOT_STATE)
@@ -123,7 +134,7 @@ class IkSolver:
         self._sample_low = np.where(np.isfinite(self._lower), self._lower,
                                     np.where(np.isfinite(self._upper), self._upper - TURN, -math.pi))
         self._sample_high = np.where(np.isfinite(self._upper), self._upper, self._sample_low + TURN)
-        self._buffer = np.zeros(model.nq)
+        self._buffer = np.zeros(model.nv)
         self._cholesky = {3: eigenpy.LLT(3), 6: eigenpy.LLT(6)}
         self._rng = np.random.default_rng()
 
@@ -180,9 +191,9 @@ class IkSolver:
                                how="normalise the goal pose's orientation quaternion to length 1",
                                code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
         values = np.array(seed, dtype=float)
-        if values.shape != (self._model.nq,) or not np.all(np.isfinite(values)):
+        if values.shape != (self._model.nv,) or not np.all(np.isfinite(values)):
             raise IkInputError("the IK seed state does not fit the arm",
-                               what=f"{self._model.nq} finite joint positions (rad or m)",
+                               what=f"{self._model.nv} finite joint positions (rad or m)",
                                why=f"the seed is {values.tolist()}",
                                how="send a start or seed robot state with a finite position for every joint",
                                code=MoveItCode.INVALID_ROBOT_STATE)
@@ -209,8 +220,8 @@ class IkSolver:
         joint_jacobians, frame_placement, frame_jacobian, log6 = (
             pin.computeJointJacobians, pin.updateFramePlacement, pin.getFrameJacobian, pin.log6)
         count_nonzero, clock = np.count_nonzero, time.perf_counter
-        lower, upper, whole, buffer, indices, columns = (
-            self._lower, self._upper, self._whole, self._buffer, self._indices, self._columns)
+        lower, upper, whole, buffer, indices, configuration = (
+            self._lower, self._upper, self._whole, self._buffer, self._indices, self._space.configuration)
         cholesky = self._cholesky[3 if position_only else 6]
         # Below this squared twist the errors are worked out exactly (the twist's norm is within a factor of them).
         near = NEAR_FACTOR * (position_tolerance**2 + (0.0 if position_only else orientation_tolerance**2))
@@ -225,11 +236,11 @@ class IkSolver:
             else:
                 buffer[indices] = x
                 q = buffer
-            joint_jacobians(model, data, q)
+            joint_jacobians(model, data, configuration(q))
             offset = frame_placement(model, data, tip).actInv(target)
             jacobian = frame_jacobian(model, data, tip, local)
             if not whole:
-                jacobian = jacobian[:, columns]
+                jacobian = jacobian[:, indices]
             if position_only:
                 error = offset.translation
                 jacobian = jacobian[:3]
@@ -298,20 +309,17 @@ def _check_budget(timeout_s: float, position_tolerance: float, orientation_toler
                            code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
 
 
-def _group_columns(model: pin.Model, indices: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The group's configuration indices, their Jacobian columns, and which of them are revolute joints."""
-    owners = {joint.idx_q + k: joint for joint in list(model.joints)[1:] for k in range(joint.nq)}
-    columns, revolute = [], []
+def _group_joints(model: pin.Model, indices: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The group's position indices (each also its Jacobian column), and which of them are revolute or continuous."""
+    owners = {joint.idx_v: joint for joint in list(model.joints)[1:]}
+    revolute = []
     for index in indices:
         joint = owners.get(index)
-        if joint is None or joint.nq != 1 or joint.nv != 1:
-            found = f"one of the {joint.nq} values of a {joint.shortname()}" if joint else "not in the configuration"
-            raise IkInputError("IK moves single-axis joints only",
-                               what="revolute or prismatic joints with position limits in the planning group",
-                               why=f"configuration index {index} is {found}",
-                               how="give the group's continuous joints position limits (type revolute) in the URDF, "
-                                   "or leave multi-axis joints out of the group in the SRDF",
+        if joint is None:
+            raise IkInputError("the planning group names a joint the model does not have",
+                               what=f"joint position indices from 0 to {model.nv - 1}",
+                               why=f"index {index} is not a joint of the model",
+                               how="plan for a group of the SRDF whose joints are in the URDF",
                                code=MoveItCode.INVALID_GROUP_NAME)
-        columns.append(joint.idx_v)
         revolute.append(joint.shortname() in REVOLUTE_TYPES)
-    return np.array(indices, dtype=np.intp), np.array(columns, dtype=np.intp), np.array(revolute, dtype=bool)
+    return np.array(indices, dtype=np.intp), np.array(revolute, dtype=bool)

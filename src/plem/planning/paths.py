@@ -6,6 +6,7 @@ OMPL objects live only inside `plan_path`: freed before it returns, so nothing o
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from collections.abc import Callable, Sequence
@@ -29,6 +30,8 @@ DEFAULT_PLANNER = "RRTConnect"
 CHECK_STEP = 0.02
 #: Share of the remaining time path simplification may use.
 SIMPLIFY_SHARE = 0.5
+#: How far (rad or m) beyond the start and the goals a joint without position limits (continuous) is sampled.
+UNBOUNDED_MARGIN = math.pi
 
 ou.setLogLevel(ou.LOG_NONE)  # failures are reported as PlanningError, in plem's words
 
@@ -58,11 +61,14 @@ def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarra
               goals: Sequence[np.ndarray], planner_id: str = "", timeout_s: float = 5.0) -> PathResult:
     """A path from `start` to any of `goals` through states `is_free` accepts, within [lower, upper].
 
-    Straight steps between states are checked every CHECK_STEP rad. Raises PlanningError when no path is
-    found within `timeout_s` (code TIMED_OUT) or the planner gives up (PLANNING_FAILED).
+    OMPL samples within finite bounds: a joint without limits (a continuous joint, unwrapped) is planned within
+    `sampling_bounds`, from π below the lowest of its start and goals to π above the highest. Straight steps
+    between states are checked every CHECK_STEP rad. Raises PlanningError when no path is found within
+    `timeout_s` (code TIMED_OUT) or the planner gives up (PLANNING_FAILED).
     """
     name = planner_name(planner_id)
     dof = len(start)
+    lower, upper = sampling_bounds(lower, upper, start, goals)
     space = ob.RealVectorStateSpace(dof)
     bounds = ob.RealVectorBounds(dof)
     for i in range(dof):
@@ -100,6 +106,15 @@ def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarra
     path = setup.getSolutionPath()
     states = np.array([[path.getState(k)[i] for i in range(dof)] for k in range(path.getStateCount())])
     return PathResult(states, name)
+
+
+def sampling_bounds(lower: np.ndarray, upper: np.ndarray, start: np.ndarray, goals: Sequence[np.ndarray]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """[lower, upper] with each infinite bound replaced by UNBOUNDED_MARGIN beyond the start and every goal."""
+    states = np.vstack([start, *goals])
+    low = np.where(np.isfinite(lower), lower, states.min(axis=0) - UNBOUNDED_MARGIN)
+    high = np.where(np.isfinite(upper), upper, states.max(axis=0) + UNBOUNDED_MARGIN)
+    return low, high
 
 
 def _state(space: ob.RealVectorStateSpace, values: np.ndarray) -> ob.State:
