@@ -2,6 +2,7 @@ import json
 import os
 import pty
 import select
+import shlex
 import subprocess
 from pathlib import Path
 
@@ -94,3 +95,16 @@ def test_create_description_asks_on_a_terminal(tmp_path: Path):
     root = tmp_path / "term_arm_description"
     assert (root / "srdf" / "term_arm.srdf").is_file() and not (root / "launch").exists()
     assert "Robot name" in output and "Number of joints" in output
+
+
+def test_create_description_prints_a_next_command_that_works(tmp_path: Path):
+    """The "Next:" line, run as printed in the folder create-description ran in, validates the new package."""
+    created = subprocess.run([plem_executable(), "create-description", "--name", "my_robot", "--dof", "6"],
+                             capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert created.returncode == 0, created.stderr
+    (command,) = [line.removeprefix("Next: ") for line in created.stdout.splitlines() if line.startswith("Next: ")]
+    assert command == "plem validate ./my_robot_description --strict"
+    program, *arguments = shlex.split(command)
+    validated = subprocess.run([plem_executable(), *arguments], capture_output=True, text=True, cwd=tmp_path,
+                               timeout=120)
+    assert program == "plem" and validated.returncode == 0, validated.stdout + validated.stderr

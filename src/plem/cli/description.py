@@ -5,6 +5,7 @@ The description machinery (numpy, xacro) is imported inside the commands so othe
 
 from __future__ import annotations
 
+import shlex
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -86,4 +87,14 @@ def create_description(
                          ("overwritten", result.overwritten)):
         for relative in items:
             stdout.print(f"  {label:<18} {relative}", markup=False)
-    stdout.print(f"Package ready: {result.root}\nNext: plem validate {result.root} --strict", markup=False)
+    stdout.print(f"Package ready: {result.root}\nNext: plem validate {_path_argument(result.root)} --strict",
+                 markup=False)
+
+
+def _path_argument(path: Path) -> str:
+    """`path` written so that plem reads it as a path, never as a package name (./ before a bare relative
+    path), quoted for the shell."""
+    from plem.description.discover import PATH_PREFIXES
+
+    text = str(path)
+    return shlex.quote(text if text.startswith(PATH_PREFIXES) or text in (".", "..") else f"./{text}")
