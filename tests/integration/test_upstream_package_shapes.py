@@ -8,9 +8,11 @@ second ros2_control block, indy-ros2 names a link and a joint alike.
 from __future__ import annotations
 
 import math
+import shutil
 
 import pytest
 
+from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.controllers import read_controllers
 from plem.description.package_yaml import read_package_yaml
 from plem.errors import ConfigError
@@ -114,3 +116,18 @@ def test_controllers_yaml_with_node_name_patterns(tmp_path, monkeypatch):
     controllers = read_controllers(root / CONTROLLERS, JOINTS, 1000)
     assert controllers.update_rate == 500
     assert controllers.trajectory.name == "arm_controller" and controllers.trajectory.joints == tuple(JOINTS)
+
+
+def test_package_found_by_the_name_package_xml_declares(tmp_path, monkeypatch):
+    """A clone whose folder is not named like its package (a workspace's src/REPOSITORY) is found by the name in its
+    package.xml, before the built-in package of that name, and validate says that the names differ."""
+    clone = tmp_path / "ws" / "src" / "Indy7_ROS2_Description"
+    shutil.copytree(BUILTIN_PACKAGES_DIR / "indy7_v2_description", clone)
+    (tmp_path / "ws" / "build").mkdir()
+    (tmp_path / "ws" / "build" / "COLCON_IGNORE").touch()
+    monkeypatch.setenv("PLEM_PACKAGE_PATH", str(tmp_path / "ws"))
+    for package in ("indy7_v2_description", clone):
+        report = run_validation(package)
+        assert report.files.root == clone and report.files.name == "indy7_v2_description"
+        assert report.findings.problems == [], describe(report.findings.problems)
+        assert any("'Indy7_ROS2_Description'" in note and "'indy7_v2_description'" in note for note in report.notes)

@@ -1,8 +1,11 @@
 """The package search path: find packages by name and resolve `pkg/relative/path` without ROS.
 
 Search order: `PLEM_PACKAGE_PATH` entries, then `share/` of every `AMENT_PREFIX_PATH` prefix, then the
-description packages shipped inside plem. A package is a directory holding `package.xml`; its name is
-the directory name. A `PLEM_PACKAGE_PATH` entry may be a package itself or a folder of packages.
+description packages shipped inside plem. A package is a directory holding `package.xml`; its name is the
+`<name>` that file declares, as colcon reads it (a clone in `Universal_Robots_ROS2_Description` is the package
+`ur_description`). A `PLEM_PACKAGE_PATH` entry may be a package itself or a folder searched for packages as
+colcon searches a workspace: recursively (up to SEARCH_DEPTH folders down), not below a package, skipping hidden
+folders and those marked COLCON_IGNORE or AMENT_IGNORE. An install's `share/` holds each package under its name.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import stat
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextvars import ContextVar
@@ -18,10 +22,18 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import IO, Any, Self
 
+from plem.core.files import read_regular
 from plem.errors import ConfigError, PackageNotFoundError, PlemError
 
 BUILTIN_PACKAGES_DIR = Path(__file__).resolve().parent.parent / "description" / "builtin"
 PACKAGE_MARKER = "package.xml"
+#: Files that keep colcon (and plem) from looking for packages in a folder.
+IGNORE_MARKERS = ("COLCON_IGNORE", "AMENT_IGNORE")
+#: How deep below a search path entry packages are looked for (a workspace's src/REPOSITORY/PACKAGE is 2).
+SEARCH_DEPTH = 4
+#: package.xml is a few KiB; a larger file is not read for its name.
+MAX_PACKAGE_XML_BYTES = 1024 * 1024
+_PACKAGE_NAME = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
 
 
 _pinned: ContextVar[Mapping[str, Path]] = ContextVar("pinned_packages", default=MappingProxyType({}))
@@ -42,13 +54,16 @@ def _environ(environ: Mapping[str, str] | None) -> Mapping[str, str]:
     return os.environ if environ is None else environ
 
 
+def _plem_package_path(environ: Mapping[str, str] | None) -> list[Path]:
+    """The PLEM_PACKAGE_PATH entries: packages, or workspaces searched for packages as colcon searches them."""
+    return [Path(entry).expanduser() for entry in _environ(environ).get("PLEM_PACKAGE_PATH", "").split(os.pathsep)
+            if entry]
+
+
 def search_roots(environ: Mapping[str, str] | None = None) -> list[Path]:
     """Folders searched for packages, highest priority first."""
     env = _environ(environ)
-    roots: list[Path] = []
-    for entry in env.get("PLEM_PACKAGE_PATH", "").split(os.pathsep):
-        if entry:
-            roots.append(Path(entry).expanduser())
+    roots = _plem_package_path(environ)
     for prefix in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
         if prefix:
             roots.append(Path(prefix).expanduser() / "share")
@@ -81,23 +96,75 @@ def _search_path_description(environ: Mapping[str, str] | None) -> str:
     )
 
 
+def _read_declared_name(package_xml: Path) -> str | None:
+    try:
+        match = _PACKAGE_NAME.search(read_regular(package_xml, MAX_PACKAGE_XML_BYTES, PACKAGE_MARKER))
+    except PlemError:
+        return None
+    return match.group(1).decode("utf-8", errors="replace") if match else None
+
+
+_declared: dict[Path, tuple[tuple[int, int, int], str | None]] = {}
+
+
+def declared_name(folder: Path) -> str | None:
+    """The `<name>` the folder's package.xml declares; None without a readable package.xml or name in it."""
+    marker = folder / PACKAGE_MARKER
+    try:
+        status = os.stat(marker)
+    except (OSError, ValueError):
+        return None
+    signature = (status.st_mtime_ns, status.st_size, status.st_ino)
+    cached = _declared.get(marker)
+    if cached is None or cached[0] != signature:
+        cached = _declared[marker] = (signature, _read_declared_name(marker))
+    return cached[1]
+
+
+def package_name(folder: Path) -> str:
+    """A package's name: what its package.xml declares, else the folder's name."""
+    return declared_name(folder) or folder.name
+
+
+def _packages_below(root: Path, depth: int = SEARCH_DEPTH) -> Iterator[Path]:
+    """The packages in `root` as colcon finds them: `root` itself when it is one, else recursively below it."""
+    if is_file(root / PACKAGE_MARKER):
+        yield root
+        return
+    if depth == 0 or any(is_file(root / marker) for marker in IGNORE_MARKERS):
+        return
+    try:
+        folders = sorted(entry.path for entry in os.scandir(root) if entry.is_dir() and not entry.name.startswith("."))
+    except OSError:
+        return
+    for folder in folders:
+        yield from _packages_below(Path(folder), depth - 1)
+
+
 def find_package(name: str, environ: Mapping[str, str] | None = None,
                  exists: Callable[[Path], bool] = is_file) -> Path:
-    """The directory of package `name`, or a PackageNotFoundError that says where plem looked.
+    """The directory of the package package.xml names `name`, or a PackageNotFoundError that says where plem looked.
 
-    `exists` answers whether a package.xml is there (a PackageReader's, when reading through one)."""
+    A folder carrying the name is tried first (the usual layout, and the only one of an install's share/); then
+    the packages below each search path entry by their declared names. `exists` answers whether a package.xml
+    is there (a PackageReader's, when reading through one)."""
     pinned = _pinned.get().get(name)
     if pinned is not None:
         return pinned
-    for root in search_roots(environ):
+    roots = search_roots(environ) if _plain_name(name) else []
+    workspaces = set(roots[:len(_plem_package_path(environ))])
+    for root in roots:
         candidate = root if root.name == name else root / name
-        if _plain_name(name) and exists(candidate / PACKAGE_MARKER):
+        if exists(candidate / PACKAGE_MARKER) and declared_name(candidate) in (name, None):
             return candidate
+        for folder in _packages_below(root) if root in workspaces else ():
+            if declared_name(folder) == name:
+                return folder
     raise PackageNotFoundError(
         f"Package '{name}' not found",
-        what=f"a directory named '{name}' holding {PACKAGE_MARKER} on the package search path",
+        what=f"a package whose {PACKAGE_MARKER} declares <name>{name}</name>, on the package search path",
         why=f"no such package in: {_search_path_description(environ)}",
-        how=f"export PLEM_PACKAGE_PATH=/path/to/folder/containing/{name} (or give the package by path)",
+        how=f"export PLEM_PACKAGE_PATH=/path/to/the/folder/holding/{name} (or give the package by path)",
     )
 
 
@@ -188,8 +255,9 @@ class PackageReader:
                 parts = target.relative_to(root.real if real else root.folder).parts
             except ValueError:
                 continue
-            inside = bool(parts) if root.is_package else (
-                len(parts) > 1 and _exists_at(root.handle, os.path.join(parts[0], PACKAGE_MARKER)))
+            inside = bool(parts) if root.is_package else any(  # a package as deep as find_package looks
+                _exists_at(root.handle, os.path.join(*parts[:depth], PACKAGE_MARKER))
+                for depth in range(1, min(len(parts) - 1, SEARCH_DEPTH) + 1))
             if inside:
                 return root.handle, os.path.join(*parts)
         return None

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from plem.core.config.launch_args import check_home
-from plem.core.paths import PACKAGE_MARKER, find_package, is_dir, is_file
+from plem.core.paths import PACKAGE_MARKER, find_package, is_dir, is_file, package_name
 from plem.description.problems import Findings
 from plem.errors import PackageNotFoundError
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
@@ -26,7 +26,8 @@ LEGACY_PACKAGE = "wim_description"
 
 @dataclass
 class DescriptionFiles:
-    """The files of one package as discovery found them; missing ones are None."""
+    """The files of one package as discovery found them; missing ones are None. `name` is the package's name as
+    package.xml declares it (the folder's name without one)."""
 
     name: str
     root: Path
@@ -107,7 +108,7 @@ def discover(package: str | os.PathLike[str], urdf_file: str | os.PathLike[str] 
              srdf_file: str | os.PathLike[str] | None = None) -> DescriptionFiles:
     """Find the package's files; problems (none, several, wrong names) are collected, not raised."""
     root = locate_package(package)
-    files = DescriptionFiles(name=root.name, root=root)
+    files = DescriptionFiles(name=package_name(root), root=root)
     found = files.findings
     if not (root / PACKAGE_MARKER).is_file():
         found.warning("package.xml_missing", f"No package.xml in '{root.name}'",
@@ -189,4 +190,4 @@ def _near_misses(files: DescriptionFiles) -> None:
 
 
 def _base_name(root: Path) -> str:
-    return root.name.removesuffix("_description")
+    return package_name(root).removesuffix("_description")

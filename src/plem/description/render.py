@@ -25,7 +25,15 @@ from xml.parsers.expat import ExpatError
 import xacro
 from xacro import substitution_args
 
-from plem.core.paths import PACKAGE_MARKER, PackageAccessError, PackageReader, find_package, is_file, pinned_packages
+from plem.core.paths import (
+    PACKAGE_MARKER,
+    PackageAccessError,
+    PackageReader,
+    find_package,
+    is_file,
+    package_name,
+    pinned_packages,
+)
 from plem.description.model import MAX_XML_BYTES, too_large
 from plem.description.problems import DescriptionError
 from plem.description.sandbox import run_sandboxed
@@ -107,7 +115,7 @@ def _owning_package(path: Path) -> dict[str, Path]:
     """The package a file lives in (nearest folder with package.xml), so `$(find` itself`)` always works."""
     for folder in Path(path).resolve().parents:
         if (folder / PACKAGE_MARKER).is_file():
-            return {folder.name: folder}
+            return {package_name(folder): folder}
     return {}
 
 

@@ -124,6 +124,9 @@ def validate_package(package: str | os.PathLike[str], *, stage: Stage = Stage.FU
 def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
     report = ValidationReport(files=files, findings=files.findings, stage=stage)
     found = report.findings
+    if files.name != files.root.name:
+        report.notes.append(f"package.xml names this package {files.name!r}, its folder is {files.root.name!r}: "
+                            f"plem finds it by {files.name!r}, as colcon does")
     check_compat_version(files.compat_version, files.root, found)
     _render_urdf(report)
     _check_limits_file(report)
