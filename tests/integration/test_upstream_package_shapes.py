@@ -22,6 +22,7 @@ from tests.integration.test_broken_packages import (
     JOINTS,
     KINEMATICS,
     LIMITS,
+    SRDF,
     describe,
     make_package,
     replace,
@@ -131,3 +132,11 @@ def test_package_found_by_the_name_package_xml_declares(tmp_path, monkeypatch):
         assert report.files.root == clone and report.files.name == "indy7_v2_description"
         assert report.findings.problems == [], describe(report.findings.problems)
         assert any("'Indy7_ROS2_Description'" in note and "'indy7_v2_description'" in note for note in report.notes)
+
+
+def test_passive_joint_of_the_urdf_is_accepted(tmp_path, monkeypatch):
+    root = make_package(tmp_path, monkeypatch)
+    replace(SRDF, "  </group>\n", '  </group>\n  <passive_joint name="tcp_joint"/>\n')(root)
+    report = run_validation(root)
+    assert report.srdf.passive_joints == [("tcp_joint", 9)]
+    assert report.findings.problems == [], describe(report.findings.problems)

@@ -385,12 +385,14 @@ class GroupState:
 
 @dataclass
 class SrdfModel:
-    """A parsed SRDF: planning groups by name, named poses and the link pairs excluded from collision checks."""
+    """A parsed SRDF: planning groups by name, named poses, the link pairs excluded from collision checks and the
+    joints declared passive (not actuated, so never planned for), each with its line."""
 
     name: str
     groups: dict[str, SrdfGroup]
     group_states: list[GroupState]
     disabled_collisions: list[tuple[str, str, int | None]]
+    passive_joints: list[tuple[str, int | None]] = field(default_factory=list)
 
     def poses(self, joint_names: Sequence[str]) -> dict[str, list[float]]:
         """Named joint poses (group_state) that give a value to every one of `joint_names`, in that order."""
@@ -421,4 +423,6 @@ def parse_srdf(text: str | bytes, source: Path) -> SrdfModel:
     ]
     disabled = [(el.get("link1") or "", el.get("link2") or "", source_line(el))
                 for el in root.findall("disable_collisions")]
-    return SrdfModel(name=root.get("name") or "", groups=groups, group_states=states, disabled_collisions=disabled)
+    passive = [(el.get("name") or "", source_line(el)) for el in root.findall("passive_joint")]
+    return SrdfModel(name=root.get("name") or "", groups=groups, group_states=states, disabled_collisions=disabled,
+                     passive_joints=passive)

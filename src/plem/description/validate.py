@@ -719,6 +719,12 @@ def _check_srdf_against_urdf(report: ValidationReport, urdf: UrdfModel, srdf: Sr
             found.error("srdf.collision_unknown_link", "disable_collisions names unknown links",
                         what="link1 and link2 that exist in the URDF", why=f"missing: {', '.join(missing)}",
                         how="fix or remove the entry", file=path, line=at(line))
+    for joint, line in srdf.passive_joints:
+        if joint not in urdf.joints:
+            found.error("srdf.passive_unknown_joint", f"passive_joint names unknown joint {joint}",
+                        what="<passive_joint name> naming a joint of the URDF",
+                        why=f"no URDF joint {joint!r}",
+                        how="fix the name, or remove the <passive_joint>", file=path, line=at(line))
 
 
 def _check_kinematics(report: ValidationReport) -> None:
