@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from plem.cli.interrupt import MotionGuard
 from plem.cli.output import stdout
 from plem.cli.robot import RobotId, connect_robot
 from plem.errors import UsageError
@@ -39,20 +40,21 @@ def move(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
          speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0, robot_id: RobotId = None,
          timeout: TimeoutOption = 60.0) -> None:
     """Move the arm to a named state, joint positions or a tool pose (enables the drives first if they are off);
-    planned around obstacles when a planner runs. Waits until the arm arrives."""
-    with connect_robot(robot_id) as client:
+    planned around obstacles when a planner runs. Waits until the arm arrives; Ctrl-C stops the arm smoothly."""
+    with connect_robot(robot_id) as client, MotionGuard(client) as guard:
         options = _options(group, planner, speed_scale, planning_time)
         if to_pose is None and not _planner_runs(client):
             if to is None:
                 raise _no_target()
             _hold(client)
-            result = client.move_joints(_joint_target(client, to), speed_scale).wait(timeout)
+            target = _joint_target(client, to)
+            result = guard.run(lambda: client.move_joints(target, speed_scale), timeout)
             stdout.print(f"{client.robot_id}: {result.message} (no planner runs: moved straight in joint space, "
                          "without collision checks)", markup=False)
             return
         plan = _plan(client, to, to_pose, frame, link, cartesian, options)
         stdout.print(f"{client.robot_id}: {plan.summary()}", markup=False)
-        _run(client, plan, timeout)
+        _run(guard, plan, timeout)
 
 
 def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption = "", link: LinkOption = "",
@@ -60,8 +62,9 @@ def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
          speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0,
          dry_run: Annotated[bool, typer.Option("--dry-run", help="Print the plan and checks; do not move.")] = False,
          robot_id: RobotId = None, timeout: TimeoutOption = 60.0) -> None:
-    """Plan a motion with the robot's planner and print its duration and checks, then run it (not with --dry-run)."""
-    with connect_robot(robot_id) as client:
+    """Plan a motion with the robot's planner and print its duration and checks, then run it (not with --dry-run);
+    Ctrl-C stops the arm smoothly."""
+    with connect_robot(robot_id) as client, MotionGuard(client) as guard:
         found = _plan(client, to, to_pose, frame, link, cartesian, _options(group, planner, speed_scale, planning_time))
         stdout.print(f"{client.robot_id}: {found.summary()}", markup=False)
         points = found.trajectory.points
@@ -70,7 +73,7 @@ def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
         if dry_run:
             stdout.print("  --dry-run: nothing moved", markup=False)
             return
-        _run(client, found, timeout)
+        _run(guard, found, timeout)
 
 
 def _options(group: str, planner: str, speed_scale: float, planning_time: float) -> PlanOptions:
@@ -126,15 +129,18 @@ def _hold(client: RobotClient) -> None:
         client.set_mode("hold")
 
 
-def _run(client: RobotClient, found: Plan, timeout: float) -> None:
-    result = client.execute_trajectory(found.trajectory).wait(timeout)
+def _run(guard: MotionGuard, found: Plan, timeout: float) -> None:
+    client = guard.client
+    result = guard.run(lambda: client.execute_trajectory(found.trajectory), timeout)
     stdout.print(f"{client.robot_id}: {result.message}", markup=False)
 
 
 def _joint_target(client: RobotClient, text: str) -> list[float]:
+    from plem.planning.named_states import resolve_state
+
     poses = client.channels.state.poses
-    if text in poses:
-        return poses[text]
+    if "," not in text:
+        return poses[resolve_state(text, poses)]
     try:
         return [float(value) for value in text.split(",")]
     except ValueError:
