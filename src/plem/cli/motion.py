@@ -136,11 +136,9 @@ def _run(guard: MotionGuard, found: Plan, timeout: float) -> None:
 
 
 def _joint_target(client: RobotClient, text: str) -> list[float]:
-    from plem.planning.named_states import resolve_state
-
     poses = client.channels.state.poses
-    if "," not in text:
-        return poses[resolve_state(text, poses)]
+    if text in poses:
+        return poses[text]
     try:
         return [float(value) for value in text.split(",")]
     except ValueError:
