@@ -678,7 +678,8 @@ class ControllerManager:
 
 
 class FollowJointTrajectoryClient:
-    """A control_msgs/action/FollowJointTrajectory client, e.g. for `/indy/arm_controller/follow_joint_trajectory`."""
+    """A control_msgs/action/FollowJointTrajectory client, e.g. for
+    `/indy/joint_trajectory_controller/follow_joint_trajectory`."""
 
     def __init__(self, peer: PublicPeer, action: str) -> None:
         base = f"{action}/_action"

@@ -21,6 +21,8 @@ from tests.e2e.launched import wait_for
 FJT = "control_msgs/action/FollowJointTrajectory"
 SET_MODE = "plem_msgs/action/SetMode"
 JOINT_NAMES = tuple(f"joint{index}" for index in range(6))  # the default Indy7's
+#: The built-in arms' trajectory controller, as their controllers.yaml (the configuration reference's) names it.
+TRAJECTORY = "joint_trajectory_controller"
 
 
 class RosPeer:
@@ -34,8 +36,8 @@ class RosPeer:
         ns = f"/{robot_id}"
         self.joint_states = self.node.subscription(f"{ns}/joint_states", "sensor_msgs/msg/JointState", DEFAULT)
         self.set_mode = ActionClient(self.node, f"{ns}/wim_rt_driver/set_mode", SET_MODE)
-        self.follow = ActionClient(self.node, f"{ns}/arm_controller/follow_joint_trajectory", FJT)
-        self.trajectories = self.node.publisher(f"{ns}/arm_controller/joint_trajectory",
+        self.follow = ActionClient(self.node, f"{ns}/{TRAJECTORY}/follow_joint_trajectory", FJT)
+        self.trajectories = self.node.publisher(f"{ns}/{TRAJECTORY}/joint_trajectory",
                                                 "trajectory_msgs/msg/JointTrajectory", DEFAULT)
         self._latest_joint_state: Any = None
         self._goal_status: dict[bytes, int] = {}

@@ -22,7 +22,7 @@ from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.qos import DEFAULT
 from tests.conftest import fresh_domain
 from tests.e2e.launched import Launch, clean_environment, launched, new_robot_id, wait_until
-from tests.e2e.ros_peer import RosPeer, shifted, wait_for
+from tests.e2e.ros_peer import TRAJECTORY, RosPeer, shifted, wait_for
 
 #: How long an absent server or subscriber is waited for; long enough for discovery on a busy host.
 ABSENCE_WAIT_S = 5.0
@@ -100,8 +100,7 @@ def test_no_command_endpoints_exist(robot: Launch, peer: RosPeer) -> None:
     assert read == set(), f"the read-only bridge reads {sorted(read)}"
     assert not [name for name in written if "_action" in name or name.startswith("rr/")]
     # The same count does see a subscription of the trajectory topic once there is one (here, our own).
-    own = peer.subscribe("arm_controller/joint_trajectory", "trajectory_msgs/msg/JointTrajectory",
-                         DEFAULT)
+    own = peer.subscribe(f"{TRAJECTORY}/joint_trajectory", "trajectory_msgs/msg/JointTrajectory", DEFAULT)
     assert wait_for(lambda: peer.trajectories.subscribers == 1, 10) and own.publishers == 1
 
 

@@ -29,6 +29,7 @@ from tests.e2e.public_peer import (
     ControllerManager,
     FollowJointTrajectoryClient,
     JointState,
+    JointTrajectory,
     PublicPeer,
     TFMessage,
     gid_bytes,
@@ -37,27 +38,32 @@ from tests.e2e.public_peer import (
     trajectory,
     wait_for,
 )
+from tests.integration.packages import copy_builtin
 
 JOINT_NAMES = tuple(f"joint{index}" for index in range(6))
 ARRIVED = 1e-3
 DISCOVERY_S = 20.0
 GOAL_S = 20.0
+#: The built-in arms' controllers, as the configuration reference's controllers.yaml gives them.
+TRAJECTORY = "joint_trajectory_controller"
 CONTROLLER_TYPES = {"joint_state_broadcaster": "joint_state_broadcaster/JointStateBroadcaster",
-                    "arm_controller": "joint_trajectory_controller/JointTrajectoryController",
+                    TRAJECTORY: "joint_trajectory_controller/JointTrajectoryController",
                     "free_drive_controller": "wim_controller/FreeDriveController"}
-NODES = {"controller_manager", "joint_state_broadcaster", "arm_controller", "robot_state_publisher", "wim_rt_driver"}
+UPDATE_RATE = 500
+NODES = {"controller_manager", "joint_state_broadcaster", TRAJECTORY, "robot_state_publisher", "wim_rt_driver"}
 
 
 class Robot:
     """One launched robot as a ROS 2 user reaches it: its controller manager, its trajectory action, its topics."""
 
-    def __init__(self, launch: Launch) -> None:
+    def __init__(self, launch: Launch, trajectory_controller: str = TRAJECTORY) -> None:
         self.launch = launch
         self.robot_id = launch.robot_id
         self.peer = PublicPeer(launch.env)
         ns = f"/{self.robot_id}"
         self.manager = ControllerManager(self.peer, f"{ns}/controller_manager")
-        self.follow = FollowJointTrajectoryClient(self.peer, f"{ns}/arm_controller/follow_joint_trajectory")
+        self.follow = FollowJointTrajectoryClient(self.peer, f"{ns}/{trajectory_controller}/follow_joint_trajectory")
+        self.trajectory_topic = f"{ns}/{trajectory_controller}/joint_trajectory"
         self.joint_states = self.peer.subscription(f"{ns}/joint_states", JointState)
         self.tf = self.peer.subscription("/tf", TFMessage, TF)
 
@@ -95,6 +101,20 @@ class Robot:
         goal_id, accepted = self.follow.send_goal(goal)
         assert accepted, "the FollowJointTrajectory goal was not accepted"
         return self.follow.result(goal_id, timeout)
+
+    def publish_and_follow(self, joint: int, distance: float) -> None:
+        """Publish a one-point JointTrajectory moving `joint` by `distance` rad on the trajectory controller's topic,
+        as `ros2 topic pub` does, and wait until joint_states read the goal."""
+        writer = self.peer.publisher(self.trajectory_topic, JointTrajectory)
+        assert wait_for(lambda: writer.get_publication_matched_status().current_count, DISCOVERY_S), \
+            f"nothing subscribes to {self.trajectory_topic}"
+        target, _ = toward_middle(self.position(), joint, distance)
+        writer.write(trajectory(JOINT_NAMES, [point(target, 1.5)]))
+
+        def arrived() -> bool:
+            return all(abs(a - b) < ARRIVED for a, b in zip(self.position(), target, strict=True))
+
+        assert wait_for(arrived, GOAL_S), (self.position(), target)
 
     def close(self) -> None:
         self.peer.close()
@@ -178,19 +198,19 @@ def test_a_ros2_control_user_switches_controllers_drives_the_hardware_and_moves_
     assert set(CONTROLLER_TYPES) <= set(controllers), set(controllers)
     assert {name: controllers[name].type for name in CONTROLLER_TYPES} == CONTROLLER_TYPES
     assert {name: controllers[name].state for name in CONTROLLER_TYPES} == {
-        "joint_state_broadcaster": "active", "arm_controller": "active", "free_drive_controller": "inactive"}
+        "joint_state_broadcaster": "active", TRAJECTORY: "active", "free_drive_controller": "inactive"}
 
     with connect(robot_id) as client:
         # Free drive and back, each in one request that swaps the two controllers.
-        reply = manager.switch_controller(activate=["free_drive_controller"], deactivate=["arm_controller"])
+        reply = manager.switch_controller(activate=["free_drive_controller"], deactivate=[TRAJECTORY])
         assert reply.ok, reply.message
         states = manager.states()
-        assert (states["arm_controller"], states["free_drive_controller"]) == ("inactive", "active"), states
+        assert (states[TRAJECTORY], states["free_drive_controller"]) == ("inactive", "active"), states
         assert client.state().mode is Mode.FREE_DRIVE
-        reply = manager.switch_controller(activate=["arm_controller"], deactivate=["free_drive_controller"])
+        reply = manager.switch_controller(activate=[TRAJECTORY], deactivate=["free_drive_controller"])
         assert reply.ok, reply.message
         states = manager.states()
-        assert (states["arm_controller"], states["free_drive_controller"]) == ("active", "inactive"), states
+        assert (states[TRAJECTORY], states["free_drive_controller"]) == ("active", "inactive"), states
         assert client.state().mode is Mode.HOLD
 
         # The hardware component: inactive disables the drives, and a goal sent then is aborted naming the fix.
@@ -212,7 +232,7 @@ def test_a_ros2_control_user_switches_controllers_drives_the_hardware_and_moves_
         reply = manager.set_hardware_component_state(hardware, PRIMARY_STATE_ACTIVE, "active")
         assert (reply.ok, reply.state.id) == (True, PRIMARY_STATE_ACTIVE), reply
         assert manager.list_hardware_components()[0].state.id == PRIMARY_STATE_ACTIVE
-        assert manager.states()["arm_controller"] == "active"
+        assert manager.states()[TRAJECTORY] == "active"
         assert client.state().mode is Mode.HOLD and client.state().drives_enabled
 
     # A one-point, positions-only goal, as `ros2 action send_goal` users write it.
@@ -263,13 +283,56 @@ def test_a_ros2_control_user_switches_controllers_drives_the_hardware_and_moves_
     assert not set(moving) & set(fixed), "moving frames on /tf_static"
 
 
+def test_list_controllers_shows_the_configuration_references_three_controllers(robot: Robot):
+    """The built-in arm's controllers, their rate and interfaces, as its controllers.yaml (the spec's) gives them."""
+    robot.ready()
+    controllers = robot.manager.list_controllers()
+    assert {name: controller.type for name, controller in controllers.items()} == CONTROLLER_TYPES
+    assert {controller.update_rate for controller in controllers.values()} == {UPDATE_RATE}
+    trajectory_controller = controllers[TRAJECTORY]
+    commands = [f"{joint}/{interface}" for joint in JOINT_NAMES
+                for interface in ("position", "velocity", "acceleration")]
+    assert list(trajectory_controller.required_command_interfaces) == commands
+    assert list(trajectory_controller.claimed_interfaces) == commands           # active: it claims them
+    assert list(trajectory_controller.required_state_interfaces) == \
+        [f"{joint}/{interface}" for joint in JOINT_NAMES for interface in ("position", "velocity")]
+    [hardware] = robot.manager.list_hardware_components()
+    claimed = {interface.name for interface in hardware.command_interfaces if interface.is_claimed}
+    assert claimed == set(commands), sorted(claimed)
+
+
+def test_a_trajectory_published_on_the_spec_controllers_topic_moves_the_built_in_arm(robot: Robot):
+    """`/{robot}/joint_trajectory_controller/joint_trajectory`, as a ROS 2 user who reads the spec publishes it."""
+    robot.ready()
+    assert robot.manager.states()[TRAJECTORY] == "active"
+    robot.publish_and_follow(joint=3, distance=0.2)
+
+
+def test_an_external_package_keeps_the_generated_arm_controller(tmp_path_factory: pytest.TempPathFactory):
+    """A package without controllers.yaml runs the Description Package Protocol's generated `arm_controller`."""
+    package = copy_builtin("indy7_v2", tmp_path_factory.mktemp("external"))
+    (package / "config" / "controllers.yaml").unlink()
+    with launched_robot(tmp_path_factory, f"description_package:={package}", ros=True) as launch:
+        external = Robot(launch, trajectory_controller="arm_controller")
+        try:
+            external.ready()
+            controllers = external.manager.list_controllers()
+            generated = {name if name != TRAJECTORY else "arm_controller": kind
+                         for name, kind in CONTROLLER_TYPES.items()}
+            assert {name: controller.type for name, controller in controllers.items()} == generated
+            assert {controller.update_rate for controller in controllers.values()} == {1000}   # the loop's rate
+            external.publish_and_follow(joint=3, distance=0.2)
+        finally:
+            external.close()
+
+
 def test_a_strict_switch_naming_an_unknown_controller_is_refused_and_changes_nothing(robot: Robot):
     robot.ready()
     manager = robot.manager
     before = manager.states()
-    assert (before["arm_controller"], before["free_drive_controller"]) == ("active", "inactive"), before
+    assert (before[TRAJECTORY], before["free_drive_controller"]) == ("active", "inactive"), before
     reply = manager.switch_controller(activate=["free_drive_controller", "no_such_controller"],
-                                      deactivate=["arm_controller"], strictness=STRICT)
+                                      deactivate=[TRAJECTORY], strictness=STRICT)
     assert not reply.ok
     assert "no_such_controller" in reply.message, reply.message
     assert manager.states() == before
@@ -303,9 +366,9 @@ def test_ros_discovery_info_names_the_nodes_and_their_endpoints(robot: Robot):
                 if sample.topic_name == dds_topic and sample.participant_key.bytes == participant}
 
     joint_states = f"rt{ns}/joint_states"
-    send_goal = f"rq{ns}/arm_controller/follow_joint_trajectory/_action/send_goalRequest"
+    send_goal = f"rq{ns}/{TRAJECTORY}/follow_joint_trajectory/_action/send_goalRequest"
     list_controllers = f"rq{ns}/controller_manager/list_controllersRequest"
-    wanted = {"joint_state_broadcaster": (True, joint_states), "arm_controller": (False, send_goal),
+    wanted = {"joint_state_broadcaster": (True, joint_states), TRAJECTORY: (False, send_goal),
               "controller_manager": (False, list_controllers), "robot_state_publisher": (True, "rt/tf")}
     assert wait_for(lambda: all(endpoints(*endpoint) for endpoint in wanted.values()), DISCOVERY_S), \
         {name: len(endpoints(*endpoint)) for name, endpoint in wanted.items()}

@@ -38,7 +38,7 @@ from tests.e2e.launched import (
     ros_environment,
     wait_until,
 )
-from tests.e2e.ros_peer import JOINT_NAMES, RosPeer, shifted, wait_for
+from tests.e2e.ros_peer import JOINT_NAMES, TRAJECTORY, RosPeer, shifted, wait_for
 
 ARRIVED = 1e-3
 LOOP_HZ = 1000.0
@@ -300,7 +300,7 @@ def test_a_refused_goal_reaches_rosout_and_rt_events(holding: RosPeer):
     rosout = peer.node.subscription("/rosout", "rcl_interfaces/msg/Log", ROSOUT_QOS)
     goal_id = peer.send_trajectory(peer.trajectory([(shifted(peer.position(), 0, 10.0), 3.0)]))
     assert peer.follow_goal(goal_id, 5)[0] == ABORTED
-    logger = f"{peer.robot_id}.arm_controller"
+    logger = f"{peer.robot_id}.{TRAJECTORY}"
     logged = wait_for(lambda: [m for m in rosout.take() if m.name == logger and "position limits" in m.msg], 10)
     assert logged and logged[0].level == 30 and "follow_joint_trajectory refused" in logged[0].msg
     rejected = wait_for(lambda: [e for e in events.take() if e.kind == "command_rejected"
@@ -418,11 +418,11 @@ def test_parameters_answer_as_ros2_param_asks(peer: RosPeer):
         return client.call(10, **fields)
 
     [rate] = call("controller_manager", "get_parameters", "GetParameters", names=["update_rate"]).values
-    assert (rate.type, rate.integer_value) == (2, 1000)
-    [joints] = call("arm_controller", "get_parameters", "GetParameters", names=["joints"]).values
+    assert (rate.type, rate.integer_value) == (2, 500)   # the built-in controllers.yaml's
+    [joints] = call(TRAJECTORY, "get_parameters", "GetParameters", names=["joints"]).values
     assert joints.type == 9 and list(joints.string_array_value) == list(JOINT_NAMES)
     listed = call("controller_manager", "list_parameters", "ListParameters", prefixes=[], depth=0).result
-    assert {"update_rate", "arm_controller.type"} <= set(listed.names)
+    assert {"update_rate", f"{TRAJECTORY}.type"} <= set(listed.names)
     [missing] = call("robot_state_publisher", "get_parameters", "GetParameters", names=["no_such"]).values
     assert missing.type == 0
     new = peer.library.new

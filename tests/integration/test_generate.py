@@ -14,7 +14,10 @@ from tests.integration.packages import copy_builtin, tree_fingerprint
 
 @pytest.fixture
 def package(tmp_path: Path) -> Path:
-    return copy_builtin("indy7_v2", tmp_path / "ws")
+    """An external package without controllers.yaml (the built-in arms ship theirs)."""
+    root = copy_builtin("indy7_v2", tmp_path / "ws")
+    (root / "config" / "controllers.yaml").unlink()
+    return root
 
 
 def test_missing_controllers_are_generated_outside_the_package(package: Path, tmp_path: Path, caplog):

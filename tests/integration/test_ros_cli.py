@@ -19,9 +19,9 @@ import yaml
 from plem.bridge import connect
 from tests.conftest import fresh_domain
 from tests.e2e.launched import Launch, launched, new_robot_id, ros_environment, wait_until
-from tests.e2e.ros_peer import JOINT_NAMES
+from tests.e2e.ros_peer import JOINT_NAMES, TRAJECTORY
 
-NODES = ("arm_controller", "controller_manager", "free_drive_controller", "joint_state_broadcaster",
+NODES = ("controller_manager", "free_drive_controller", "joint_state_broadcaster", TRAJECTORY,
          "robot_state_publisher", "wim_rt_driver")
 SECTIONS = ("Subscribers", "Publishers", "Service Servers", "Service Clients", "Action Servers", "Action Clients")
 GID = re.compile(r"^GID: ([0-9a-f]{2}\.){15}[0-9a-f]{2}$", re.MULTILINE)
@@ -131,27 +131,27 @@ def test_an_empty_domain_lists_nothing_with_a_warning():
 
 
 def test_node_info_lists_topics_services_and_actions(robot, ns):
-    running = [start(robot, "node", "info", f"{ns}/arm_controller"),
-               start(robot, "node", "info", f"{ns}/arm_controller", "--include-hidden"),
+    running = [start(robot, "node", "info", f"{ns}/{TRAJECTORY}"),
+               start(robot, "node", "info", f"{ns}/{TRAJECTORY}", "--include-hidden"),
                start(robot, "node", "info", f"{ns}/wim_rt_driver")]
     arm, arm_hidden, driver = (ok(finish(process)) for process in running)
-    assert arm.splitlines()[0] == f"{ns}/arm_controller"
+    assert arm.splitlines()[0] == f"{ns}/{TRAJECTORY}"
     found = sections(arm)
     assert tuple(found) == SECTIONS
-    assert found["Subscribers"] == [f"{ns}/arm_controller/joint_trajectory: trajectory_msgs/msg/JointTrajectory"]
-    assert f"{ns}/arm_controller/controller_state: control_msgs/msg/JointTrajectoryControllerState" \
+    assert found["Subscribers"] == [f"{ns}/{TRAJECTORY}/joint_trajectory: trajectory_msgs/msg/JointTrajectory"]
+    assert f"{ns}/{TRAJECTORY}/controller_state: control_msgs/msg/JointTrajectoryControllerState" \
         in found["Publishers"]
     assert "/rosout: rcl_interfaces/msg/Log" in found["Publishers"]
-    assert f"{ns}/arm_controller/get_parameters: rcl_interfaces/srv/GetParameters" in found["Service Servers"]
-    assert found["Action Servers"] == [f"{ns}/arm_controller/follow_joint_trajectory: {FJT}"]
+    assert f"{ns}/{TRAJECTORY}/get_parameters: rcl_interfaces/srv/GetParameters" in found["Service Servers"]
+    assert found["Action Servers"] == [f"{ns}/{TRAJECTORY}/follow_joint_trajectory: {FJT}"]
     assert found["Service Clients"] == found["Action Clients"] == []
     assert "  Service Clients:\n\n  Action Servers:" in arm     # an empty section is an empty line, as in ros2
     assert "_action" not in arm
 
     hidden = sections(arm_hidden)
-    assert f"{ns}/arm_controller/follow_joint_trajectory/_action/send_goal: {FJT}_SendGoal" \
+    assert f"{ns}/{TRAJECTORY}/follow_joint_trajectory/_action/send_goal: {FJT}_SendGoal" \
         in hidden["Service Servers"]
-    assert f"{ns}/arm_controller/follow_joint_trajectory/_action/status: action_msgs/msg/GoalStatusArray" \
+    assert f"{ns}/{TRAJECTORY}/follow_joint_trajectory/_action/status: action_msgs/msg/GoalStatusArray" \
         in hidden["Publishers"]
     assert hidden["Action Servers"] == found["Action Servers"]
 
@@ -168,7 +168,7 @@ def test_unknown_names_say_how_to_list_what_exists(robot, ns):
         "action": start(robot, "action", "send_goal", f"{ns}/wim_rt_driver/set_mod", SET_MODE, "{mode: hold}",
                         "--timeout", "1"),
     }
-    close = {"node": f"{ns}/arm_controller", "topic": f"{ns}/joint_states",
+    close = {"node": f"{ns}/{TRAJECTORY}", "topic": f"{ns}/joint_states",
              "service": f"{ns}/controller_manager/list_controllers", "action": f"{ns}/wim_rt_driver/set_mode"}
     for kind, process in running.items():
         result = finish(process)
@@ -200,8 +200,8 @@ def test_service_call_prints_the_request_and_the_response_as_yaml(robot, ns):
     assert head == ("waiting for service to become available...\n"
                     "requester: making request: controller_manager_msgs.srv.ListControllers_Request()\n")
     controllers = {controller["name"]: controller for controller in yaml.safe_load(response)["controller"]}
-    assert {"arm_controller", "joint_state_broadcaster"} <= set(controllers)
-    assert controllers["arm_controller"]["type"] == "joint_trajectory_controller/JointTrajectoryController"
+    assert {TRAJECTORY, "joint_state_broadcaster"} <= set(controllers)
+    assert controllers[TRAJECTORY]["type"] == "joint_trajectory_controller/JointTrajectoryController"
 
     head, response = parameters.split("\nresponse:\n")
     assert "requester: making request: rcl_interfaces.srv.GetParameters_Request(names=['update_rate'])" in head
@@ -219,7 +219,7 @@ def test_service_call_of_another_type_names_the_right_one(robot, ns):
 def test_action_list_shows_names_and_types(robot, ns):
     typed, plain = (ok(finish(process)).splitlines() for process in (start(robot, "action", "list", "-t"),
                                                                        start(robot, "action", "list")))
-    assert f"{ns}/arm_controller/follow_joint_trajectory [{FJT}]" in typed
+    assert f"{ns}/{TRAJECTORY}/follow_joint_trajectory [{FJT}]" in typed
     assert f"{ns}/wim_rt_driver/set_mode [{SET_MODE}]" in typed
     assert [line.split(" [")[0] for line in typed] == plain
 
@@ -236,7 +236,7 @@ def test_set_mode_goal_succeeds(robot, ns):
 
 def test_trajectory_goal_prints_feedback_then_its_result(robot, ns):
     trajectory, target = moved_trajectory(robot, 0.05, 1)
-    output = ok(plem(robot, "action", "send_goal", f"{ns}/arm_controller/follow_joint_trajectory", FJT,
+    output = ok(plem(robot, "action", "send_goal", f"{ns}/{TRAJECTORY}/follow_joint_trajectory", FJT,
                      f"{{trajectory: {trajectory}}}", "--feedback"))
     assert output.endswith("Goal finished with status: SUCCEEDED\n"), output
     feedback = output.split("\nFeedback:\n")
@@ -248,7 +248,7 @@ def test_trajectory_goal_prints_feedback_then_its_result(robot, ns):
 
 
 def test_refused_goal_ends_aborted_with_exit_code_zero(robot, ns):
-    output = ok(plem(robot, "action", "send_goal", f"{ns}/arm_controller/follow_joint_trajectory", FJT,
+    output = ok(plem(robot, "action", "send_goal", f"{ns}/{TRAJECTORY}/follow_joint_trajectory", FJT,
                      "{trajectory: {joint_names: [no_such_joint], points: [{positions: [0.0], "
                      "time_from_start: {sec: 1}}]}}"))
     result = yaml.safe_load(output.split("\nResult:\n")[1].split("\n\n")[0])
@@ -258,7 +258,7 @@ def test_refused_goal_ends_aborted_with_exit_code_zero(robot, ns):
 
 def test_ctrl_c_cancels_the_running_goal(robot, ns):
     trajectory, target = moved_trajectory(robot, 0.05, 10)
-    process = start(robot, "action", "send_goal", f"{ns}/arm_controller/follow_joint_trajectory", FJT,
+    process = start(robot, "action", "send_goal", f"{ns}/{TRAJECTORY}/follow_joint_trajectory", FJT,
                     f"{{trajectory: {trajectory}}}")
     assert process.stdout is not None
     lines = []
@@ -332,7 +332,7 @@ def test_topic_pub_times_waits_for_the_subscriber_and_exits(robot, ns):
 
 def test_topic_pub_once_moves_the_arm(robot, ns):
     trajectory, target = moved_trajectory(robot, 0.05, 2)
-    output = ok(plem(robot, "topic", "pub", "--once", f"{ns}/arm_controller/joint_trajectory",
+    output = ok(plem(robot, "topic", "pub", "--once", f"{ns}/{TRAJECTORY}/joint_trajectory",
                      "trajectory_msgs/msg/JointTrajectory", trajectory))
     lines = [line for line in output.splitlines() if line and not line.startswith("Waiting for")]
     assert lines[0] == "publisher: beginning loop"

@@ -7,11 +7,13 @@ from pathlib import Path
 import pytest
 import yaml
 
+from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.controllers import controllers_from, read_controllers
 from plem.description.generate import controllers_yaml
 from plem.errors import ConfigError
 
 JOINTS = tuple(f"joint{i}" for i in range(6))
+BUILTIN = sorted(path.name for path in BUILTIN_PACKAGES_DIR.glob("*_description"))
 #: The configuration reference's example: types under controller_manager, joints under each controller.
 SPEC_EXAMPLE = """
 controller_manager:
@@ -78,3 +80,43 @@ def test_the_generated_text_reads_back_as_yaml_with_its_types_under_the_controll
     data = yaml.safe_load(controllers_yaml(list(JOINTS)))
     assert set(data["controller_manager"]["ros__parameters"]) == {"update_rate", "joint_state_broadcaster",
                                                                   "arm_controller", "free_drive_controller"}
+
+
+@pytest.mark.parametrize("package", BUILTIN)
+def test_every_built_in_arm_runs_the_configuration_references_controllers(package: str):
+    """joint_state_broadcaster, joint_trajectory_controller (position, velocity, acceleration) and
+    free_drive_controller over joint0..jointN at 500 Hz, as the configuration reference's controllers.yaml gives."""
+    path = BUILTIN_PACKAGES_DIR / package / "config" / "controllers.yaml"
+    joints = tuple(yaml.safe_load((path.parent / "joint_limits.yaml").read_text())["joint_limits"])
+    assert joints == tuple(f"joint{i}" for i in range(len(joints))) and len(joints) in (6, 7)
+    controllers = read_controllers(path, joints, cycle_time_us=1000)
+    assert controllers.update_rate == 500.0
+    assert {c.name: c.type for c in controllers.controllers} == {
+        "joint_state_broadcaster": "joint_state_broadcaster/JointStateBroadcaster",
+        "joint_trajectory_controller": "joint_trajectory_controller/JointTrajectoryController",
+        "free_drive_controller": "wim_controller/FreeDriveController"}
+    trajectory = controllers.trajectory
+    assert trajectory.name == "joint_trajectory_controller" and trajectory.joints == joints
+    assert trajectory.command_interfaces == ("position", "velocity", "acceleration")
+    assert trajectory.state_interfaces == ("position", "velocity")
+    assert controllers.named("joint_state_broadcaster").joints == joints
+
+
+def test_the_reported_rate_is_the_files_at_most_the_loops_and_the_loops_without_one():
+    spec = controllers_from(yaml.safe_load(SPEC_EXAMPLE), JOINTS, "controllers.yaml")
+    assert spec.rate(0.001) == 500 and spec.rate_warning(0.001) is None
+    assert spec.rate(0.002) == 500 and spec.rate_warning(0.002) is None    # the loop's own rate is allowed
+    assert controllers_from({}, JOINTS, "controllers.yaml").rate(0.00025) == 4000
+
+
+def test_an_update_rate_above_the_loops_is_reported_as_the_loops_with_a_warning_naming_both_fixes():
+    document = {"controller_manager": {"ros__parameters": {"update_rate": 2000}}}
+    controllers = controllers_from(document, JOINTS, "pkg/config/controllers.yaml")
+    assert controllers.rate(0.001) == 1000
+    warning = controllers.rate_warning(0.001)
+    assert warning is not None
+    assert "2000 Hz" in warning.summary and "1000 Hz" in warning.summary
+    assert "pkg/config/controllers.yaml" in warning.why and "1000 µs" in warning.why
+    assert "update_rate: 1000" in warning.how and "cycle_time:=500" in warning.how
+    beyond = controllers_from({"controller_manager": {"ros__parameters": {"update_rate": 8000}}}, JOINTS, "c.yaml")
+    assert "cycle_time:=" not in beyond.rate_warning(0.001).how     # no cycle_time reaches 8 kHz (250 µs at least)

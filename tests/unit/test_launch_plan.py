@@ -15,6 +15,7 @@ from plem.launch.plan import MAX_CONSECUTIVE_OVERRUNS, plan_launch, plan_robot, 
 from plem.launch.robots_file import load_robots
 from plem.robot.config import RT_KERNEL_FLAG
 from tests.conftest import fresh_domain
+from tests.integration.packages import copy_builtin
 
 SPEC_ARGUMENTS = ("eth_interface", "robot_type", "description_package", "urdf_file", "srdf_file", "robot_name",
                   "record", "bag_dir", "retention_minutes", "disk_threshold", "robot_id")
@@ -181,10 +182,21 @@ def test_frame_prefix_defaults_to_the_robot_id_and_none_means_no_prefix():
         assert "frame_prefix:=" in caught.value.summary and "frame_prefix:=arm_left/" in caught.value.how
 
 
-def test_the_plan_reads_the_controllers_of_the_package_or_the_generated_ones():
-    plan = plan_robot({"bus": "mock"})
-    assert plan.controllers.trajectory.name == "arm_controller"
+def test_the_plan_reads_the_controllers_of_the_package_or_the_generated_ones(tmp_path: Path):
+    plan = plan_robot({"bus": "mock"})       # the built-in arm ships the configuration reference's file
+    assert plan.controllers.trajectory.name == "joint_trajectory_controller"
     assert plan.controllers.trajectory.joints == plan.joint_names
+    assert plan.controllers.update_rate == 500.0
+    external = plan_robot({"bus": "mock", "description_package": str(_without_controllers(tmp_path))}, generate=False)
+    assert external.controllers.trajectory.name == "arm_controller"       # the protocol's generated file
+    assert external.controllers.trajectory.joints == external.joint_names
+
+
+def _without_controllers(directory: Path) -> Path:
+    """An external package (a copy of the built-in Indy7 v2) that lacks controllers.yaml."""
+    package = copy_builtin("indy7_v2", directory / "ws")
+    (package / "config" / "controllers.yaml").unlink()
+    return package
 
 
 @pytest.mark.parametrize("text, why", [
@@ -246,7 +258,8 @@ def test_a_configuration_cyclone_refuses_stops_the_launch_and_names_cyclonedds_u
 
 
 def test_a_good_launch_generates_the_missing_files_once_checked(tmp_path: Path):
-    (plan,) = plan_launch([{"bus": "mock", "record": "false"}], temp_root=tmp_path)
+    robot = {"bus": "mock", "record": "false", "description_package": str(_without_controllers(tmp_path))}
+    (plan,) = plan_launch([robot], temp_root=tmp_path)
     assert plan.description is not None and plan.description.generated_dir.parent == tmp_path
 
 

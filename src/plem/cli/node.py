@@ -91,7 +91,7 @@ def _node_text(name: str, owned: list[Endpoint], include_hidden: bool) -> str:
 @app.command("info")
 def info(
     node_name: Annotated[str, typer.Argument(metavar="NODE", help="Fully qualified node name, e.g. "
-                                             "/indy/arm_controller.")],
+                                             "/indy/joint_trajectory_controller.")],
     timeout: ListTimeout = LIST_TIMEOUT_S,
     include_hidden: Annotated[bool, typer.Option("--include-hidden", help="Also list hidden topics and services "
                                                  "(e.g. actions' `_action/` parts).")] = False,

@@ -4,11 +4,16 @@ plem runs three kinds of controller, recognised by their ros2_control type: the 
 (joint_trajectory_controller, one for the whole arm), the joint state broadcaster and the free drive
 controller. A type is declared as ros2_control reads it, under `controller_manager.ros__parameters.<name>.type`
 or under `<name>.ros__parameters.type`. A package without controllers.yaml runs the controllers plem
-generates for it.
+generates for it; the built-in arms ship the configuration reference's file.
+
+`controller_manager.ros__parameters.update_rate` is the controller manager's rate as ROS 2 tools see it
+(list_controllers, the `update_rate` parameter). The controllers themselves run inside plem's loop, every
+cycle_time, so a rate above the loop's cannot be honoured: it is reported as the loop's rate, with a warning.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +23,8 @@ import yaml
 
 from plem.description.generate import BROADCASTER_TYPE, FREE_DRIVE_TYPE, TRAJECTORY_TYPE, controllers_yaml
 from plem.description.package_yaml import read_package_yaml
-from plem.errors import ConfigError
+from plem.errors import ConfigError, PlemError
+from plem.robot.config import CYCLE_TIME_RANGE_US
 
 #: The role of each controller type plem runs.
 ROLES = {TRAJECTORY_TYPE: "trajectory", BROADCASTER_TYPE: "broadcaster", FREE_DRIVE_TYPE: "free_drive"}
@@ -50,10 +56,33 @@ class Controller:
 
 @dataclass(frozen=True)
 class ControllerSet:
-    """The controllers of one robot: the update rate and the controllers in the file's order."""
+    """The controllers of one robot: the file's update rate, the controllers in the file's order, the file."""
 
     update_rate: float | None
     controllers: tuple[Controller, ...]
+    source: str = "controllers.yaml"
+
+    def rate(self, cycle_time_s: float) -> int:
+        """The controller manager's update rate in Hz as ROS 2 reports it: the file's, at most the loop's
+        (1/cycle_time); the loop's when the file gives none."""
+        loop = round(1.0 / cycle_time_s)
+        return loop if self.update_rate is None else max(1, min(round(self.update_rate), loop))
+
+    def rate_warning(self, cycle_time_s: float) -> PlemError | None:
+        """Why the file's update_rate is not the rate reported (it is above the loop's), or None."""
+        loop = round(1.0 / cycle_time_s)
+        if self.update_rate is None or self.update_rate <= loop:
+            return None
+        faster = math.floor(1e6 / self.update_rate)  # the cycle_time (µs) whose loop runs at the file's rate
+        return ConfigError(f"update_rate {self.update_rate:g} Hz is above the loop's {loop} Hz; "
+                           f"the controllers run and are reported at {loop} Hz",
+                           what="controller_manager.ros__parameters.update_rate at or below the loop's rate "
+                                "(1 / cycle_time)",
+                           why=f"{self.source} asks {self.update_rate:g} Hz, and cycle_time "
+                               f"{round(cycle_time_s * 1e6)} µs runs the loop at {loop} Hz: every controller "
+                               "runs inside the loop, never faster",
+                           how=f"set update_rate: {loop} (or less) in {self.source}"
+                               + (f", or launch with cycle_time:={faster}" if faster >= CYCLE_TIME_RANGE_US[0] else ""))
 
     def by_role(self, role: str) -> Controller | None:
         """The controller of `role`, or None when the file declares none."""
@@ -123,7 +152,7 @@ def controllers_from(document: Any, joints: Sequence[str], source: str) -> Contr
         commands, states = DEFAULT_INTERFACES["trajectory"]
         controllers.insert(0, Controller("joint_trajectory_controller", TRAJECTORY_TYPE, tuple(joints), commands,
                                          states))
-    return ControllerSet(update_rate, tuple(controllers))
+    return ControllerSet(update_rate, tuple(controllers), source)
 
 
 def read_controllers(path: Path | None, joints: Sequence[str], cycle_time_us: int) -> ControllerSet:

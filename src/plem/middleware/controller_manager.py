@@ -37,9 +37,9 @@ STRICT = 2
 #: lifecycle_msgs/State ids and labels, as ros2_control reports hardware components in.
 UNCONFIGURED, INACTIVE, ACTIVE, FINALIZED = 1, 2, 3, 4
 LABELS = {UNCONFIGURED: "unconfigured", INACTIVE: "inactive", ACTIVE: "active", FINALIZED: "finalized"}
-#: The hardware's interfaces per joint: plem commands position and velocity (and effort in free drive) and
-#: reads position, velocity and effort.
-COMMAND_INTERFACES = ("position", "velocity", "effort")
+#: The hardware's interfaces per joint: plem commands position, velocity and acceleration (and effort in free
+#: drive) and reads position, velocity and effort.
+COMMAND_INTERFACES = ("position", "velocity", "acceleration", "effort")
 STATE_INTERFACES = ("position", "velocity", "effort")
 SERVICES = {"list_controllers": "ListControllers", "list_hardware_components": "ListHardwareComponents",
             "list_hardware_interfaces": "ListHardwareInterfaces", "switch_controller": "SwitchController",
@@ -151,7 +151,7 @@ class ControllerManager:
     # -- listing --------------------------------------------------------------------------------------
     def _list_controllers(self, server: ServiceServer, request: Any) -> None:
         mode, new = self.mode(), self.node.library.new
-        rate = int(self.controllers.update_rate or round(1.0 / self.client.cycle_time_s))
+        rate = self.controllers.rate(self.client.cycle_time_s)
         states = []
         for controller in self.controllers.controllers:
             state = self.state_of(controller, mode)

@@ -122,7 +122,7 @@ class NodeInfo:
 
     @property
     def full_name(self) -> str:
-        """The fully qualified name, e.g. `/indy/arm_controller`."""
+        """The fully qualified name, e.g. `/indy/joint_trajectory_controller`."""
         return f"{self.namespace.rstrip('/')}/{self.name}"
 
     def owns(self, endpoint: Endpoint) -> bool:

@@ -47,7 +47,8 @@ class GraphNode:
 
     @property
     def logger(self) -> str:
-        """The node's logger name as rcl forms it: namespace and name joined by dots (`indy.arm_controller`)."""
+        """The node's logger name as rcl forms it: namespace and name joined by dots
+        (`indy.joint_trajectory_controller`)."""
         return ".".join([*self.namespace.strip("/").split("/"), self.name]).strip(".")
 
 

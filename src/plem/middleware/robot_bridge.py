@@ -114,6 +114,9 @@ class RobotBridge:
         for controller in controllers.unsupported:
             _log.warning("controllers.yaml declares %s of type %s, which plem does not run; it is listed as "
                          "unconfigured", controller.name, controller.type)
+        slower = controllers.rate_warning(client.cycle_time_s)
+        if slower is not None:
+            _log.warning("%s", slower.render().removeprefix("ERROR: "))
         if commands:
             self._command_endpoints(hardware)
         self.description.publish(self.description.message(data=description))
@@ -166,8 +169,8 @@ class RobotBridge:
         """The read-only parameters `ros2 param` shows for one of the bridge's nodes."""
         controllers = self.controllers
         if name == "controller_manager":
-            rate = controllers.update_rate or round(1.0 / self.client.cycle_time_s)
-            return {"update_rate": int(rate), **{f"{c.name}.type": c.type for c in controllers.controllers}}
+            return {"update_rate": controllers.rate(self.client.cycle_time_s),
+                    **{f"{c.name}.type": c.type for c in controllers.controllers}}
         controller = controllers.named(name)
         if controller is not None:
             return {"joints": list(controller.joints), "command_interfaces": list(controller.command_interfaces),
