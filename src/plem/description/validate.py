@@ -28,7 +28,7 @@ from plem.description.drives import (
     declares_drive_parameters,
     param_line,
 )
-from plem.description.limits import HardLimit, JointLimit, loosened, read_joint_limits, tighten
+from plem.description.limits import UNITS, HardLimit, JointLimit, derivation, loosened, read_joint_limits, tighten
 from plem.description.model import (
     ACTUATED_TYPES,
     LESS_TESTED_TYPES,
@@ -588,12 +588,17 @@ def _compare_with_urdf(report: ValidationReport, limit: JointLimit, joint: Joint
                     how=f"set joint_limits.{joint.name}.{hard.key} to {bound} {urdf_value:g}, or correct the URDF "
                         f"<limit> if the joint really allows more; the driver enforces {urdf_value:g} either way",
                     file=path, line=limit.line_of(hard.key))
-    missing = [k for k in ("max_velocity", "max_acceleration", "max_jerk") if getattr(tighten(limit, joint), k) is None]
+    enforced = tighten(limit, joint)
+    missing = [k for k in ("max_velocity", "max_acceleration", "max_jerk")
+               if getattr(enforced, k) is None or k in enforced.derived]
     if missing:
+        derived = "; ".join(f"{k} {getattr(enforced, k):.4g} {UNITS[k]} ({derivation(k)})"
+                            for k in missing if k in enforced.derived)
         found.warning("limits.incomplete", f"{joint.name} has no {', '.join(missing)}",
                       what="velocity, acceleration and jerk limits for jerk-limited motion",
                       why=f"joint_limits.{joint.name} lacks {', '.join(missing)}",
-                      how="add them; until then plem plans with conservative defaults", file=path, line=limit.line)
+                      how="add them" + (f"; until then the driver and the planner enforce {derived}" if derived
+                                        else ""), file=path, line=limit.line)
 
 
 def _limit_at(report: ValidationReport, joint: Joint) -> str:
