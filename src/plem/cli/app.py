@@ -21,7 +21,7 @@ from typer._click import exceptions as click_exceptions
 from typer.core import TyperGroup
 
 import plem
-from plem.cli import coercion
+from plem.cli import coercion, flags
 from plem.errors import PlemError, UsageError
 
 
@@ -106,6 +106,14 @@ class RootGroup(TyperGroup):
         super().__init__(**attrs)
         self.commands = LazyCommands(self._build)
 
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        """Refuse `plem --version` with anything after it: a flag takes no value (`--version true` is not a
+        way to ask for the version), and the version is all `plem --version` prints."""
+        if args[:1] == ["--version"] and len(args) > 1:
+            raise UsageError("--version takes no value", what="`plem --version` on its own: a flag takes no value",
+                             why=f"it was followed by {' '.join(args[1:])!r}", how="run `plem --version`")
+        return super().parse_args(ctx, args)
+
     def _build(self, name: str) -> Command:
         holder = typer.Typer(rich_markup_mode=self.rich_markup_mode, suggest_commands=self.suggest_commands)
         COMMANDS[name].register(name, holder)
@@ -121,6 +129,7 @@ app = typer.Typer(
     cls=RootGroup,
 )
 coercion.install()  # plain values converted without importing pydantic
+flags.install()  # flags shown without a value type in --help
 
 
 def _print_version(requested: bool) -> None:
