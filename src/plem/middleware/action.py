@@ -214,8 +214,9 @@ class ActionClient:
             time.sleep(0.02)
         return True
 
-    def send_goal(self, timeout: float = 5.0, **goal: Any) -> tuple[bytes, bool]:
-        """Send a goal; (goal id, accepted)."""
+    def send_goal(self, timeout: float = 5.0, /, **goal: Any) -> tuple[bytes, bool]:
+        """Send a goal of any fields (`timeout` is positional only, so a goal field may be named so); (goal id,
+        accepted)."""
         goal_id = uuid.uuid4().bytes
         message = self.node.library.new(f"{self.ros_type}_Goal", **goal)
         reply = self._send_goal.call(timeout, goal_id=goal_uuid(self.node, goal_id), goal=message)

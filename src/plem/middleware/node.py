@@ -141,9 +141,11 @@ class ServiceServer:
         """The DDS endpoints behind it: the request reader and the reply writer."""
         return self.requests.entities() + self._replies.entities()
 
-    def reply(self, request: Any, **fields: Any) -> None:
-        """Answer `request`, now or (see the class) as soon as its client can receive the answer."""
-        message = self._replies.message(rmw_guid=request.rmw_guid, rmw_seq=request.rmw_seq, **fields)
+    def reply(self, request: Any, /, **fields: Any) -> None:
+        """Answer `request`, now or (see the class) as soon as its client can receive the answer.
+
+        `fields` are the response's fields, any names its type has (`request` is positional only)."""
+        message = self._replies.message(**{**fields, "rmw_guid": request.rmw_guid, "rmw_seq": request.rmw_seq})
         client = _participant_of(self.requests.reader, request.sample_info.publication_handle)
         self._pending.append((time.monotonic() + REPLY_WAIT_S, client, message))
         self.flush()
@@ -193,10 +195,13 @@ class ServiceClient:
         """The server's request reader and reply writer are both matched."""
         return self._requests.subscribers > 0 and self._replies.publishers > 0
 
-    def call(self, timeout: float, **fields: Any) -> Any:
-        """Send one request and wait for its reply; TimeoutError when none arrives in time."""
+    def call(self, timeout: float, /, **fields: Any) -> Any:
+        """Send one request and wait for its reply; TimeoutError when none arrives in time.
+
+        `fields` are the request's fields, any names its type has: `timeout` is positional only, so a request
+        with a `timeout` field of its own (controller_manager_msgs/srv/SwitchController) passes it on."""
         sequence = next(self._sequence)
-        self._requests.publish(self._requests.message(rmw_guid=self.guid, rmw_seq=sequence, **fields))
+        self._requests.publish(self._requests.message(**{**fields, "rmw_guid": self.guid, "rmw_seq": sequence}))
         waitset = WaitSet(self._replies.node.participant)
         waitset.attach(self._replies.condition)
         deadline = time.monotonic() + timeout

@@ -135,7 +135,7 @@ class InterfaceLibrary:
         """The DDS struct of a request or reply on the wire: rmw's request header, then the part's fields."""
         return self._struct(ros_type, with_header=True)
 
-    def new(self, ros_type: str, **fields: Any) -> Any:
+    def new(self, ros_type: str, /, **fields: Any) -> Any:
         """A message of `ros_type` with the given fields and every other field zero or empty."""
         return self.message(ros_type)(**fields)
 
