@@ -24,6 +24,17 @@ CONTINUOUS_TYPES = frozenset({"JointModelRUBX", "JointModelRUBY", "JointModelRUB
                               "JointModelRevoluteUnboundedUnaligned"})
 
 
+def link_frame(model: pin.Model, link: str) -> int:
+    """The frame of URDF link `link`. A URDF may give a link and a joint the same name (indy-ros2 names both `tcp`)
+    and pinocchio makes a frame of each, so every lookup by a link's name names the frame type."""
+    return int(model.getFrameId(link, pin.FrameType.BODY))
+
+
+def has_link(model: pin.Model, link: str) -> bool:
+    """Whether the model has a frame for URDF link `link` (see `link_frame`)."""
+    return bool(model.existFrame(link, pin.FrameType.BODY))
+
+
 class JointSpace:
     """Pinocchio's configuration vector of a model of single-DOF joints, from one position per joint.
 
@@ -87,8 +98,8 @@ class ArmDynamics:
         self._positions = np.zeros(self.model.nv)
         self._v = np.zeros(self.model.nv)
         self._a = np.zeros(self.model.nv)
-        self.tip_frame = tip_frame or self.model.frames[len(self.model.frames) - 1].name
-        self._tip_id = self.model.getFrameId(self.tip_frame)
+        self._tip_id = link_frame(self.model, tip_frame) if tip_frame else len(self.model.frames) - 1
+        self.tip_frame = self.model.frames[self._tip_id].name
 
     def _joint_order(self) -> np.ndarray:
         """For each arm joint, its degree of freedom in pinocchio's order; a ConfigError when they do not match."""

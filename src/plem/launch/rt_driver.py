@@ -61,12 +61,26 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
                  .with_state_block(state_block).with_motion_slab(lambda: _slab(channels[0]))
                  .with_raw_ring(lambda: channels[0].rings["rt_raw"])
                  .build())
-    except BaseException:
+    except BaseException as error:
         for created in channels:
             created.remove()
+        if isinstance(error, Exception) and not isinstance(error, PlemError):
+            _log.exception("building the robot failed")
+            raise _build_failed(plan, error) from error
         raise
     channels[0].publish_events(robot.events)
     return robot, channels[0]
+
+
+def _build_failed(plan: RobotPlan, error: Exception) -> PlemError:
+    """An unexpected error while building the robot from its validated description (the model, the bus, the
+    loop), said as what it is: a start-up failure of this package, which `plem validate` is the first tool for."""
+    package = plan.report.files.name
+    return PlemError(f"the RT driver could not build robot {plan.robot_id} from description package '{package}'",
+                     what=f"a robot built from {plan.package} (URDF {plan.report.files.urdf})",
+                     why=" ".join(str(error).split()) or type(error).__name__,
+                     how=f"run `plem validate {plan.package} --strict` and fix what it reports; if it reports "
+                         "nothing, this is a defect of plem: report it with this message and the driver's log above")
 
 
 def _slab(channels: RobotChannels) -> MotionSlab:

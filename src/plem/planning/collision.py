@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from plem.control.kinematics import JointSpace
+from plem.control.kinematics import JointSpace, link_frame
 from plem.core.paths import resolve_package_uri
 from plem.description.model import parse_xml
 from plem.description.problems import DescriptionError
@@ -165,15 +165,15 @@ class CollisionChecker:
     def _frame(self, obj: SceneObject, name: str, role: str, *, fixed: bool) -> pin.Frame:
         """The link frame `name`; a SceneError when it is not a link (or, `fixed`, when it moves with the arm)."""
         if name in self._links:
-            frame = self._model.frames[self._model.getFrameId(name)]
+            frame = self._model.frames[link_frame(self._model, name)]
             if not fixed or frame.parentJoint == 0:
                 return frame
             raise SceneError(
                 f"object {obj.name} is placed in link {name}, which moves", what=f"{role}: world or a link fixed to it",
                 why=f"{name} moves with the arm, so a pose in it would change as the arm moves",
                 how=f"give the pose in the world (frame: {WORLD}), or attach the object (attached_to: {name})")
-        links = [link for link in self._links if not fixed or self._model.frames[
-            self._model.getFrameId(link)].parentJoint == 0]
+        links = [link for link in self._links
+                 if not fixed or self._model.frames[link_frame(self._model, link)].parentJoint == 0]
         raise SceneError(f"object {obj.name} names an unknown link {name}",
                          what=f"{role}: {'world or ' if fixed else ''}a link of the arm ({_known(links)})",
                          why=f"{role} is {name}", how=f"name one of the links listed in {role}")
@@ -188,14 +188,14 @@ class CollisionChecker:
         if obj.attached_to is None:
             frame_id, placement = 0, pose
             if obj.frame != WORLD or WORLD in self._links:
-                frame_id = self._model.getFrameId(self._frame(obj, obj.frame, "frame", fixed=True).name)
+                frame_id = link_frame(self._model, self._frame(obj, obj.frame, "frame", fixed=True).name)
                 placement = self._model.frames[frame_id].placement * pose
             joint = 0
         else:
             for link in obj.touch_links:
                 self._frame(obj, link, "touch_links", fixed=False)
             frame = self._frame(obj, obj.attached_to, "attached_to", fixed=False)
-            frame_id = self._model.getFrameId(frame.name)
+            frame_id = link_frame(self._model, frame.name)
             joint, placement = frame.parentJoint, frame.placement * pose
         return pin.GeometryObject(obj.name, joint, frame_id, placement, self._shape(obj, obj.shape))
 

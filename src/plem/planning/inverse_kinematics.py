@@ -17,7 +17,7 @@ import eigenpy
 import numpy as np
 import pinocchio as pin
 
-from plem.control.kinematics import CONTINUOUS_TYPES, JointSpace
+from plem.control.kinematics import CONTINUOUS_TYPES, JointSpace, has_link, link_frame
 from plem.errors import MoveItCode, PlanningError
 
 #: Iterations one seed may take before the next seed is tried (seeds that converge almost all do so within 30).
@@ -98,14 +98,14 @@ class IkSolver:
 
     def __init__(self, model: pin.Model, joints: Sequence[int], tip_frame: str,
                  lower: np.ndarray, upper: np.ndarray) -> None:
-        if not model.existFrame(tip_frame):
+        if not has_link(model, tip_frame):
             raise IkInputError(f"the model has no frame {tip_frame!r}", what="the tip link of the planning group",
                                why=f"{tip_frame!r} is not a link or frame of the URDF",
                                how="set the group's tip link in the SRDF to a link of the URDF",
                                code=MoveItCode.INVALID_LINK_NAME)
         self._model = model
         self._data = model.createData()
-        self._tip = model.getFrameId(tip_frame)
+        self._tip = link_frame(model, tip_frame)
         self._space = JointSpace(model)
         if self._space.multi_axis:
             raise IkInputError("IK moves single-axis joints only",

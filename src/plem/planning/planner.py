@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from plem.control.kinematics import ArmDynamics
+from plem.control.kinematics import ArmDynamics, has_link, link_frame
 from plem.control.limits import ArmLimits
 from plem.control.spline import Spline
 from plem.description.model import SrdfModel, UrdfModel
@@ -103,7 +103,7 @@ class Planner:
         plain = name.removeprefix(self.frame_prefix) if self.frame_prefix else name
         if plain in ("", "world", self.root_link):
             return self.root_link
-        if not self.arm.model.existFrame(plain):
+        if not has_link(self.arm.model, plain):
             links = [f.name for f in self.arm.model.frames if f.type == pin.FrameType.BODY]
             raise PlanningError(f"unknown link {name!r}", what=f"a link of the URDF ({', '.join(links)})",
                                 why=f"the URDF has no link {plain!r}",
@@ -256,7 +256,7 @@ class Planner:
         return np.array(sorted(int(order[self.joint_names.index(name)]) for name in group.joints), dtype=np.intp)
 
     def _frame_id(self, link: str) -> int:
-        return int(self.arm.model.getFrameId(link))
+        return link_frame(self.arm.model, link)
 
     def _placement(self, q: np.ndarray, link: str) -> pin.SE3:
         return self._placement_at(q, self._frame_id(link))
