@@ -7,22 +7,36 @@ second ros2_control block, indy-ros2 names a link and a joint alike.
 
 from __future__ import annotations
 
+import json
 import math
+import os
 import shutil
+import subprocess
+import sys
+import uuid
 
+import numpy as np
 import pytest
 
+from plem.control.limits import ArmLimits
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.controllers import read_controllers
+from plem.description.drives import drive_parameters
+from plem.description.hardware import driven_block
 from plem.description.package_yaml import read_package_yaml
-from plem.errors import ConfigError
+from plem.errors import ConfigError, PlemError
+from plem.launch import rt_driver
+from plem.launch.plan import plan_robot
 from plem.planning.groups import read_groups
+from plem.planning.planner import Planner
 from tests.integration.test_broken_packages import (
     CONTROLLERS,
     JOINTS,
     KINEMATICS,
     LIMITS,
+    ROS2_CONTROL,
     SRDF,
+    URDF,
     describe,
     make_package,
     replace,
@@ -140,3 +154,131 @@ def test_passive_joint_of_the_urdf_is_accepted(tmp_path, monkeypatch):
     report = run_validation(root)
     assert report.srdf.passive_joints == [("tcp_joint", 9)]
     assert report.findings.problems == [], describe(report.findings.problems)
+
+
+#: An upstream device macro, as Kinova's, xArm's and indy-ros2's are: it always emits a ros2_control block for
+#: its own driver (mock hardware only when asked), here before the wrapper's own block.
+DEVICE_MACRO = """<?xml version="1.0"?>
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:macro name="acme_arm_device" params="prefix:='' use_fake_hardware:=false">
+    <ros2_control name="${prefix}AcmeArmHardware" type="system">
+      <hardware>
+        <xacro:if value="${use_fake_hardware}"><plugin>mock_components/GenericSystem</plugin></xacro:if>
+        <xacro:unless value="${use_fake_hardware}"><plugin>acme_driver/AcmeSystemHardware</plugin></xacro:unless>
+        <param name="robot_ip">192.168.1.10</param>
+      </hardware>
+      <xacro:macro name="acme_joint" params="name">
+        <joint name="${prefix}${name}">
+          <command_interface name="position"/>
+          <state_interface name="position"/>
+          <state_interface name="velocity"/>
+        </joint>
+      </xacro:macro>
+      <xacro:acme_joint name="joint0"/><xacro:acme_joint name="joint1"/><xacro:acme_joint name="joint2"/>
+      <xacro:acme_joint name="joint3"/><xacro:acme_joint name="joint4"/><xacro:acme_joint name="joint5"/>
+    </ros2_control>
+  </xacro:macro>
+</robot>
+"""
+DEVICE_CALL = ('  <xacro:include filename="$(find indy7_v2_description)/urdf/acme_device.xacro"/>\n'
+               '  <xacro:acme_arm_device prefix="$(arg prefix)" use_fake_hardware="{fake}"/>\n'
+               '  <!-- hardware interface description -->')
+
+
+def _with_device_macro(root, fake: bool) -> None:
+    write("urdf/acme_device.xacro", DEVICE_MACRO)(root)
+    replace(URDF, "  <!-- hardware interface description -->", DEVICE_CALL.format(fake=str(fake).lower()))(root)
+
+
+def test_upstream_block_beside_plem_block_is_ignored_with_a_warning(tmp_path, monkeypatch):
+    """The wrapper pattern: the upstream macro's block stays, the wrapper's block names plem's plugin; validate and
+    launch planning pass, and the drive parameters and the hardware the bridge reports come from plem's block."""
+    root = make_package(tmp_path, monkeypatch)
+    _with_device_macro(root, fake=False)
+    report = run_validation(root)
+    assert [(p.code, p.severity.value) for p in report.findings.problems] == [
+        ("ros2_control.ignored_block", "warning")], describe(report.findings.problems)
+    (warning,) = report.findings.warnings
+    assert "AcmeArmHardware" in warning.summary and "acme_driver/AcmeSystemHardware" in warning.why
+    assert [block.name for block in report.urdf.ros2_control] == ["AcmeArmHardware", "indy7_v2_hardware"]
+    assert driven_block(report.urdf).plugin == "hardware/HardwareInterface"
+    assert [d.gear_ratio for d in drive_parameters(report.urdf, JOINTS)] == [121.0] * 3 + [101.0] * 3
+    plan = plan_robot({"bus": "mock", "robot_id": "wrapped_device", "description_package": str(root),
+                       "record": "false"})
+    assert plan.config.dof == 6
+
+
+def test_mock_components_block_runs_on_the_simulated_arm(tmp_path, monkeypatch):
+    """Without a block naming plem's plugin, ros2_control's own mock plugin means plem's simulated arm."""
+    root = make_package(tmp_path, monkeypatch)
+    _with_device_macro(root, fake=True)
+    write(ROS2_CONTROL, '<?xml version="1.0"?>\n<robot xmlns:xacro="http://www.ros.org/wiki/xacro">\n'
+                        '  <xacro:macro name="indy7_v2_ros2_control" params="prefix:=\'\'"/>\n</robot>\n')(root)
+    report = run_validation(root)
+    codes = sorted((p.code, p.severity.value) for p in report.findings.problems)
+    assert codes == [("drive.none", "warning"), ("ros2_control.simulated", "warning")], \
+        describe(report.findings.problems)
+    assert driven_block(report.urdf).plugin == "mock_components/GenericSystem"
+    plan_robot({"bus": "mock", "robot_id": "fake_device", "description_package": str(root), "record": "false"})
+
+
+def test_two_blocks_for_plem_are_an_error(tmp_path, monkeypatch):
+    root = make_package(tmp_path, monkeypatch)
+    _with_device_macro(root, fake=False)
+    replace("urdf/acme_device.xacro", "acme_driver/AcmeSystemHardware", "hardware/HardwareInterface")(root)
+    report = run_validation(root)
+    assert "ros2_control.several_blocks" in [p.code for p in report.findings.errors], \
+        describe(report.findings.problems)
+
+
+def _link_named_like_its_joint(root) -> None:
+    """indy-ros2's shape: the fixed joint to the tool centre point and the tool centre point link are both `tcp`."""
+    replace(URDF, 'name="${pfx}tcp_joint" type="fixed"', 'name="${pfx}tcp" type="fixed"')(root)
+
+
+def test_link_and_joint_named_alike_run_in_the_driver_and_the_planner(tmp_path, monkeypatch):
+    """URDF allows a link and a joint of one name: validate passes, the RT driver process starts and the planner
+    plans for the link (pinocchio has two frames of that name; plem looks links up as links)."""
+    root = make_package(tmp_path, monkeypatch)
+    _link_named_like_its_joint(root)
+    report = run_validation(root)
+    assert report.findings.problems == [], describe(report.findings.problems)
+    assert "tcp" in report.urdf.links and "tcp" in report.urdf.joints
+    arguments = {"bus": "mock", "robot_id": f"alike_{uuid.uuid4().hex[:8]}", "description_package": str(root),
+                 "record": "false"}
+    driver = subprocess.Popen([sys.executable, "-m", "plem.launch.rt_driver", json.dumps(arguments)],
+                              stdout=subprocess.PIPE, text=True,
+                              env={**os.environ, "PLEM_LAUNCH_PID": str(os.getpid())})
+    try:
+        assert driver.stdout is not None
+        announcement = json.loads(driver.stdout.readline() or "{}")  # one line, or none when the driver died
+        assert announcement.get("ready"), announcement
+        assert announcement["joint_names"] == JOINTS
+    finally:
+        driver.terminate()
+        driver.wait(60)
+    planner = Planner.for_package(report, JOINTS, ArmLimits.from_joint_limits(report.limits, JOINTS), 0.001)
+    assert planner.group().tip_link == "tcp"
+    flange, tcp = (planner.fk([0.0] * 6, [link])[link] for link in ("link6", "tcp"))
+    assert not np.allclose(tcp.position, flange.position)  # the link, beyond the flange
+    target = planner.fk([0.3, -0.2, 0.4, 0.0, 0.5, 0.0], ["tcp"])["tcp"]
+    solution = planner.ik(target, [0.0] * 6)
+    assert np.allclose(planner.fk(solution, ["tcp"])["tcp"].position, target.position, atol=1e-3)
+
+
+def test_a_driver_that_cannot_build_its_robot_names_the_package(tmp_path, monkeypatch):
+    """An unexpected failure while the driver builds the robot is said as a start-up failure of that package, with
+    validate as the fix, never as a traceback or a hint about load."""
+    root = make_package(tmp_path, monkeypatch)
+    plan = plan_robot({"bus": "mock", "robot_id": f"broken_{uuid.uuid4().hex[:8]}", "description_package": str(root),
+                       "record": "false"})
+
+    def fail(*_: object, **__: object) -> None:
+        raise ValueError("Several frames match the filter - please specify the FrameType (name=\"tcp\", type=\"31\")")
+
+    monkeypatch.setattr(rt_driver.Robot, "builder", fail)
+    with pytest.raises(PlemError) as caught:
+        rt_driver.build(plan)
+    error = caught.value
+    assert "indy7_v2_description" in error.summary and "Several frames match the filter" in error.why
+    assert f"plem validate {root} --strict" in error.how and "cycle_time" not in error.how

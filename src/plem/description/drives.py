@@ -26,6 +26,7 @@ from typing import Any
 
 from lxml import etree
 
+from plem.description.hardware import sort_blocks
 from plem.description.model import HardwareJoint, UrdfModel, XacroSources, rendered_line_note, source_line
 from plem.errors import ConfigError
 
@@ -186,13 +187,14 @@ def _unknown(joint: HardwareJoint, name: str) -> ParamProblem:
 
 def declares_drive_parameters(urdf: UrdfModel) -> bool:
     """Whether any ros2_control joint has a drive parameter."""
-    return any(name in PARAMS for block in urdf.ros2_control for joint in block.joints for name in joint.params)
+    return any(name in PARAMS for block in sort_blocks(urdf.ros2_control).driven for joint in block.joints
+               for name in joint.params)
 
 
 def _read(urdf: UrdfModel, joint_names: Sequence[str]) -> tuple[list[dict[str, Any]], list[ParamProblem]]:
     """The parsed parameters of each of `joint_names` and every problem with them, in joint order."""
     hardware: dict[str, HardwareJoint] = {}
-    for block in urdf.ros2_control:
+    for block in sort_blocks(urdf.ros2_control).driven:
         for joint in block.joints:
             hardware.setdefault(joint.name, joint)
     declaring = next((j.name for j in hardware.values() if any(name in PARAMS for name in j.params)), None)

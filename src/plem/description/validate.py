@@ -12,7 +12,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from enum import IntEnum
-from functools import cache, cached_property
+from functools import cached_property
 from pathlib import Path
 
 from lxml import etree
@@ -27,6 +27,14 @@ from plem.description.drives import (
     check_drive_parameters,
     declares_drive_parameters,
     param_line,
+)
+from plem.description.hardware import (
+    BUILTIN_PLUGIN,
+    HARDWARE_ENTRY_POINTS,
+    SIMULATION_PLUGINS,
+    HardwareBlocks,
+    is_plem_plugin,
+    sort_blocks,
 )
 from plem.description.limits import UNITS, HardLimit, JointLimit, derivation, loosened, read_joint_limits, tighten
 from plem.description.model import (
@@ -49,8 +57,6 @@ from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
 from plem.robot.config import SUPPORTED_DOF
 
-BUILTIN_PLUGIN = "hardware/HardwareInterface"
-HARDWARE_ENTRY_POINTS = "plem.hardware"
 KNOWN_INTERFACES = ("position", "velocity", "acceleration", "effort")
 KNOWN_SOLVERS = ("kdl_kinematics_plugin/KDLKinematicsPlugin", "trac_ik_kinematics_plugin/TRAC_IKKinematicsPlugin",
                  "pick_ik/PickIkPlugin", "bio_ik/BioIKKinematicsPlugin",
@@ -432,14 +438,6 @@ def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: P
                               file=path or source, line=line)
 
 
-@cache
-def _registered_plugins() -> frozenset[str]:
-    """Names of hardware plugins installed as entry points (scanned only when a package names one)."""
-    from importlib.metadata import entry_points
-
-    return frozenset(ep.name for ep in entry_points(group=HARDWARE_ENTRY_POINTS))
-
-
 def _check_ros2_control(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
     files, found = report.files, report.findings
     if not urdf.ros2_control:
@@ -453,15 +451,9 @@ def _check_ros2_control(report: ValidationReport, urdf: UrdfModel, source: Path)
                         '<xacro:NAME_ros2_control prefix="$(arg prefix)"/>', file=source)
         return
     declared: dict[str, object] = {}
-    for block in urdf.ros2_control:
-        plugin = block.plugin
-        if plugin != BUILTIN_PLUGIN and plugin not in _registered_plugins():
-            found.error("ros2_control.plugin", f"Unknown hardware plugin in <ros2_control name=\"{block.name}\">",
-                        what=f"<plugin>{BUILTIN_PLUGIN}</plugin> or a plugin registered under the "
-                             f"'{HARDWARE_ENTRY_POINTS}' entry-point group",
-                        why=f"plugin is {plugin!r}", how=f"use {BUILTIN_PLUGIN}, or install the package that provides "
-                                                         f"{plugin!r} as a {HARDWARE_ENTRY_POINTS} entry point",
-                        file=source)
+    blocks = sort_blocks(urdf.ros2_control)
+    _check_blocks(report, blocks, source)
+    for block in blocks.driven:
         for hw in block.joints:
             declared[hw.name] = hw
             if hw.name not in urdf.joints:
@@ -487,6 +479,43 @@ def _check_ros2_control(report: ValidationReport, urdf: UrdfModel, source: Path)
                                                                            "command and state interfaces", file=source)
     _check_drive_parameters(report, urdf, [joint.name for joint in urdf.actuated_joints if joint.name in declared])
     _check_prefix(report, source)
+
+
+def _check_blocks(report: ValidationReport, blocks: HardwareBlocks, source: Path) -> None:
+    """Exactly one ros2_control block plem drives (see plem.description.hardware); the others are warned as ignored."""
+    found, driven = report.findings, blocks.driven
+    plugins = ", ".join(f"{block.name!r} ({block.plugin})" for block in driven)
+    if not blocks.simulated and not is_plem_plugin(driven[0].plugin):
+        for block in driven:
+            found.error("ros2_control.plugin", f"Unknown hardware plugin in <ros2_control name=\"{block.name}\">",
+                        what=f"a <ros2_control> block with <plugin>{BUILTIN_PLUGIN}</plugin> or a plugin registered "
+                             f"under the '{HARDWARE_ENTRY_POINTS}' entry-point group (or, to run on plem's simulated "
+                             f"arm, {' or '.join(SIMULATION_PLUGINS)})",
+                        why=f"plugin is {block.plugin!r}",
+                        how=f"use {BUILTIN_PLUGIN}, or add a block of your own with it beside the upstream one (plem "
+                            f"ignores the other), or install the package that provides {block.plugin!r} as a "
+                            f"{HARDWARE_ENTRY_POINTS} entry point", file=source)
+        return
+    if len(driven) > 1:
+        found.error("ros2_control.several_blocks", f"{len(driven)} <ros2_control> blocks for plem to drive",
+                    what="exactly one <ros2_control> block naming plem's plugin (or, without one, one simulation "
+                         "block)",
+                    why=f"found {plugins}", how="keep one of them in the URDF plem renders", file=source)
+    if blocks.simulated:
+        found.warning("ros2_control.simulated",
+                      f"<ros2_control name=\"{driven[0].name}\"> runs on plem's simulated arm",
+                      what=f"a <ros2_control> block with <plugin>{BUILTIN_PLUGIN}</plugin> to drive the arm's hardware",
+                      why=f"its plugin is {driven[0].plugin}, ros2_control's simulation plugin, and no block names "
+                          "plem's",
+                      how="launch with bus:=mock (the default); to drive the hardware, add a block with "
+                          f"<plugin>{BUILTIN_PLUGIN}</plugin> and drive parameters", file=source)
+    for block in blocks.ignored:
+        found.warning("ros2_control.ignored_block", f"<ros2_control name=\"{block.name}\"> is ignored",
+                      what="one <ros2_control> block plem drives; other blocks (an upstream macro's own driver) are "
+                           "left out",
+                      why=f"its plugin is {block.plugin!r}; plem drives {plugins}",
+                      how="nothing, if this is the upstream macro's block; to silence this, keep it out of the URDF "
+                          "(often an argument of the upstream macro)", file=source)
 
 
 def _check_drive_parameters(report: ValidationReport, urdf: UrdfModel, joints: list[str]) -> None:
@@ -533,7 +562,7 @@ def _check_prefix(report: ValidationReport, source: Path) -> None:
                       why=f"with prefix:={PREFIX_SENTINEL} these stay unchanged: {', '.join(unchanged)}",
                       how="prefix those names too, or two arms rendered into one URDF with different prefixes "
                           "will clash", file=source)
-    hardware = [hw.name for block in prefixed.ros2_control for hw in block.joints]
+    hardware = [hw.name for block in sort_blocks(prefixed.ros2_control).driven for hw in block.joints]
     unchanged = [name for name in hardware if not name.startswith(PREFIX_SENTINEL)]
     if unchanged:
         found.warning("ros2_control.prefix", "The ros2_control macro ignores its prefix for some joints",

@@ -14,6 +14,7 @@ import threading
 import time
 
 from plem.bridge.client import connect
+from plem.description.hardware import driven_block
 from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
 from plem.middleware.controller_manager import Hardware
@@ -33,7 +34,7 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     node = Node()
     client = connect(plan.robot_id, plan.config.dof)
     rate = plan.joint_state_rate()
-    block = plan.report.urdf.ros2_control[0] if plan.report.urdf and plan.report.urdf.ros2_control else None
+    block = driven_block(plan.report.urdf) if plan.report.urdf else None
     hardware = Hardware(block.name if block else plan.robot_name, (block.plugin if block else None) or HARDWARE_PLUGIN)
     bridge = RobotBridge(client, node, plan.robot_description, rate, plan.controllers, hardware,
                          commands=plan.bridge_commands, semantic=plan.report.srdf_xml, frame_prefix=plan.frame_prefix)
