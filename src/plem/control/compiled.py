@@ -117,7 +117,7 @@ ARM = _checked("plem_arm", [
     ("power_wanted", "<i4"), ("power_requests", "<u8"), ("power_resets", "<u8"), ("power", POWER),
     ("cycle", "<i8"), ("mode", "<i4"), ("fault_cause", "<i4"), ("communication_ok", "<i4"), ("have_previous", "<i4"),
     ("braking", "<i4"), ("pad1", "<i4"), ("work", "<f8", (6, J)), ("previous_position", "<f8", J),
-    ("previous_acceleration", "<f8", J), ("torque", "<f8", J),
+    ("previous_acceleration", "<f8", J), ("torque", "<f8", J), ("reach", "<f8", (2, J)),
     ("active", "<i4"), ("active_ended", "<i4"), ("active_slot", "<i4"), ("active_segments", "<i4"),
     ("active_token", "<u8"), ("active_start_cycle", "<i8"), ("settle_deadline", "<i8"), ("active_cursor", "<i4"),
     ("active_has_path", "<i4"), ("active_has_goal", "<i4"), ("pad2", "<i4"), ("active_goal_time", "<f8"),

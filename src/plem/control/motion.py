@@ -102,8 +102,10 @@ def plan_point_to_point(limits: ArmLimits, start: StartState, target: np.ndarray
 
     `speed_scale` in (0, 1] scales time: velocity, acceleration and jerk limits by s, s² and s³, so the
     motion follows the same path and takes 1/s as long; the motion takes at least `minimum_duration` s.
-    The target must lie within the position limits, and so must every position the motion passes through.
+    The target must lie within the position limits, and so must every position the motion passes through; a joint
+    that starts outside its range may end anywhere between there and its range (`ArmLimits.reaching`).
     """
+    limits = limits.reaching(start[0])
     if not (isinstance(speed_scale, (int, float)) and math.isfinite(speed_scale) and 0 < speed_scale <= 1):
         raise CommandRejected("speed_scale is out of range", what="0 < speed_scale <= 1",
                               why=f"got {speed_scale!r}", how="pass e.g. speed_scale=0.5 for half speed")

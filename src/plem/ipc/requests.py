@@ -1,9 +1,10 @@
 """Requests clients send to a robot's command service, and the replies they get back, as JSON.
 
 `check_request` is the one validation both sides run: the client before a request leaves it (sizes,
-finite numbers in range, joint names, position limits), the command service again when it arrives, so a
-malformed request from anything else is refused before any work is done on it and never reaches the
-RT driver.
+finite numbers in range, joint names), the command service again when it arrives, so a malformed request
+from anything else is refused before any work is done on it and never reaches the RT driver. Position limits
+are checked where the motion is planned, from the arm's state (`ArmLimits.reaching`): an arm outside a range
+may be sent back into it.
 """
 
 from __future__ import annotations
@@ -99,7 +100,6 @@ def _trajectory(args: Mapping[str, Any], limits: ArmLimits) -> JointTrajectory:
         raise JointNamesRejected("the trajectory's joints do not match the robot",
                                  what=f"each of {', '.join(limits.joint_names)} exactly once",
                                  why=f"got {', '.join(names)}", how="name every joint of the robot once")
-    order = [names.index(name) for name in limits.joint_names]
     checked: list[dict[str, Any]] = []
     previous = -math.inf
     for index, point in enumerate(points):
@@ -117,7 +117,6 @@ def _trajectory(args: Mapping[str, Any], limits: ArmLimits) -> JointTrajectory:
             raise _rejected(f"point {index} has no positions", what="positions for every point",
                             why=f"point {index} carries {', '.join(sorted(point)) or 'nothing'}",
                             how="send one position per joint in every point")
-        limits.check_positions(np.array(row["positions"])[order], f"point {index}")
         checked.append(row)
     return JointTrajectory.from_lists(names, checked)
 
@@ -137,7 +136,6 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
     checked: dict[str, Any] = {}
     if op == "move_joints":
         target = np.array(bounds.numbers(args.get("target"), "the target", limits.dof))
-        limits.check_positions(target, "the target")
         checked = {"target": target,
                    "speed_scale": bounds.number(args.get("speed_scale", 1.0), "speed_scale", 0.0, 1.0, low_open=True),
                    "tolerances": _tolerances(args.get("tolerances"), limits)}

@@ -275,7 +275,7 @@ class CommandService:
                                   "")
 
         def fit(start: StartState) -> tuple[PolynomialMotion, str]:
-            timed = fit_to_limits(args["trajectory"], limits, start, self.cycle_time_s)
+            timed = fit_to_limits(args["trajectory"], limits.reaching(start[0]), start, self.cycle_time_s)
             return timed.motion, timed.note()
 
         return fit

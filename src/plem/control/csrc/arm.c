@@ -95,12 +95,23 @@ static void set_io_mode(plem_arm *arm, int mode) {
     for (int i = 0; i < arm->settings.dof; i++) arm->io_mode[i] = (int8_t)mode;
 }
 
+/* The position range commands may use from now on: each joint's limits, widened to include where the command is
+ * (a joint outside its range may move back toward it, never farther out). */
+static void reach_from_command(plem_arm *arm) {
+    const plem_settings *s = &arm->settings;
+    for (int i = 0; i < s->dof; i++) {
+        arm->reach[0][i] = fmin(s->min_position[i], row(arm, COMMAND)[i]);
+        arm->reach[1][i] = fmax(s->max_position[i], row(arm, COMMAND)[i]);
+    }
+}
+
 /* The command where the arm is, at rest. */
 static void seed_from_measurement(plem_arm *arm) {
     int n = arm->settings.dof;
     memcpy(row(arm, COMMAND), row(arm, POSITION), (size_t)n * sizeof(double));
     memset(row(arm, COMMAND + 1), 0, (size_t)n * sizeof(double));
     memset(row(arm, COMMAND + 2), 0, (size_t)n * sizeof(double));
+    reach_from_command(arm);
 }
 
 /* The command where the arm is and how it moves (free drive: the arm leads, the command follows). */
@@ -124,11 +135,12 @@ static void set_mode(plem_arm *arm, int mode, int cause, uint64_t token, int det
     emit(arm, PLEM_EVENT_MODE_CHANGED, cause, previous, -1, detail, token, 0, 0, 0, 0);
 }
 
-/* Centre and half-width of joint i's range: an unlimited joint has centre 0 and half-width inf. */
-static void range_of(const plem_settings *s, int i, double *center, double *half) {
-    if (isfinite(s->min_position[i]) && isfinite(s->max_position[i])) {
-        *center = (s->min_position[i] + s->max_position[i]) / 2.0;
-        *half = (s->max_position[i] - s->min_position[i]) / 2.0;
+/* Centre and half-width of the range joint i may use (`reach`): an unlimited joint has centre 0 and half-width inf. */
+static void range_of(const plem_arm *arm, int i, double *center, double *half) {
+    double low = arm->reach[0][i], high = arm->reach[1][i];
+    if (isfinite(low) && isfinite(high)) {
+        *center = (low + high) / 2.0;
+        *half = (high - low) / 2.0;
     } else {
         *center = 0.0, *half = INFINITY;
     }
@@ -180,6 +192,7 @@ static void rebase(plem_arm *arm) {
     b->start_cycle = arm->active ? arm->active_start_cycle : 0;
     memcpy(b->hold_position, row(arm, COMMAND), (size_t)arm->settings.dof * sizeof(double));
     atomic_store_explicit(sequence, b->sequence + 1, memory_order_release);
+    reach_from_command(arm);
 }
 
 static void end_motion(plem_arm *arm, int outcome, int joint, double v0, double v1) {
@@ -266,7 +279,7 @@ static void supervise_measurement(plem_arm *arm, const plem_slab *slab) {
     double measure[4][PLEM_MAX_JOINTS], bound[4][PLEM_MAX_JOINTS];
     for (int i = 0; i < n; i++) {
         double center, half;
-        range_of(s, i, &center, &half);
+        range_of(arm, i, &center, &half);
         measure[0][i] = fabs(position[i] - arm->previous_position[i]);
         measure[1][i] = fabs(position[i] - center);
         measure[2][i] = fabs(velocity[i]);
@@ -538,7 +551,7 @@ static void check_command(plem_arm *arm, const plem_slab *slab) {
     double slack = 1.0 + s->command_tolerance, check[4][PLEM_MAX_JOINTS], bound[4][PLEM_MAX_JOINTS];
     for (int i = 0; i < n; i++) {
         double center, half;
-        range_of(s, i, &center, &half);
+        range_of(arm, i, &center, &half);
         check[0][i] = fabs(row(arm, COMMAND)[i] - center);
         check[1][i] = fabs(row(arm, COMMAND + 1)[i]);
         check[2][i] = fabs(row(arm, COMMAND + 2)[i]);

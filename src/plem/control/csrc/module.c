@@ -603,7 +603,7 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, power_resets), FIELD(plem_arm, power), FIELD(plem_arm, cycle), FIELD(plem_arm, mode),
     FIELD(plem_arm, fault_cause), FIELD(plem_arm, communication_ok), FIELD(plem_arm, have_previous),
     FIELD(plem_arm, braking), FIELD(plem_arm, work), FIELD(plem_arm, previous_position),
-    FIELD(plem_arm, previous_acceleration), FIELD(plem_arm, torque), FIELD(plem_arm, active),
+    FIELD(plem_arm, previous_acceleration), FIELD(plem_arm, torque), FIELD(plem_arm, reach), FIELD(plem_arm, active),
     FIELD(plem_arm, active_ended), FIELD(plem_arm, active_slot), FIELD(plem_arm, active_segments),
     FIELD(plem_arm, active_token), FIELD(plem_arm, active_start_cycle), FIELD(plem_arm, settle_deadline),
     FIELD(plem_arm, active_cursor), FIELD(plem_arm, active_has_path), FIELD(plem_arm, active_has_goal),

@@ -357,6 +357,8 @@ typedef struct {
     double previous_position[PLEM_MAX_JOINTS];
     double previous_acceleration[PLEM_MAX_JOINTS];
     double torque[PLEM_MAX_JOINTS];
+    double reach[2][PLEM_MAX_JOINTS];  /* lowest and highest position allowed: the limits, widened to where the
+                                          command was at the last basis (an arm outside its range may come back) */
     /* the running motion */
     int32_t active;                  /* a motion runs */
     int32_t active_ended;
