@@ -341,7 +341,7 @@ class Robot(PlanningCalls):
         point_count(len(trajectory.points))
 
         def plan(start: StartState) -> tuple[PolynomialMotion, str]:
-            timed = fit_to_limits(trajectory, self.limits, start, self.runtime.dt)
+            timed = fit_to_limits(trajectory, self.limits.reaching(start[0]), start, self.runtime.dt)
             return timed.motion, timed.note()
 
         return self._submit(plan, tolerances, "trajectory")
