@@ -163,6 +163,12 @@ def controllers_yaml(joints: list[str]) -> str:
             + "".join(f"      - {joint}\n" for joint in joints))
 
 
+def visual_mesh(uri: str) -> Mutation:
+    """A visual-only mesh on the base link (no collision shape uses it)."""
+    return replace(URDF, '<link name="${pfx}link0">  <!-- base -->',
+                   f'<link name="${{pfx}}link0">\n    <visual><geometry><mesh filename="{uri}"/></geometry></visual>')
+
+
 def srdf_insert(xml: str) -> Mutation:
     """Add elements to the SRDF right after the first group."""
     return replace(SRDF, "  </group>\n", "  </group>\n" + xml)
@@ -437,13 +443,13 @@ CASES = [
     Case("compat_not_semver", write(COMPAT, "1.0\n"), "compat.semver", ERROR, message={"why": "'1.0'"}),
     Case("compat_other_major", write(COMPAT, "2.0.0\n"), "compat.major", ERROR),
     Case("compat_newer_minor", write(COMPAT, "1.5.0\n"), "compat.minor_newer", WARNING),
-    # --- meshes
+    # --- meshes: a missing visual mesh leaves a part out of the view, a missing collision mesh disables planning
     Case("mesh_missing_file", replace(URDF, '<cylinder radius="0.075" length="0.0775"/>',
                                       '<mesh filename="package://indy7_v2_description/meshes/link0.stl"/>'),
-         "urdf.mesh_missing", ERROR, message={"summary": "meshes/link0.stl"}),
-    Case("mesh_missing_package", replace(URDF, '<cylinder radius="0.075" length="0.0775"/>',
-                                         '<mesh filename="package://indy_meshes/link0.stl"/>'),
-         "urdf.mesh_missing", ERROR, message={"summary": "indy_meshes"}),
+         "urdf.collision_mesh_missing", WARNING,
+         message={"summary": "Planning is disabled: 1 collision mesh not found", "why": "meshes/link0.stl"}),
+    Case("mesh_missing_package", visual_mesh("package://indy_meshes/link0.stl"), "urdf.mesh_missing", WARNING,
+         message={"summary": "indy_meshes", "what": "a visual mesh"}),
 ]
 
 

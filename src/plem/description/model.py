@@ -190,7 +190,8 @@ class Ros2ControlBlock:
 
 @dataclass
 class UrdfModel:
-    """A rendered URDF: links, joints in document order, the links' inertial data and its ros2_control blocks."""
+    """A rendered URDF: links, joints in document order, the links' inertial data and its ros2_control blocks;
+    `meshes` are every mesh reference (file name, line), `collision_meshes` those of `<collision>` (link, file name)."""
 
     name: str
     links: dict[str, int | None]
@@ -198,6 +199,7 @@ class UrdfModel:
     ros2_control: list[Ros2ControlBlock]
     meshes: list[tuple[str, int | None]] = field(default_factory=list)
     inertials: dict[str, Inertial] = field(default_factory=dict)
+    collision_meshes: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def actuated_joints(self) -> list[Joint]:
@@ -260,8 +262,10 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
                  if (inertial := link.find("inertial")) is not None}
     blocks = [_ros2_control(block) for block in root.findall("ros2_control")]
     meshes = [(mesh.get("filename") or "", source_line(mesh)) for mesh in root.iter("mesh")]
+    collision_meshes = [(link.get("name") or "", mesh.get("filename") or "") for link in root.findall("link")
+                        for mesh in link.findall("collision/geometry/mesh")]
     return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes,
-                     inertials=inertials)
+                     inertials=inertials, collision_meshes=collision_meshes)
 
 
 def _inertial(element: etree._Element) -> Inertial:

@@ -102,6 +102,8 @@ class ValidationReport:
     #: joint_limits.yaml as written.
     file_limits: dict[str, JointLimit] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: Why this robot cannot plan though it has an SRDF (a collision mesh is missing), or None.
+    planning_disabled: PlemError | None = None
 
     @cached_property
     def urdf_sources(self) -> XacroSources:
@@ -146,8 +148,8 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
         _check_urdf_values(report, urdf, source)
         _check_ros2_control(report, urdf, source)
         _check_limits_against_urdf(report, urdf)   # a file that loosens the URDF's limits never starts a robot
+        _check_meshes(report, urdf, source)        # a missing collision mesh disables planning at launch
     if stage >= Stage.FULL:
-        _check_meshes(urdf, source, found)
         _check_controllers(report, urdf)
         if report.srdf is not None and files.srdf is not None:
             _check_srdf_against_urdf(report, urdf, report.srdf, files.srdf)
@@ -648,12 +650,29 @@ def _report_removed(found: Findings, joint: Joint, hard: HardLimit, at: str, pat
                     "driver enforces the URDF's limit either way", file=path, line=line)
 
 
-def _check_meshes(urdf: UrdfModel, source: Path, found: Findings) -> None:
-    for uri, _ in urdf.meshes:
+def _check_meshes(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
+    """Missing meshes are warnings: a visual one only leaves a part out of the view; a collision one disables
+    planning for the robot (the planner checks collisions with it), and the rest of the robot runs."""
+    found, missing = report.findings, {}
+    for uri in dict.fromkeys(uri for uri, _ in urdf.meshes):
         try:
             resolve_package_uri(uri, base=source.parent)
         except PlemError as error:
-            found.add("urdf.mesh_missing", error, source)
+            missing[uri] = error
+    colliding = [(link, uri) for link, uri in urdf.collision_meshes if uri in missing]
+    for uri, problem in missing.items():
+        if all(uri != used for _, used in colliding):
+            found.warning("urdf.mesh_missing", problem.summary, what=f"{problem.what} (a visual mesh: the view "
+                          "leaves the part out)", why=problem.why, how=problem.how, file=source)
+    if colliding:
+        disabled = report.planning_disabled = PlemError(
+            f"Planning is disabled: {len(colliding)} collision mesh{'es' if len(colliding) > 1 else ''} not found",
+            what="every <collision> mesh of the URDF as a file: the planner checks collisions with them",
+            why="; ".join(f"link {link}: {missing[uri].why}" for link, uri in colliding),
+            how="add the files, fix their names, or add the folder of the package holding them to PLEM_PACKAGE_PATH; "
+                "until then the arm runs without the planner (as without an SRDF)")
+        found.warning("urdf.collision_mesh_missing", disabled.summary, what=disabled.what, why=disabled.why,
+                      how=disabled.how, file=source)
 
 
 def _read_mapping(path: Path | None, area: str, found: Findings) -> YamlDocument | None:

@@ -71,7 +71,7 @@ class RobotPlan:
     report: ValidationReport
     description: ResolvedDescription | None = None
     bridge_commands: bool = True
-    #: planner:= as given; the planner starts only when it is true and the package has an SRDF.
+    #: planner:= as given; the planner starts only when it is true, the package has an SRDF and its collision meshes.
     planner_wanted: bool = True
 
     @property
@@ -81,8 +81,8 @@ class RobotPlan:
 
     @property
     def planner(self) -> bool:
-        """Whether the launch starts this robot's planner."""
-        return self.planner_wanted and self.has_srdf
+        """Whether the launch starts this robot's planner (never when `report.planning_disabled` says why not)."""
+        return self.planner_wanted and self.has_srdf and self.report.planning_disabled is None
 
     @property
     def config(self) -> SerialArmConfig:
@@ -353,7 +353,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
 
     if bus == "ethercat":
         _interface_from_etherlab(resolved)
-    robot_name = arguments.get("robot_name") or package.name.removesuffix("_description")
+    robot_name = arguments.get("robot_name") or report.files.name.removesuffix("_description")
     plan = RobotPlan(arguments, resolved, package, arguments.get("urdf_file"), arguments.get("srdf_file"), bus,
                      robot_name, record, bridge, group, report, None, bridge_commands, planner)
     if generate:

@@ -118,6 +118,8 @@ class Supervisor:
             self.say(f"[{plan.robot_id}] {line}")
         for warning in plan.resolved.warnings:  # as `plem config show` warns
             self.say(f"[{plan.robot_id}] warning: {warning}")
+        if plan.planner_wanted and plan.has_srdf and plan.report.planning_disabled is not None:
+            self.say(f"[{plan.robot_id}] warning: " + plan.report.planning_disabled.log_text())
         if plan.bus == "ethercat_sim":
             self._start(plan, "ethercat_sim", critical=True)
             if self.stop_requested.is_set():
@@ -234,6 +236,8 @@ class Supervisor:
         if child is None:
             if not plan.has_srdf:
                 return "not started: no SRDF (add srdf/NAME.srdf to plan motions)"
+            if plan.report.planning_disabled is not None:
+                return f"not started: {plan.report.planning_disabled.summary} (see the warning above)"
             return self._off("planner", "planner")
         ready = child.ready
         objects = f", {ready['objects']} scene objects" if ready["objects"] else ""
@@ -339,4 +343,3 @@ def status_line(robot_id: str, client: RobotClient) -> str:
     if state.faulted and stats.get("fault_reason"):
         text += f"  fault: {stats['fault_reason']}"
     return text
-
