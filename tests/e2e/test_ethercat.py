@@ -378,7 +378,7 @@ def test_without_raw_socket_permission_the_fix_is_named(network: Network):
     assert "no permission to open" in errors and "CAP_NET_RAW" in errors and "setcap" in errors
 
 
-def test_one_launch_brings_up_the_virtual_network_and_the_real_master(home: Path, tmp_path: Path):
+def test_one_launch_brings_up_the_virtual_network_and_the_real_master_and_stops_cleanly(home: Path, tmp_path: Path):
     robot_id = new_robot_id()
     with launched(["bus:=ethercat_sim", "master_index:=42", f"robot_id:={robot_id}", "bridge:=false",
                    "record:=false"], [robot_id], tmp_path, clean_environment(home)) as launch, \
@@ -389,7 +389,14 @@ def test_one_launch_brings_up_the_virtual_network_and_the_real_master(home: Path
         target = [0.1, 0.1, -0.1, 0.2, 0.0, -0.2]
         client.move_joints(target).wait(30)
         assert np.allclose(client.state().position, target, atol=2e-4)
+        far = client.state().position.copy()
+        far[0] -= 2.0
+        client.move_joints(far)   # Ctrl-C at speed: stopping the arm within its limits takes the driver ~0.5 s
+        assert wait_until(lambda: abs(client.state().velocity[0]) > 1.0, 10)
         assert launch.stop() == 0, launch.describe()
+    # the driver stopped the arm and disabled the drives over the network, which went away only after the driver
+    stopping = launch.output.split("stopping:")[1]
+    assert "HOLD→IDLE" in stopping and "→FAULT" not in stopping, launch.describe()
     assert not Path("/sys/class/net/plemec42").exists()
 
 
