@@ -1,7 +1,8 @@
 """joint_limits.yaml: per-joint position, velocity, acceleration, jerk and effort limits (SI units).
 
 The URDF's `<limit>` values are hard limits: joint_limits.yaml may tighten them, never loosen or remove them.
-`tighten` gives the limits the driver enforces (the tighter of the two, whatever the file says);
+`tighten` gives the limits the driver enforces (the tighter of the two, whatever the file says, and the
+acceleration and jerk limits neither gives, derived: see `derive_missing`);
 `loosened` lists where the file tries to go beyond the URDF, which validation reports as errors.
 """
 
@@ -24,6 +25,13 @@ FLAGS = {"max_velocity": "has_velocity_limits", "max_acceleration": "has_acceler
          "max_jerk": "has_jerk_limits", "max_effort": "has_effort_limits"}
 KNOWN_KEYS = {"has_position_limits", "min_position", "max_position", *MAXIMA, *FLAGS.values()}
 UNITS = {"max_velocity": "rad/s", "max_acceleration": "rad/s²", "max_jerk": "rad/s³", "max_effort": "N·m"}
+#: A joint without max_acceleration gets the one that takes it from rest to its velocity limit in this time (s).
+FULL_SPEED_S = 0.5
+#: A joint without max_jerk gets the one that takes it from 0 to its acceleration limit in this time (s).
+FULL_ACCELERATION_S = 0.1
+#: Each limit plem derives when a package leaves it out: the limit it is derived from, and the time above.
+DERIVED_FROM = {"max_acceleration": ("max_velocity", FULL_SPEED_S),
+                "max_jerk": ("max_acceleration", FULL_ACCELERATION_S)}
 
 
 @dataclass(frozen=True)
@@ -40,6 +48,7 @@ class JointLimit:
     line: int | None = None
     lines: Mapping[str, int] = field(default_factory=dict, compare=False)  # line of each key in the file
     disabled: frozenset[str] = frozenset()  # the has_*_limits keys the file sets to false
+    derived: frozenset[str] = frozenset()  # the maxima plem derived because neither the file nor the URDF sets them
 
     def line_of(self, key: str) -> int | None:
         """The line of `key` in the joint's entry, or the entry's own line when the key is not written."""
@@ -83,8 +92,9 @@ HARD_LIMITS = (HardLimit("min_position", "lower", "has_position_limits", from_be
 
 
 def tighten(limit: JointLimit | None, joint: Joint) -> JointLimit:
-    """The limits the driver enforces on `joint`: each URDF `<limit>` value, or the joint_limits.yaml value where
-    that is stricter; limits the URDF does not set (acceleration, jerk) as the file gives them."""
+    """The limits the driver and the planner enforce on `joint`: each URDF `<limit>` value, or the joint_limits.yaml
+    value where that is stricter; limits the URDF does not set (acceleration, jerk) as the file gives them, else
+    derived (`derive_missing`)."""
     base = limit if limit is not None else JointLimit(joint.name)
     values: dict[str, Any] = {}
     for hard in HARD_LIMITS:
@@ -92,7 +102,40 @@ def tighten(limit: JointLimit | None, joint: Joint) -> JointLimit:
         if urdf is not None:
             own: float | None = getattr(base, hard.key)
             values[hard.key] = urdf if own is None else hard.tighter(own, urdf)
-    return replace(base, **values)
+    return derive_missing(replace(base, **values))
+
+
+def derive_missing(limit: JointLimit) -> JointLimit:
+    """`limit` with the acceleration and jerk limits it lacks derived, so that every motion is jerk-limited:
+    max_acceleration = max_velocity / FULL_SPEED_S and max_jerk = max_acceleration / FULL_ACCELERATION_S (the
+    proportions of the description package protocol's example limits). `derived` names what was derived; a joint
+    without a velocity limit gets no acceleration limit from it."""
+    values: dict[str, Any] = {}
+    for key, (source, seconds) in DERIVED_FROM.items():
+        base: float | None = values.get(source, getattr(limit, source))
+        if getattr(limit, key) is None and base is not None:
+            values[key] = base / seconds
+    return replace(limit, derived=limit.derived | frozenset(values), **values) if values else limit
+
+
+def derivation(key: str) -> str:
+    """How plem derives the limit `key` when a package leaves it out, in words (e.g. 'max_velocity / 0.5 s')."""
+    source, seconds = DERIVED_FROM[key]
+    return f"{source} / {seconds:g} s"
+
+
+def derived_limits_note(limits: Mapping[str, JointLimit]) -> str:
+    """One sentence stating the limits plem derived for these joints and their values ('' when none were)."""
+    parts = []
+    for key in DERIVED_FROM:
+        joints = [limit for limit in limits.values() if key in limit.derived]
+        if joints:
+            values = ", ".join(f"{limit.name} {getattr(limit, key):.4g}" for limit in joints)
+            parts.append(f"{key} = {derivation(key)} ({values} {UNITS[key]})")
+    if not parts:
+        return ""
+    return ("joint_limits.yaml and the URDF leave out some limits, so plem derives them and the driver and the planner "
+            "both enforce them: " + "; ".join(parts) + ". Add them to config/joint_limits.yaml to set your own")
 
 
 def loosened(limit: JointLimit, joint: Joint) -> list[tuple[HardLimit, float | None, float]]:
