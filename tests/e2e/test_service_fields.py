@@ -15,6 +15,7 @@ import pytest
 from plem.cli.app import run
 from plem.cli.ros_messages import to_yaml
 from plem.middleware import controller_manager, moveit, parameters
+from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.goals import FJT
 from plem.middleware.graph import Graph
 from plem.middleware.names import ActionNames
@@ -49,7 +50,7 @@ def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, lau
 def servers(launch: Launch) -> dict[str, str]:
     """Service type → one service of the launched robot that serves it, for every type of `served_types()`."""
     wanted = served_types()
-    node = Node()
+    node = Node(DiscoverySettings.from_environment(launch.env))   # module-scoped: before `same_domain` runs
     graph = Graph(node)
 
     def found(seen: Graph) -> dict[str, str]:

@@ -25,6 +25,8 @@ LIST_TIMEOUT_S = 1.5
 MAX_SECONDS = 30 * 24 * 3600
 #: The interface kinds a TYPE argument names, and the part of the type that holds what the command fills in.
 _KINDS = {"msg": ("message", ""), "srv": ("service", "_Request"), "action": ("action", "_Goal")}
+#: The services inside an action, whose types ROS 2 names pkg/action/Name_SendGoal and pkg/action/Name_GetResult.
+ACTION_SERVICES = ("_SendGoal", "_GetResult")
 
 
 def seconds(value: float | None, param: typer.CallbackParam) -> float | None:
@@ -55,13 +57,15 @@ def ros_name(name: str, kind: str) -> str:
 
 def interface_type(library: InterfaceLibrary, given: str, kind: str) -> str:
     """The full name (`pkg/KIND/Name`) of a TYPE argument of `kind` msg, srv or action; `pkg/Name` may leave the
-    kind out. A malformed name, one of another kind or one the library does not know is a usage error."""
+    kind out, and a service may be one of an action's (`pkg/action/Name_SendGoal`, as `plem service list -t`
+    shows them). A malformed name, one of another kind or one the library does not know is a usage error."""
     label, part = _KINDS[kind]
     tokens = given.split("/")
     if len(tokens) == 2:
         tokens.insert(1, kind)
     ros_type = "/".join(tokens)
-    if len(tokens) != 3 or tokens[1] != kind or not all(tokens):
+    of_action = kind == "srv" and tokens[1:2] == ["action"] and tokens[-1].endswith(ACTION_SERVICES)
+    if len(tokens) != 3 or (tokens[1] != kind and not of_action) or not all(tokens):
         raise UsageError(f"'{given}' is not a ROS 2 {label} type", what=f"a {label} type as pkg/{kind}/Name",
                          why=f"got '{given}'",
                          how=f"e.g. {_example(kind)}; `plem {_command(kind)} list -t` shows each one's type")
