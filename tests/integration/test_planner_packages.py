@@ -12,18 +12,22 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from plem.bridge.planning import PlannerLink
+from plem.control.limits import ArmLimits
 from plem.description.validate import validate_package
 from plem.errors import MoveItCode, PlanningError
 from plem.ipc.command_socket import listen, remove_own_socket
-from plem.planning.goals import PoseGoal
+from plem.planning.goals import NamedGoal, PoseGoal
+from plem.planning.planner import Planner
 from plem.planning.poses import Pose
 from plem.planning.protocol import goal_json
 from plem.planning.service import PlannerService
+from plem.robot.robot import home_position
 from tests.integration.packages import copy_builtin
-from tests.integration.test_planner import Arm
+from tests.integration.test_planner import CYCLE_S, Arm, failure
 
 Edit = Callable[[Path], None]
 
@@ -131,3 +135,54 @@ def test_a_request_that_trips_over_a_bug_is_answered_and_the_planner_serves_on(
     assert "TypeError" in caught.value.why and "answer request" in caught.value.summary
     monkeypatch.undo()
     assert link.request("describe")["joint_names"] == list(arm.joint_names)
+
+
+SRDF = "srdf/indy7_v2.srdf"
+HOME_POS = replace_in(SRDF, '<group_state name="home"', '<group_state name="HomePos"')  # indy-ros2's name
+KINOVA_HOME = replace_in(SRDF, '<group_state name="home"', '<group_state name="Home"')
+#: The SRDF's own `zero`, spelled otherwise and not at 0 rad: it wins over plem's every-joint-at-0.
+OWN_ZERO = replace_in(SRDF, '''<group_state name="zero" group="arm">
+    <joint name="joint0" value="0"/>''', '''<group_state name="Zero" group="arm">
+    <joint name="joint0" value="0.25"/>''')
+
+
+def test_names_match_the_srdf_exactly_then_ignoring_case_and_nothing_is_made_up(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    report = validate_package(edited(tmp_path, monkeypatch, HOME_POS, OWN_ZERO))
+    assert report.urdf is not None
+    joints = tuple(joint.name for joint in report.urdf.actuated_joints)
+    planner = Planner.for_package(report, joints, ArmLimits.from_joint_limits(report.limits, joints), CYCLE_S)
+    assert sorted(planner.named_states) == ["HomePos", "Zero"]
+    start = np.zeros(6)
+    start[2] = start[4] = -1.0
+    error = failure(lambda: planner.plan(start, NamedGoal("home")))
+    assert error.code == MoveItCode.INVALID_GOAL_CONSTRAINTS and "HomePos, Zero" in error.what
+    assert "group_state" in error.how
+    assert home_position(report, joints) is None  # the simulated arm then starts by its other rules
+    to_home_pos = planner.plan(start, NamedGoal("homepos"))
+    np.testing.assert_allclose(to_home_pos.trajectory.points[-1].positions, planner.named_states["HomePos"])
+    to_zero = planner.plan(start, NamedGoal("zero"))
+    assert to_zero.trajectory.points[-1].positions[0] == pytest.approx(0.25)
+
+
+def test_home_in_another_case_is_home_and_zero_is_every_joint_at_zero(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    report = validate_package(edited(tmp_path, monkeypatch, KINOVA_HOME, replace_in(
+        SRDF, '<group_state name="zero"', '<group_state name="HOME"')))
+    assert report.urdf is not None
+    joints = tuple(joint.name for joint in report.urdf.actuated_joints)
+    planner = Planner.for_package(report, joints, ArmLimits.from_joint_limits(report.limits, joints), CYCLE_S)
+    assert sorted(planner.named_states) == ["HOME", "Home", "zero"]
+    np.testing.assert_allclose(planner.named_states["zero"], np.zeros(6))
+    error = failure(lambda: planner.plan(np.zeros(6), NamedGoal("home")))
+    assert "Home, HOME differ from 'home' only in case" in error.why and "exactly" in error.how
+    moved = planner.plan(np.zeros(6), NamedGoal("Home"))
+    np.testing.assert_allclose(moved.trajectory.points[-1].positions, planner.named_states["Home"])
+    assert home_position(report, joints) is None  # ambiguous: no guess
+
+
+def test_the_simulated_arm_finds_home_as_plem_move_does(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    report = validate_package(edited(tmp_path, monkeypatch, KINOVA_HOME))
+    assert report.urdf is not None and report.srdf is not None
+    joints = tuple(joint.name for joint in report.urdf.actuated_joints)
+    assert home_position(report, joints) == tuple(report.srdf.poses(joints)["Home"])

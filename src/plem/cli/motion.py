@@ -22,7 +22,8 @@ if TYPE_CHECKING:
 
 Pose7 = tuple[float, float, float, float, float, float, float]
 ToOption = Annotated[str | None, typer.Option(
-    "--to", help="A named state (home, or the SRDF's group states) or q1,q2,... rad.", show_default=False)]
+    "--to", help="A named state (the SRDF's group states such as home, any case; zero: all joints at 0 rad) or "
+    "q1,q2,... rad.", show_default=False)]
 ToPoseOption = Annotated[Pose7 | None, typer.Option(
     "--to-pose", help="Tool pose: x y z qx qy qz qw (m, unit quaternion) in --frame.", show_default=False)]
 FrameOption = Annotated[str, typer.Option("--frame", help="Frame of --to-pose: a URDF link (default: the root).")]
@@ -136,9 +137,11 @@ def _run(guard: MotionGuard, found: Plan, timeout: float) -> None:
 
 
 def _joint_target(client: RobotClient, text: str) -> list[float]:
+    from plem.planning.named_states import resolve_state
+
     poses = client.channels.state.poses
-    if text in poses:
-        return poses[text]
+    if "," not in text:
+        return poses[resolve_state(text, poses)]
     try:
         return [float(value) for value in text.split(",")]
     except ValueError:

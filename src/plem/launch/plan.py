@@ -16,15 +16,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
+from plem.control.limits import ArmLimits
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.description.controllers import ControllerSet, read_controllers
 from plem.description.discover import locate_package, package_for_launch
 from plem.description.generate import ResolvedDescription, complete_description
+from plem.description.limits import derived_limits_note
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
-from plem.launch.arguments import DEFAULTS, model_default
+from plem.launch.arguments import DEFAULTS, initial_positions, model_default
+from plem.planning.named_states import with_zero
 from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
 from plem.recording.problems import refuse_unusable, write_problem
@@ -120,6 +123,16 @@ class RobotPlan:
         return arm_joint_names(self.config, urdf)
 
     @property
+    def initial_positions(self) -> tuple[float, ...] | None:
+        """Where the simulated arm starts (initial_positions:=); None for its own start (zero, home or mid-range)."""
+        text = self.arguments.get("initial_positions")
+        return None if text is None else initial_positions(text, self.bus, self.limits())
+
+    def limits(self) -> ArmLimits:
+        """The limits the driver enforces, in drive order."""
+        return ArmLimits.from_joint_limits(self.report.limits, self.joint_names)
+
+    @property
     def robot_description(self) -> str:
         """The URDF text the bridge publishes as robot_description and the recorder records with every segment."""
         return self.report.urdf_xml or ""
@@ -147,10 +160,9 @@ class RobotPlan:
                                  number("disk_threshold"), number("flight_recorder_seconds"))
 
     def poses(self, joint_names: tuple[str, ...]) -> dict[str, list[float]]:
-        """Named poses of the SRDF; 'home' defaults to every joint at 0 rad when the SRDF names none."""
-        poses = self.report.srdf.poses(joint_names) if self.report.srdf is not None else {}
-        poses.setdefault("home", [0.0] * len(joint_names))
-        return poses
+        """The named states clients find by name: the SRDF's group_states, and `zero` unless the SRDF has its own."""
+        return with_zero(self.report.srdf.poses(joint_names) if self.report.srdf is not None else {},
+                         len(joint_names))
 
     def generate_files(self, temp_root: Path | None = None) -> None:
         """Generate the optional description files the package lacks (into `description`), as the launch does."""
@@ -348,12 +360,19 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
     if report is not None and resolved is not None:
         _collected(errors, lambda: read_controllers(report.files.controllers, arm_joint_names(
             resolved.config, startup_urdf(report)[0]), resolved.config.cycle_time))
+        if "initial_positions" in arguments:
+            _collected(errors, lambda: initial_positions(arguments["initial_positions"], bus,
+                                                         ArmLimits.from_joint_limits(report.limits, arm_joint_names(
+                                                             resolved.config, startup_urdf(report)[0]))))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 
     if bus == "ethercat":
         _interface_from_etherlab(resolved)
     robot_name = arguments.get("robot_name") or report.files.name.removesuffix("_description")
+    derived = derived_limits_note(report.limits)
+    if derived:
+        resolved.warnings.append(derived)
     plan = RobotPlan(arguments, resolved, package, arguments.get("urdf_file"), arguments.get("srdf_file"), bus,
                      robot_name, record, bridge, group, report, None, bridge_commands, planner)
     if generate:

@@ -20,7 +20,8 @@ class JointGoal:
 
 @dataclass(frozen=True)
 class NamedGoal:
-    """A named state of the SRDF (group_state), such as 'home'."""
+    """A named state: an SRDF group_state such as 'home' (its own spelling, or one differing only in case), or
+    'zero' (see plem.planning.named_states)."""
 
     name: str
 

@@ -17,6 +17,7 @@ import pinocchio as pin
 from plem.control.kinematics import ArmDynamics, has_link, link_frame
 from plem.control.limits import ArmLimits
 from plem.control.spline import Spline
+from plem.control.trajectory import JointTrajectory
 from plem.description.model import SrdfModel, UrdfModel
 from plem.description.validate import ValidationReport
 from plem.errors import CommandRejected, MoveItCode, PlanningError
@@ -25,9 +26,11 @@ from plem.planning.collision import CollisionChecker
 from plem.planning.goals import Goal, NamedGoal, Plan, PlanOptions, PoseGoal
 from plem.planning.groups import PlanningGroup, read_groups
 from plem.planning.inverse_kinematics import IkResult, IkSolver
+from plem.planning.named_states import resolve_state, with_zero
 from plem.planning.parameterisation import parameterise, planning_limits, to_trajectory
 from plem.planning.paths import plan_path
 from plem.planning.poses import Pose
+from plem.planning.retiming import as_sent
 from plem.planning.scene import PlanningScene
 
 #: Planning attempts when the dense re-check finds a contact the planner's coarser checks missed.
@@ -59,8 +62,9 @@ class Planner:
                                 why=f"groups: {', '.join(srdf.groups) or 'none'}",
                                 how="add <group name=\"arm\"><chain base_link=... tip_link=.../></group> to the SRDF",
                                 code=MoveItCode.INVALID_GROUP_NAME)
-        self.named_states = {name: np.array(values) for name, values in srdf.poses(self.joint_names).items()}
-        self.named_states.setdefault("home", np.zeros(len(self.joint_names)))
+        #: The SRDF's group_states and `zero` (see plem.planning.named_states), in the arm's joint order.
+        self.named_states = {name: np.array(values) for name, values in
+                             with_zero(srdf.poses(self.joint_names), len(self.joint_names)).items()}
         self.scene = PlanningScene()
         self.urdf_xml = urdf_xml
         self.disabled_pairs = [(a, b) for a, b, _ in srdf.disabled_collisions]
@@ -233,6 +237,15 @@ class Planner:
         the limits and, when collisions are avoided, free of them."""
         options = options or PlanOptions()
         group = self.group(options.group)
+        unlimited = [name for name in group.joints
+                     if not np.isfinite(self.limits.max_velocity[self.joint_names.index(name)])]
+        if unlimited:
+            raise PlanningError(f"group {group.name} has joints without a velocity limit",
+                                what="a velocity limit for every joint of the group, to time plans within",
+                                why=f"no max_velocity for {', '.join(unlimited)} (neither the URDF's <limit velocity> "
+                                    "nor joint_limits.yaml gives one)",
+                                how="add has_velocity_limits: true and max_velocity to those joints in "
+                                    "config/joint_limits.yaml", code=MoveItCode.PLANNING_FAILED)
         q_start = self._start(start)
         self._sync_scene()
         if options.avoid_collisions:
@@ -299,13 +312,8 @@ class Planner:
         if isinstance(goal, PoseGoal):
             return self._pose_goals(goal, q_start, group, options, began)
         if isinstance(goal, NamedGoal):
-            if goal.name not in self.named_states:
-                raise PlanningError(f"unknown named state {goal.name!r}",
-                                    what=f"a group_state of the SRDF ({', '.join(self.named_states)})",
-                                    why=f"the SRDF names no state {goal.name!r} for every joint of the arm",
-                                    how="use one of the names listed, or add a <group_state> to the SRDF",
-                                    code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
-            positions = dict(zip(self.joint_names, self.named_states[goal.name], strict=True))
+            state = self.named_states[resolve_state(goal.name, self.named_states)]
+            positions = dict(zip(self.joint_names, state, strict=True))
         else:
             positions = goal.positions
         unknown = sorted(set(positions) - set(self.joint_names))
@@ -387,23 +395,24 @@ class Planner:
         """The path (rows in pinocchio's order) timed within the limits and re-checked densely."""
         limits = planning_limits(self.limits, options.velocity_scale, options.acceleration_scale)
         arm_states = np.array([self.arm.to_arm_order(q) for q in states])
-        motion = parameterise(arm_states, limits, self.cycle_time_s, straight=straight)
-        checked = self._recheck(motion, options.avoid_collisions)
-        trajectory = to_trajectory(motion)
+        trajectory = to_trajectory(parameterise(arm_states, limits, self.cycle_time_s, straight=straight))
+        motion, checked = self._recheck(trajectory, arm_states[0], options.avoid_collisions)
         length = float(np.linalg.norm(np.diff(arm_states, axis=0), axis=1).sum())
         plan = Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
         self.plans_made += 1
         self.latest_plan = plan
         return plan
 
-    def _recheck(self, motion: Spline, avoid_collisions: bool) -> int:
-        """Check every state the RT driver will command for the timed motion (one per control cycle) against the robot
-        and the scene, and the motion exactly against every limit."""
+    def _recheck(self, trajectory: JointTrajectory, start: np.ndarray, avoid_collisions: bool) -> tuple[Spline, int]:
+        """The motion the RT driver makes of the trajectory, read back as its command path reads it: checked to keep
+        every limit the core enforces as sent (so it runs unchanged, never re-timed), and every state it commands
+        (one per control cycle) checked against the robot and the scene. Returns it and the states checked."""
+        rest = np.zeros(len(start))
         try:
-            motion.check_limits(self.limits, self.cycle_time_s)
+            motion = as_sent(trajectory, self.limits, (start, rest, rest), self.cycle_time_s)
         except CommandRejected as error:
-            raise PlanningError("the timed plan breaks a limit", what="a plan within every limit", why=error.why,
-                                how="report this: plans are timed within the limits",
+            raise PlanningError("the timed plan breaks a limit", what="a plan within every limit the driver enforces",
+                                why=error.why, how="report this: plans are timed within the limits",
                                 code=MoveItCode.INVALID_MOTION_PLAN) from None
         times = np.append(np.arange(0.0, motion.duration, self.cycle_time_s), motion.duration)
         for t in times:
@@ -414,7 +423,7 @@ class Planner:
                                     why=f"at {t:.3f} s: " + ", ".join(f"{a} with {b}" for a, b in contacts),
                                     how="plan again; the planner retries this itself within its time",
                                     code=MoveItCode.INVALID_MOTION_PLAN)
-        return len(times)
+        return motion, len(times)
 
 
 def _always_free(values: np.ndarray) -> bool:

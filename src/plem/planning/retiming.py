@@ -92,10 +92,8 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
     """
     waypoints = _checked_waypoints(trajectory, limits, start)
     requested = float(waypoints.times[-1])
-    as_sent = Spline.through(waypoints)
     try:
-        as_sent.check_limits(limits, cycle_time_s)
-        return Timed(as_sent, requested)
+        return Timed(_as_sent(waypoints, limits, cycle_time_s), requested)
     except CommandRejected as refusal:
         reason = refusal.summary
     smooth = _smoothest(waypoints, limits, cycle_time_s)
@@ -114,6 +112,19 @@ def fit_to_limits(trajectory: JointTrajectory, limits: ArmLimits, start: StartSt
                                             "the limits", reason)
     return Timed(_stopping_at_points(waypoints, limits, cycle_time_s), requested,
                  "stopped at every point to stay on the path within the limits", reason)
+
+
+def as_sent(trajectory: JointTrajectory, limits: ArmLimits, start: StartState, cycle_time_s: float) -> Spline:
+    """The motion `trajectory` gives from `start` exactly as sent: what `fit_to_limits` runs unchanged. Raises
+    CommandRejected, naming the first limit it breaks, when it does not keep every limit (it would be re-timed)."""
+    return _as_sent(_checked_waypoints(trajectory, limits, start), limits, cycle_time_s)
+
+
+def _as_sent(waypoints: Waypoints, limits: ArmLimits, cycle_time_s: float) -> Spline:
+    """The spline through the waypoints as they are, checked against every limit (else CommandRejected)."""
+    spline = Spline.through(waypoints)
+    spline.check_limits(limits, cycle_time_s)
+    return spline
 
 
 def along_straight_lines(trajectory: JointTrajectory, limits: ArmLimits, start: StartState, cycle_time_s: float

@@ -49,6 +49,7 @@ from plem.ipc.motion_slab import MotionSlab
 from plem.ipc.request_bounds import point_count
 from plem.ipc.ring import SlotRing
 from plem.planning import fit_to_limits
+from plem.planning.named_states import find_state
 from plem.robot.config import SerialArmConfig
 from plem.robot.models import LARGE_JOINT_GEAR, MOTOR_ENCODER_COUNTS
 
@@ -84,9 +85,11 @@ def startup_urdf(report: ValidationReport) -> tuple[UrdfModel, str]:
 
 
 def home_position(report: ValidationReport, joint_names: Sequence[str]) -> tuple[float, ...] | None:
-    """The SRDF's `home` pose in the order of `joint_names`, when the package has one naming every joint."""
-    home = report.srdf.poses(joint_names).get("home") if report.srdf is not None else None
-    return None if home is None else tuple(home)
+    """The SRDF's `home` pose in the order of `joint_names`, when the package has one naming every joint (found as
+    `plem move --to home` finds it: exactly, else the one state named so in another case)."""
+    poses = report.srdf.poses(joint_names) if report.srdf is not None else {}
+    home = find_state("home", poses)
+    return None if home is None else tuple(poses[home])
 
 
 def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]:
