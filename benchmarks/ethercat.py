@@ -3,8 +3,9 @@ emulator and cyclictest.
 
 Usage: python benchmarks/ethercat.py [--soak-minutes 10] [--pairs 15] [--window 8] [--quick] [--bare-soak]
 Needs root (SCHED_FIFO, raw sockets, network namespaces) and gcc. Installs Debian's rt-tests when `cyclictest` is
-missing. --quick: a 1-minute soak and 3 pairs of 3 s windows (a smoke run). The full run takes about
-10 + 15 x (3 x 8 s + start-up) = 20 minutes.
+missing. --quick: a 1-minute soak and 3 pairs of 3 s windows (a smoke run); options given as well take precedence.
+--soak-minutes 0 leaves the soak out, --pairs 0 the pairs; a window lasts at least 1 s (cyclictest measures whole
+seconds). The full run takes about 10 + 15 x (3 x 8 s + start-up) = 20 minutes.
 
 What runs:
   network   one `plem ethercat simulate robot_type:=indy7_v2 master_index:=60` for the whole run: six emulated
@@ -144,22 +145,131 @@ def bare_window(program: Path, seconds: float) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def ratio(value: float, baseline: float) -> float:
+    """value / baseline, NaN without a baseline (a figure that measured 0)."""
+    return value / baseline if baseline else float("nan")
+
+
 def spread(values: list[float]) -> str:
-    return f"{statistics.median(values):.2f}x ({min(values):.2f}-{max(values):.2f})"
+    """The median of `values` with their range, over those that could be computed."""
+    known = [value for value in values if np.isfinite(value)]
+    if not known:
+        return "- (no baseline above 0)"
+    return f"{statistics.median(known):.2f}x ({min(known):.2f}-{max(known):.2f})"
 
 
-def main() -> None:
+#: The full run's options, and the smoke run's (--quick); options given on the command line take precedence.
+FULL = {"soak_minutes": 10.0, "pairs": 15, "window": 8.0}
+QUICK = {"soak_minutes": 1.0, "pairs": 3, "window": 3.0}
+MIN_WINDOW_S = 1.0
+
+
+def _number(text: str, kind: type, minimum: float, meaning: str) -> float:
+    """`text` as a `kind` at least `minimum`, or an argparse error saying what is accepted."""
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {meaning}") from None
+    if not np.isfinite(value) or value < minimum:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {meaning}")
+    return value
+
+
+def arguments(argv: list[str] | None = None) -> argparse.Namespace:
+    """The run's options, checked: every combination accepted here runs to its end."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--soak-minutes", type=float, default=10.0)
-    parser.add_argument("--pairs", type=int, default=15)
-    parser.add_argument("--window", type=float, default=8.0)
-    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--soak-minutes", type=lambda t: _number(t, float, 0.0, "minutes >= 0 (0: no soak)"),
+                        help=f"length of the soak, 0 for none (default {FULL['soak_minutes']:g})")
+    parser.add_argument("--pairs", type=lambda t: int(_number(t, int, 0, "a whole number >= 0 (0: no pairs)")),
+                        help=f"pairs of plem, bare and cyclictest windows, 0 for none (default {FULL['pairs']})")
+    parser.add_argument("--window", type=lambda t: _number(t, float, MIN_WINDOW_S, f"seconds >= {MIN_WINDOW_S:g}"),
+                        help=f"length of each window of a pair, s (default {FULL['window']:g})")
+    parser.add_argument("--quick", action="store_true", help="a smoke run: " + ", ".join(
+        f"--{name.replace('_', '-')} {value:g}" for name, value in QUICK.items()))
     parser.add_argument("--bare-soak", action="store_true", help="soak the bare C loop as long, after plem's")
-    args = parser.parse_args()
-    if args.quick:
-        args.soak_minutes, args.pairs, args.window = 1.0, 3, 3.0
+    args = parser.parse_args(argv)
+    for name, value in (QUICK if args.quick else FULL).items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+    if args.soak_minutes > 0 and args.soak_minutes * 60 < MIN_WINDOW_S:
+        parser.error(f"--soak-minutes {args.soak_minutes:g} is shorter than a second: give 0 (no soak) or more")
+    if args.soak_minutes == 0 and args.pairs == 0:
+        parser.error("nothing to measure with --soak-minutes 0 and --pairs 0: give either a soak or pairs")
+    if args.bare_soak and args.soak_minutes == 0:
+        parser.error("--bare-soak soaks the bare loop as long as --soak-minutes: give the soak's minutes")
+    return args
+
+
+def soak_run(env: dict[str, str], directory: Path, children: list[subprocess.Popen], network: subprocess.Popen,
+             minutes: float) -> None:
+    """plem's soak on the running network, printed with its targets."""
+    meter = launching.CpuMeter({"emulator": network.pid})
+    soak = plem_window(env, directory, children, minutes * 60)
+    emulator_cpu = meter.done()["emulator"]
+    print(f"soak ({minutes:g} min at 1 kHz, trajectory running): {soak['cycles']} cycles, "
+          f"frames lost {soak['lost']}, working-counter errors {soak['wkc_errors']}, overruns "
+          f"{soak['overruns']}, fault: {soak['fault'] or 'none'}", flush=True)
+    print(f"  exchange p50 {soak['exchange_p50']:.0f} µs, p99 {soak['exchange_p99']:.0f} µs, max "
+          f"{soak['exchange_max']:.0f} µs ({soak['exchange_samples']} exchanges); wake-up p99 "
+          f"{soak['latency_p99']:.0f} µs, p99.9 {soak['latency_p999']:.0f} µs; compute p99 "
+          f"{soak['compute_p99']:.0f} µs; emulator CPU {emulator_cpu:.0f} % of a core", flush=True)
+    print(f"  target 0 lost frames, 0 faults: {launching.verdict(soak['lost'] == 0 and not soak['fault'])}; "
+          f"compute p99 <= 20 µs: {launching.verdict(soak['compute_p99'] <= 20)}", flush=True)
+
+
+def bare_soak_run(program: Path, minutes: float) -> None:
+    """The bare C loop as long as plem's soak, on the same network, printed."""
+    bare = bare_window(program, minutes * 60)
+    print(f"bare soak ({minutes:g} min, holding): {bare['cycles']} cycles, bad cycles {bare['bad']}; exchange p50 "
+          f"{bare['exchange_p50']:.0f} µs, p99 {bare['exchange_p99']:.0f} µs, max {bare['exchange_max']:.0f} µs; "
+          f"wake-up p99 {bare['latency_p99']:.0f} µs", flush=True)
+
+
+def pairs_run(env: dict[str, str], directory: Path, children: list[subprocess.Popen], bare_program: Path,
+              cyclictest: str, pairs: int, window: float) -> None:
+    """`pairs` rotating pairs of plem, bare and cyclictest windows, each printed, then their medians."""
+    exchange50, exchange99, wake, compute = [], [], [], []
+    sides = ("plem", "bare", "cyclictest")
+    for pair in range(pairs):
+        results: dict[str, dict] = {}
+        for side in sides[pair % 3:] + sides[:pair % 3]:
+            if side == "plem":
+                results[side] = plem_window(env, directory, children, window)
+            elif side == "bare":
+                results[side] = bare_window(bare_program, window)
+            else:
+                run, _ = loop_latency.run_cyclictest(cyclictest, 1000, round(window))
+                results[side] = {"latency_p99": float(run.latency.p99)}
+        plem, bare, cyclic = results["plem"], results["bare"], results["cyclictest"]
+        exchange50.append(ratio(plem["exchange_p50"], bare["exchange_p50"]))
+        exchange99.append(ratio(plem["exchange_p99"], bare["exchange_p99"]))
+        wake.append(ratio(plem["latency_p99"], cyclic["latency_p99"]))
+        compute.append(plem["compute_p99"])
+        print(f"pair {pair + 1:2d}: exchange p50 plem {plem['exchange_p50']:.1f} / bare "
+              f"{bare['exchange_p50']:.1f} µs, p99 {plem['exchange_p99']:.1f} / {bare['exchange_p99']:.1f} µs "
+              f"(max {plem['exchange_max']:.0f} / {bare['exchange_max']:.0f}); wake-up p99 plem "
+              f"{plem['latency_p99']:.0f} / cyclictest {cyclic['latency_p99']:.0f} µs; compute p99 "
+              f"{plem['compute_p99']:.0f} µs; bad cycles plem {plem['lost'] + plem['wkc_errors']} bare "
+              f"{bare['bad']}", flush=True)
+    print(f"exchange p50 plem/bare: {spread(exchange50)}; p99: {spread(exchange99)}; target <= 1.1x: "
+          f"{launching.verdict(_median(exchange99) <= 1.1)}")
+    print(f"wake-up p99 plem/cyclictest: {spread(wake)}; target <= 1.1x: {launching.verdict(_median(wake) <= 1.1)}")
+    print(f"compute p99 (without the exchange): median {statistics.median(compute):.0f} µs "
+          f"({min(compute):.0f}-{max(compute):.0f}); target <= 20 µs: "
+          f"{launching.verdict(statistics.median(compute) <= 20)}")
+
+
+def _median(ratios: list[float]) -> float:
+    """The median of the ratios that could be computed (NaN, which meets no target, when none could)."""
+    known = [value for value in ratios if np.isfinite(value)]
+    return statistics.median(known) if known else float("nan")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run what the options ask for; 0 when it ran to the end, 130 when interrupted (Ctrl-C)."""
+    args = arguments(argv)
     machine = launching.begin_run()
-    cyclictest = loop_latency.ensure_cyclictest()
+    cyclictest = loop_latency.ensure_cyclictest() if args.pairs else ""
     print(f"machine: {machine}", flush=True)
     children: list[subprocess.Popen] = []
     with tempfile.TemporaryDirectory(prefix="plem-bench-ethercat-") as tmp:
@@ -167,57 +277,21 @@ def main() -> None:
         env = {**os.environ, "PLEM_HOME": str(directory / "home")}
         try:
             network = start_network(env, directory / "network.log", children)
-            meter = launching.CpuMeter({"emulator": network.pid})
-            soak = plem_window(env, directory, children, args.soak_minutes * 60)
-            emulator_cpu = meter.done()["emulator"]
-            print(f"soak ({args.soak_minutes:g} min at 1 kHz, trajectory running): {soak['cycles']} cycles, "
-                  f"frames lost {soak['lost']}, working-counter errors {soak['wkc_errors']}, overruns "
-                  f"{soak['overruns']}, fault: {soak['fault'] or 'none'}", flush=True)
-            print(f"  exchange p50 {soak['exchange_p50']:.0f} µs, p99 {soak['exchange_p99']:.0f} µs, max "
-                  f"{soak['exchange_max']:.0f} µs ({soak['exchange_samples']} exchanges); wake-up p99 "
-                  f"{soak['latency_p99']:.0f} µs, p99.9 {soak['latency_p999']:.0f} µs; compute p99 "
-                  f"{soak['compute_p99']:.0f} µs; emulator CPU {emulator_cpu:.0f} % of a core", flush=True)
-            print(f"  target 0 lost frames, 0 faults: {launching.verdict(soak['lost'] == 0 and not soak['fault'])}; "
-                  f"compute p99 <= 20 µs: {launching.verdict(soak['compute_p99'] <= 20)}", flush=True)
-            bare_program = build_bare(directory)
-            if args.bare_soak:
-                bare = bare_window(bare_program, args.soak_minutes * 60)
-                print(f"bare soak ({args.soak_minutes:g} min, holding): {bare['cycles']} cycles, bad cycles "
-                      f"{bare['bad']}; exchange p50 {bare['exchange_p50']:.0f} µs, p99 {bare['exchange_p99']:.0f} µs, "
-                      f"max {bare['exchange_max']:.0f} µs; wake-up p99 {bare['latency_p99']:.0f} µs", flush=True)
-            exchange50, exchange99, wake, compute = [], [], [], []
-            sides = ("plem", "bare", "cyclictest")
-            for pair in range(args.pairs):
-                results: dict[str, dict] = {}
-                for side in sides[pair % 3:] + sides[:pair % 3]:
-                    if side == "plem":
-                        results[side] = plem_window(env, directory, children, args.window)
-                    elif side == "bare":
-                        results[side] = bare_window(bare_program, args.window)
-                    else:
-                        run, _ = loop_latency.run_cyclictest(cyclictest, 1000, max(1, round(args.window)))
-                        results[side] = {"latency_p99": float(run.latency.p99)}
-                plem, bare, cyclic = results["plem"], results["bare"], results["cyclictest"]
-                exchange50.append(plem["exchange_p50"] / bare["exchange_p50"])
-                exchange99.append(plem["exchange_p99"] / bare["exchange_p99"])
-                wake.append(plem["latency_p99"] / cyclic["latency_p99"])
-                compute.append(plem["compute_p99"])
-                print(f"pair {pair + 1:2d}: exchange p50 plem {plem['exchange_p50']:.1f} / bare "
-                      f"{bare['exchange_p50']:.1f} µs, p99 {plem['exchange_p99']:.1f} / {bare['exchange_p99']:.1f} µs "
-                      f"(max {plem['exchange_max']:.0f} / {bare['exchange_max']:.0f}); wake-up p99 plem "
-                      f"{plem['latency_p99']:.0f} / cyclictest {cyclic['latency_p99']:.0f} µs; compute p99 "
-                      f"{plem['compute_p99']:.0f} µs; bad cycles plem {plem['lost'] + plem['wkc_errors']} bare "
-                      f"{bare['bad']}", flush=True)
-            print(f"exchange p50 plem/bare: {spread(exchange50)}; p99: {spread(exchange99)}; target <= 1.1x: "
-                  f"{launching.verdict(statistics.median(exchange99) <= 1.1)}")
-            print(f"wake-up p99 plem/cyclictest: {spread(wake)}; target <= 1.1x: "
-                  f"{launching.verdict(statistics.median(wake) <= 1.1)}")
-            print(f"compute p99 (without the exchange): median {statistics.median(compute):.0f} µs "
-                  f"({min(compute):.0f}-{max(compute):.0f}); target <= 20 µs: "
-                  f"{launching.verdict(statistics.median(compute) <= 20)}")
+            if args.soak_minutes:
+                soak_run(env, directory, children, network, args.soak_minutes)
+            if args.bare_soak or args.pairs:
+                bare_program = build_bare(directory)
+                if args.bare_soak:
+                    bare_soak_run(bare_program, args.soak_minutes)
+                if args.pairs:
+                    pairs_run(env, directory, children, bare_program, cyclictest, args.pairs, args.window)
+        except KeyboardInterrupt:
+            print("interrupted: stopping the launches and the virtual network", flush=True)
+            return 130
         finally:
             launching.stop_all(children)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
