@@ -326,6 +326,24 @@ def test_an_external_package_keeps_the_generated_arm_controller(tmp_path_factory
             external.close()
 
 
+def test_an_update_rate_above_the_loops_is_reported_as_the_loops_with_a_warning(
+        tmp_path_factory: pytest.TempPathFactory):
+    """update_rate: 2000 on a 1000 µs loop: list_controllers says 1000 Hz, and the launch says why and how to fix it."""
+    package = copy_builtin("indy7_v2", tmp_path_factory.mktemp("fast"))
+    controllers = package / "config" / "controllers.yaml"
+    controllers.write_text(controllers.read_text().replace("update_rate: 500", "update_rate: 2000"))
+    with launched_robot(tmp_path_factory, f"description_package:={package}", "cycle_time:=1000", ros=True) as launch:
+        fast = Robot(launch)
+        try:
+            fast.ready()
+            assert {controller.update_rate for controller in fast.manager.list_controllers().values()} == {1000}
+            warning = "update_rate 2000 Hz is above the loop's 1000 Hz"
+            assert wait_for(lambda: warning in launch.output + launch.errors, 10), launch.describe()
+            assert "HOW: set update_rate: 1000 (or less)" in launch.output + launch.errors
+        finally:
+            fast.close()
+
+
 def test_a_strict_switch_naming_an_unknown_controller_is_refused_and_changes_nothing(robot: Robot):
     robot.ready()
     manager = robot.manager
