@@ -22,11 +22,13 @@ from typing import Any
 import plem
 from plem.ipc.robot_description import description_path
 from plem.ipc.segment import SHM_DIRECTORY
+from plem.launch.startup import LIMIT_S
 from plem.recording.status import status_path
 from tests.conftest import ISOLATED_PREFIXES, TEST_DOMAIN_ID, fresh_domain
 from tests.e2e.cli import plem_executable
 
 READY_LINE = "Ctrl-C stops the arm"
+#: How long a launch may say nothing new before a wait for its output fails.
 READY_TIMEOUT_S = 60.0
 STOP_TIMEOUT_S = 30.0
 _DRIVER_LINE = re.compile(r"^robot (\S+) \(.*\n\s+rt_driver\s+running, pid (\d+)", re.MULTILINE)
@@ -141,14 +143,20 @@ class Launch:
         return f"plem launch {' '.join(self.arguments)}\n--- stdout\n{self.output}\n--- stderr\n{self.errors}"
 
     def wait_for(self, text: str, timeout: float = READY_TIMEOUT_S) -> None:
-        """Block until `text` appears on stdout; fails if the launch exits or the time runs out first."""
-        deadline = time.monotonic() + timeout
-        while text not in self.output:
+        """Block until `text` appears on stdout; fails if the launch exits first, or says nothing new for `timeout`
+        (a launch slowed by a busy machine keeps saying how far it got, so the wait follows it, up to `LIMIT_S`)."""
+        started = time.monotonic()
+        seen, quiet_since = "", started
+        while text not in (output := self.output):
+            now = time.monotonic()
+            if output != seen:
+                seen, quiet_since = output, now
             if self.process.poll() is not None and text not in self.output:
                 raise AssertionError(f"launch exited with {self.process.returncode} before {text!r}\n"
                                      + self.describe())
-            if time.monotonic() > deadline:
-                raise AssertionError(f"no {text!r} within {timeout} s\n" + self.describe())
+            if now - quiet_since > timeout or now - started > LIMIT_S:
+                raise AssertionError(f"no {text!r} after {now - started:.0f} s, {now - quiet_since:.0f} s of them "
+                                     "without output\n" + self.describe())
             time.sleep(0.05)
 
     def driver_pids(self) -> dict[str, int]:

@@ -5,15 +5,14 @@ from __future__ import annotations
 import json
 import logging
 import os
-import select
 import subprocess
 import sys
 import time
 
 from plem.errors import PlemError
 from plem.ipc.command_socket import remove_own_socket, socket_path
+from plem.launch.startup import first_line
 
-READY_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 3.0
 #: Restarts allowed within RESTART_WINDOW_S before the driver gives up on commands.
 MAX_RESTARTS = 5
@@ -44,18 +43,15 @@ class CommandServiceProcess:
         process = subprocess.Popen([sys.executable, "-m", "plem.launch.command_service", self.robot_id],
                                    stdout=subprocess.PIPE, text=True, env=env)
         self._process = process
-        stdout = process.stdout
-        assert stdout is not None  # opened with stdout=PIPE
-        readable, _, _ = select.select([stdout], [], [], READY_TIMEOUT_S)
-        line = stdout.readline() if readable else ""
-        announcement = json.loads(line) if line.startswith("{") else {}
+        first = first_line(process, f"the command service of robot '{self.robot_id}'", _log.warning)
+        announcement = json.loads(first.line) if first.line.startswith("{") else {}
         if not announcement.get("ready"):
             self.stop()
             error = announcement.get("error", {})
             raise CommandServiceFailed(
                 f"the command service of robot '{self.robot_id}' did not start: {error.get('summary', 'no answer')}",
                 what=error.get("what", f"a command service listening on {socket_path(self.robot_id)}"),
-                why=error.get("why", f"no ready line within {READY_TIMEOUT_S:g} s"),
+                why=error.get("why", first.why or f"it printed {first.line.strip()!r}"),
                 how=error.get("how", "see the messages above"))
 
     def keep_running(self) -> None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -24,13 +23,13 @@ from plem.errors import PlemError
 from plem.ipc.robot_description import SharedDescription, remove_description, share_description
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
+from plem.launch.startup import exit_description, first_line
 from plem.robot.config import RT_KERNEL_FLAG
 
 if TYPE_CHECKING:
     from plem.bridge.client import RobotClient, Stream
     from plem.control.events import Event
 
-READY_TIMEOUT_S = 120.0
 STOP_TIMEOUT_S = 20.0
 STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
@@ -59,10 +58,7 @@ class Child:
 
     def exit_description(self) -> str:
         """How the child ended: its exit code, or the signal that killed it."""
-        code = self.process.returncode
-        if code is not None and code < 0:
-            return f"killed by {signal.Signals(-code).name}"
-        return f"exited with code {code}"
+        return exit_description(self.process.returncode if self.process.returncode is not None else 0)
 
 
 class Supervisor:
@@ -151,32 +147,21 @@ class Supervisor:
         child.ready = self._await_ready(child)
 
     def _await_ready(self, child: Child) -> dict[str, Any]:
-        deadline = time.monotonic() + READY_TIMEOUT_S
-        stream = child.process.stdout
-        assert stream is not None  # started with stdout=PIPE
-        while time.monotonic() < deadline and not self.stop_requested.is_set():
-            readable, _, _ = select.select([stream], [], [], 0.2)
-            if not readable:
-                if child.process.poll() is not None:
-                    break
-                continue
-            line = stream.readline()
-            if not line:
-                break
-            announcement: dict[str, Any] = json.loads(line)
-            if announcement.get("ready"):
-                return announcement
-            error = announcement.get("error", {})
+        """The child's ready announcement; waits while it works (see `startup`), fails with its own error."""
+        first = first_line(child.process, child.label, self.say, self.stop_requested.is_set)
+        if self.stop_requested.is_set():
+            return {}
+        announcement: dict[str, Any] = json.loads(first.line) if first.line.startswith("{") else {}
+        if announcement.get("ready"):
+            return announcement
+        error = announcement.get("error", {})
+        if error:
             raise LaunchFailed(f"{child.label} could not start: {error.get('summary', 'unknown error')}",
                                what=error.get("what", "a running RT driver"), why=error.get("why", ""),
                                how=error.get("how", "see the messages above"))
-        if self.stop_requested.is_set():
-            return {}
-        child.process.poll()
-        raise LaunchFailed(f"{child.label} did not become ready",
-                           what=f"its loop running within {READY_TIMEOUT_S:.0f} s",
-                           why=child.exit_description() if child.process.returncode is not None else "no answer",
-                           how="see the messages above; rerun with fewer robots or a longer cycle_time")
+        raise LaunchFailed(f"{child.label} did not become ready", what="its ready announcement",
+                           why=first.why or f"it printed {first.line.strip()!r}",
+                           how="see the messages above; `plem doctor` checks the host")
 
     def _summary(self) -> None:
         for plan in self.plans:
