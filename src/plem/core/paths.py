@@ -145,8 +145,9 @@ def find_package(name: str, environ: Mapping[str, str] | None = None,
                  exists: Callable[[Path], bool] = is_file) -> Path:
     """The directory of the package package.xml names `name`, or a PackageNotFoundError that says where plem looked.
 
-    A folder carrying the name is tried first (the usual layout, and the only one of an install's share/); then
-    the packages below each search path entry by their declared names. `exists` answers whether a package.xml
+    In each search path entry a folder carrying the name comes first (the usual layout; an install's share/ names
+    its packages so, as ament's index does), then in a PLEM_PACKAGE_PATH entry the packages below it by their
+    declared names. `exists` answers whether a package.xml
     is there (a PackageReader's, when reading through one)."""
     pinned = _pinned.get().get(name)
     if pinned is not None:
@@ -155,7 +156,7 @@ def find_package(name: str, environ: Mapping[str, str] | None = None,
     workspaces = set(roots[:len(_plem_package_path(environ))])
     for root in roots:
         candidate = root if root.name == name else root / name
-        if exists(candidate / PACKAGE_MARKER) and declared_name(candidate) in (name, None):
+        if exists(candidate / PACKAGE_MARKER):  # as ament's index names an install's packages: by folder
             return candidate
         for folder in _packages_below(root) if root in workspaces else ():
             if declared_name(folder) == name:

@@ -271,7 +271,8 @@ def readme(name: str, dof: int, with_moveit: bool, launch: bool) -> str:
         lines.append("- `srdf/` and `config/kinematics.yaml` — planning group `arm` and IK settings")
     if launch:
         lines.append("- `launch/bringup.launch.py` — choose which components start")
-    lines += ["", "Check it with `plem validate " + name + "_description --strict`.", ""]
+    lines += ["", "Check it with `plem validate ./" + name + "_description --strict` in the folder holding it (or by "
+              "its name, `" + name + "_description`, once that folder is on PLEM_PACKAGE_PATH).", ""]
     return "\n".join(lines)
 
 
