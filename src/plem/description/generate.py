@@ -51,6 +51,9 @@ def _dump(data: dict[str, Any], header: str) -> str:
 TRAJECTORY_TYPE = "joint_trajectory_controller/JointTrajectoryController"
 BROADCASTER_TYPE = "joint_state_broadcaster/JointStateBroadcaster"
 FREE_DRIVE_TYPE = "wim_controller/FreeDriveController"
+#: The trajectory controller's name in a generated controllers.yaml, as the Description Package Protocol gives it
+#: (the built-in arms ship the configuration reference's file, which names it joint_trajectory_controller).
+GENERATED_TRAJECTORY = "arm_controller"
 
 
 def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:
@@ -59,10 +62,10 @@ def controllers_yaml(joints: list[str], cycle_time_us: int = 1000) -> str:
         "controller_manager": {"ros__parameters": {
             "update_rate": round(1_000_000 / cycle_time_us),
             "joint_state_broadcaster": {"type": BROADCASTER_TYPE},
-            "arm_controller": {"type": TRAJECTORY_TYPE},
+            GENERATED_TRAJECTORY: {"type": TRAJECTORY_TYPE},
             "free_drive_controller": {"type": FREE_DRIVE_TYPE},
         }},
-        "arm_controller": {"ros__parameters": {
+        GENERATED_TRAJECTORY: {"ros__parameters": {
             "type": TRAJECTORY_TYPE,
             "joints": list(joints),
             "command_interfaces": ["position"],
