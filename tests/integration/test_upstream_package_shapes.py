@@ -59,6 +59,20 @@ def test_joint_limits_with_xacro_unit_tags(tmp_path, monkeypatch):
     assert joint0.max_velocity == pytest.approx(math.radians(150))
 
 
+def test_joint_limits_as_ros2_parameters_file(tmp_path, monkeypatch):
+    """joint_limits.yaml as the parameters of a node, as ros2_control's joint_limits reads them."""
+    root = make_package(tmp_path, monkeypatch)
+    text = (root / LIMITS).read_text()
+    body = text[text.index("joint_limits:"):]
+    write(LIMITS, "/**:\n  ros__parameters:\n" + "".join(f"    {line}\n" for line in body.splitlines()))(root)
+    replace(LIMITS, "max_velocity: 2.617993878", "max_velocity: -1.0")(root)
+    report = run_validation(root)
+    (problem,) = report.findings.problems
+    assert problem.code == "limits.nonpositive" and problem.line == next(
+        n for n, line in enumerate((root / LIMITS).read_text().splitlines(), 1) if "max_velocity: -1.0" in line)
+    assert len(report.file_limits) == 6
+
+
 def test_unit_tag_that_is_no_number_names_its_line(tmp_path, monkeypatch):
     root = make_package(tmp_path, monkeypatch)
     replace(LIMITS, "max_velocity: 2.617993878", "max_velocity: !degrees fast")(root)
@@ -86,10 +100,12 @@ KINEMATICS_AS_PARAMETERS = """\
 """
 
 
-def test_kinematics_yaml_as_ros2_parameters_file(tmp_path, monkeypatch):
-    """UR's form: `/**: ros__parameters: robot_description_kinematics: GROUP:` validates and reaches the planner."""
+@pytest.mark.parametrize("node", ["/**", "move_group", "/arm_left/move_group"])
+def test_kinematics_yaml_as_ros2_parameters_file(tmp_path, monkeypatch, node):
+    """UR's form: `/**: ros__parameters: robot_description_kinematics: GROUP:` (or a node's name for `/**`)
+    validates and reaches the planner."""
     root = make_package(tmp_path, monkeypatch)
-    write(KINEMATICS, KINEMATICS_AS_PARAMETERS)(root)
+    write(KINEMATICS, KINEMATICS_AS_PARAMETERS.replace("/**:", f"{node}:"))(root)
     report = run_validation(root)
     assert report.findings.problems == [], describe(report.findings.problems)
     groups, warnings = read_groups(report.srdf, report.urdf, tuple(JOINTS), root / KINEMATICS)
