@@ -5,8 +5,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from plem.core.config.launch_args import parse_launch_arguments
+import numpy as np
+
+from plem.control.limits import ArmLimits
+from plem.core.config.launch_args import number_list, parse_launch_arguments, shown
 from plem.core.config.settings import Setting
+from plem.errors import ConfigError
 from plem.robot.config import ARM_SETTINGS
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
 
@@ -44,6 +48,9 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
                    "{robot_id}/ (frame_prefix:=none for none)"),
     LaunchArgument("start_enabled", "", "enable the drives and hold, trajectory controller active, once started; "
                    "default: true on bus:=mock and ethercat_sim, false on ethercat (docs/ros2.md)"),
+    LaunchArgument("initial_positions", "", "where the simulated arm starts (bus:=mock): comma-separated rad (m for "
+                   "a prismatic joint), one per joint in drive order, each inside its range; default: zero, else the "
+                   "SRDF's home, else the middle of each range"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
     LaunchArgument("planner", "true", "start the motion planner when the package has an SRDF (IK, collision "
@@ -72,6 +79,41 @@ DEFAULTS: dict[str, str] = {argument.name: argument.default for argument in LAUN
 def parse(tokens: Sequence[str]) -> dict[str, str]:
     """The launch arguments given on a command line (`name:=value` or `--name value`), defaults not filled in."""
     return parse_launch_arguments(tokens, NAMES)
+
+
+def initial_positions(text: str, bus: str, limits: ArmLimits) -> tuple[float, ...]:
+    """The simulated arm's start from `initial_positions:=` on `bus`: one number per joint, each inside its range
+    (`limits`); else a ConfigError saying what to give."""
+    names = ", ".join(limits.joint_names)
+    inside = np.clip(0.0, limits.min_position, limits.max_position)
+    middle = (limits.min_position + limits.max_position) / 2
+    example = ",".join(f"{value:.3g}" for value in np.where(np.isfinite(middle), middle, inside))
+
+    def refused(why: str, how: str) -> ConfigError:
+        return ConfigError(f"invalid launch argument initial_positions:={shown(text)}",
+                           what=f"{limits.dof} comma-separated positions (rad, m for a prismatic joint), one for each "
+                                f"of {names}, each inside its range, on bus:=mock", why=why, how=how)
+
+    if bus != "mock":
+        raise refused(f"bus:={bus} " + ("drives a real arm, which starts where it is" if bus == "ethercat" else
+                                        "starts its emulated arm at zero, the SRDF's home or the middle of each range"),
+                      "use bus:=mock to start the simulated arm elsewhere, or leave initial_positions out")
+    values = number_list(text)
+    if values is None:
+        raise refused(f"'{shown(text)}' is not a list of plain numbers (digits 0-9, an optional sign and point)",
+                      f"e.g. initial_positions:={example}")
+    if len(values) != limits.dof:
+        raise refused(f"{len(values)} number{'s' if len(values) != 1 else ''} for {limits.dof} joints",
+                      f"give one per joint ({names}), e.g. initial_positions:={example}")
+    position = np.array(values)
+    outside = [f"{name} = {value:g} is outside [{low:g}, {high:g}]" for name, value, low, high in
+               zip(limits.joint_names, position, limits.min_position, limits.max_position, strict=True)
+               if not low <= value <= high]
+    if outside:
+        raise refused("; ".join(outside), "give each joint a position inside its range (the URDF and "
+                      "config/joint_limits.yaml), or leave initial_positions out to start at zero, the SRDF's home "
+                      "or the middle of each range")
+    return tuple(values)
 
 
 def help_text() -> str:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
+from plem.control.limits import ArmLimits
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
 from plem.core.paths import BUILTIN_PACKAGES_DIR
@@ -25,7 +26,7 @@ from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.limits import derived_limits_note
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
-from plem.launch.arguments import DEFAULTS, model_default
+from plem.launch.arguments import DEFAULTS, initial_positions, model_default
 from plem.planning.named_states import with_zero
 from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
@@ -120,6 +121,16 @@ class RobotPlan:
         """The arm's joints in drive order."""
         urdf, _ = startup_urdf(self.report)
         return arm_joint_names(self.config, urdf)
+
+    @property
+    def initial_positions(self) -> tuple[float, ...] | None:
+        """Where the simulated arm starts (initial_positions:=); None for its own start (zero, home or mid-range)."""
+        text = self.arguments.get("initial_positions")
+        return None if text is None else initial_positions(text, self.bus, self.limits())
+
+    def limits(self) -> ArmLimits:
+        """The limits the driver enforces, in drive order."""
+        return ArmLimits.from_joint_limits(self.report.limits, self.joint_names)
 
     @property
     def robot_description(self) -> str:
@@ -349,6 +360,10 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
     if report is not None and resolved is not None:
         _collected(errors, lambda: read_controllers(report.files.controllers, arm_joint_names(
             resolved.config, startup_urdf(report)[0]), resolved.config.cycle_time))
+        if "initial_positions" in arguments:
+            _collected(errors, lambda: initial_positions(arguments["initial_positions"], bus,
+                                                         ArmLimits.from_joint_limits(report.limits, arm_joint_names(
+                                                             resolved.config, startup_urdf(report)[0]))))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 

@@ -40,7 +40,7 @@ def _bus(plan: RobotPlan) -> IBus | None:
     if plan.bus == "mock":
         from plem.fieldbus.mock import MockBus
 
-        return MockBus(plan.config.dof)
+        return MockBus(plan.config.dof, initial_positions=plan.initial_positions)
     return None  # the builder opens the EtherCAT master (bus:=ethercat, or the virtual network's)
 
 

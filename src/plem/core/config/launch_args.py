@@ -1,7 +1,7 @@
 """Launch-style arguments: `name:=value` as `ros2 launch` takes them, plus `--name value` and `--name=value`.
 
-Their numbers are plain ASCII decimals (`whole_number`, `decimal_number`), their paths may start with ~ or
-~user (`check_home`); `shown` quotes a value in a message.
+Their numbers are plain ASCII decimals (`whole_number`, `decimal_number`, `number_list`), their paths may start
+with ~ or ~user (`check_home`); `shown` quotes a value in a message.
 """
 
 from __future__ import annotations
@@ -75,6 +75,7 @@ def parse_launch_arguments(tokens: Sequence[str], known: Collection[str]) -> dic
 #: other scripts' digits, '1_000', '1e3', 'nan' or 'inf'), at most 18 digits on each side of the point.
 _WHOLE = re.compile(r"[0-9]{1,18}")
 _DECIMAL = re.compile(r"[0-9]{1,18}(?:\.[0-9]{0,18})?|\.[0-9]{1,18}")
+_SIGNED = re.compile(r"[+-]?(?:[0-9]{1,18}(?:\.[0-9]{0,18})?|\.[0-9]{1,18})")
 #: The longest part of a value quoted in a message.
 SHOWN_CHARACTERS = 60
 
@@ -87,6 +88,13 @@ def whole_number(text: str) -> int | None:
 def decimal_number(text: str) -> float | None:
     """`text` as a finite number written with ASCII digits and at most one point ('2.5', '50'), else None."""
     return float(text) if _DECIMAL.fullmatch(text) else None
+
+
+def number_list(text: str) -> list[float] | None:
+    """`text` as comma-separated numbers, each with an optional sign, ASCII digits and at most one point
+    ('0, -1.57,0.5'), else None."""
+    items = [item.strip() for item in text.split(",")]
+    return [float(item) for item in items] if all(_SIGNED.fullmatch(item) for item in items) else None
 
 
 def shown(text: str) -> str:
