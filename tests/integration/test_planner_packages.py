@@ -9,14 +9,16 @@ from __future__ import annotations
 import threading
 import uuid
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from plem.bridge.planning import PlannerLink
 from plem.control.limits import ArmLimits
+from plem.description.limits import derived_limits_note
 from plem.description.validate import validate_package
 from plem.errors import MoveItCode, PlanningError
 from plem.ipc.command_socket import listen, remove_own_socket
@@ -24,6 +26,7 @@ from plem.planning.goals import NamedGoal, PoseGoal
 from plem.planning.planner import Planner
 from plem.planning.poses import Pose
 from plem.planning.protocol import goal_json
+from plem.planning.retiming import fit_to_limits
 from plem.planning.service import PlannerService
 from plem.robot.robot import home_position
 from tests.integration.packages import copy_builtin
@@ -186,3 +189,60 @@ def test_the_simulated_arm_finds_home_as_plem_move_does(tmp_path: Path, monkeypa
     assert report.urdf is not None and report.srdf is not None
     joints = tuple(joint.name for joint in report.urdf.actuated_joints)
     assert home_position(report, joints) == tuple(report.srdf.poses(joints)["Home"])
+
+
+def without(*keys: str, joints: tuple[str, ...] = ()) -> Edit:
+    """An edit dropping `keys` (and their has_*_limits switches) from joint_limits.yaml: for `joints`, else all."""
+    def edit(root: Path) -> None:
+        path = root / "config" / "joint_limits.yaml"
+        document = yaml.safe_load(path.read_text())
+        for name, entry in document["joint_limits"].items():
+            if not joints or name in joints:
+                for key in keys:
+                    entry.pop(key, None)
+                    entry.pop(f"has_{key.removeprefix('max_')}_limits", None)
+        path.write_text(yaml.safe_dump(document, sort_keys=False))
+    return edit
+
+
+@pytest.mark.parametrize("left_out", [("max_jerk",), ("max_acceleration", "max_jerk")], ids="+".join)
+def test_limits_a_package_leaves_out_are_derived_stated_and_kept_by_every_plan(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, left_out: tuple[str, ...]) -> None:
+    """Planned with the limits the core enforces, a plan runs exactly as sent: the command path neither slows nor
+    smooths it (without max_jerk, plans were re-timed 1.6x by the driver while saying every limit was kept)."""
+    report = validate_package(edited(tmp_path, monkeypatch, without(*left_out)))
+    arm = Arm(report)
+    limits = arm.limits
+    acceleration = limits.max_velocity / 0.5 if "max_acceleration" in left_out else np.full(6, 3.0)
+    np.testing.assert_allclose(limits.max_acceleration, acceleration)
+    np.testing.assert_allclose(limits.max_jerk, acceleration / 0.1)
+    warnings = [problem for problem in report.findings.warnings if problem.code == "limits.incomplete"]
+    assert len(warnings) == 6
+    assert f"max_jerk {acceleration[0] / 0.1:.4g} rad/s³ (max_acceleration / 0.1 s)" in warnings[0].how
+    assert ("max_acceleration 5.236 rad/s² (max_velocity / 0.5 s)" in warnings[0].how) == (len(left_out) == 2)
+    note = derived_limits_note(report.limits)
+    assert "max_jerk = max_acceleration / 0.1 s (joint0 " in note and "config/joint_limits.yaml" in note
+
+    start = np.array([0.5, -1.0, 1.0, 0.3, 0.2, 0.1])
+    rest = np.zeros(6)
+    pose = arm.tool(arm.home)
+    plans = [arm.planner.plan(start, NamedGoal("home")), arm.planner.plan(start, PoseGoal(pose)),
+             arm.planner.cartesian(arm.home, [Pose((pose.position[0], pose.position[1], pose.position[2] - 0.2),
+                                                   pose.orientation)])]
+    for plan, begin in zip(plans, (start, start, arm.home), strict=True):
+        assert "every limit kept" in plan.summary()
+        timed = fit_to_limits(plan.trajectory, limits, (begin, rest, rest), CYCLE_S)
+        assert timed.change == "", timed.note()
+        assert timed.motion.duration == pytest.approx(plan.duration_s, abs=1e-9)
+
+
+def test_a_group_joint_without_a_velocity_limit_cannot_be_planned_for() -> None:
+    indy7 = Arm(validate_package("indy7_v2_description"))
+    velocities = indy7.limits.max_velocity.copy()
+    velocities[2] = np.inf
+    report = indy7.report
+    assert report.urdf is not None and report.srdf is not None and report.urdf_xml is not None
+    planner = Planner(report.urdf_xml, report.urdf, report.srdf, indy7.joint_names,
+                      replace(indy7.limits, max_velocity=velocities), CYCLE_S)
+    error = failure(lambda: planner.plan(indy7.home, NamedGoal("zero")))
+    assert "joint2" in error.why and "max_velocity" in error.how and "joint_limits.yaml" in error.how
