@@ -36,6 +36,10 @@ class PlemError(Exception):
             f"HOW: {_indent_continuation(self.how)}"
         )
 
+    def log_text(self) -> str:
+        """The rendered error without its `ERROR: ` label, for a log line whose format names the level already."""
+        return self.render().removeprefix("ERROR: ")
+
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready form for `--format json` output."""
         return {

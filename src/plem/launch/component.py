@@ -34,7 +34,7 @@ def run_component(name: str, body: Callable[[dict[str, str], threading.Event], N
         body(json.loads(argv[0]), stop)
     except PlemError as error:
         if _announced.is_set():
-            logging.getLogger(f"plem.{name}").error("%s", error.render())
+            logging.getLogger(f"plem.{name}").error("%s", error.log_text())
         else:
             announce({"ready": False, "error": error.to_dict()})
         return 1

@@ -4,7 +4,9 @@
 `python -m plem.launch.ros_bridge '<launch arguments as JSON>'`. It runs at normal priority: it only
 reads shared memory and sends commands to the robot's command service, so its death or slowness never
 moves or stalls the arm. With `bridge_commands:=false` it only publishes: it creates no command
-endpoints and sends no command. It exits when the driver's heartbeat stops.
+endpoints and sends no command. It exits when the driver's heartbeat stops: with an error when the driver
+went away on its own, quietly when the launch is stopping (`plem launch` signals every component at once, and
+the driver may end before the bridge has seen its own signal).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import sys
 import threading
 import time
 
-from plem.bridge.client import connect
+from plem.bridge.client import DriverGone, connect
 from plem.description.hardware import driven_block
 from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
@@ -26,6 +28,8 @@ HARDWARE_PLUGIN = "hardware/HardwareInterface"
 #: How often the bridge looks for new cycles; rt_raw is published in order, in batches of about this much.
 PUMP_PERIOD_S = 0.001
 LIVENESS_PERIOD_S = 0.5
+#: How long a bridge whose driver is gone waits for its own stop signal before it calls the driver's end an error.
+SHUTDOWN_GRACE_S = 5.0
 
 
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:
@@ -49,6 +53,9 @@ def serve(arguments: dict[str, str], stop: threading.Event) -> None:
                 client.live_state()
                 next_check = time.monotonic() + LIVENESS_PERIOD_S
             time.sleep(PUMP_PERIOD_S)
+    except DriverGone:
+        if not stop.wait(SHUTDOWN_GRACE_S):   # not the launch stopping: the driver ended on its own
+            raise
     finally:
         stop.set()
         if commands is not None:

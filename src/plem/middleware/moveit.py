@@ -185,7 +185,7 @@ class MoveItServices:
         try:
             fields = handle(request)
         except PlemError as error:
-            _log.warning("%s: %s", name, error.render())
+            _log.warning("%s: %s", name, error.log_text())
             fields = fail(error_code(self.library, error))
         except Exception as error:  # noqa: BLE001 - a request that trips over a bug is answered, not dropped
             _log.error("%s failed (%s: %s)", name, type(error).__name__, error)
