@@ -5,13 +5,14 @@ The profile model (pydantic) is imported inside the commands so other commands s
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from plem.cli.output import new_table, print_json, stdout
+from plem.cli.output import new_table, print_json, print_warnings, stdout
 from plem.core.config.settings import parse_int_list
 from plem.errors import PlemError, ProfileError, UsageError
 from plem.robot.config import SUPPORTED_DOF
@@ -40,7 +41,8 @@ def create(
     offsets: Annotated[str, typer.Option("--offsets", help="Comma-separated encoder offsets, one per joint.")],
     dof: Annotated[int | None, typer.Option("--dof", help="Expected number of joints (6 or 7).")] = None,
     date: Annotated[str | None, typer.Option("--date", help="ISO 8601 time; default now (UTC).")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Replace an existing, different profile.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing, different profile (the old file is "
+                                        "kept beside it as a .bak).")] = False,
 ) -> None:
     """Create (atomically) the profile of one robot unit."""
     from plem.robot.profile import ProfileExists, RobotProfile
@@ -63,7 +65,7 @@ def create(
     profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=date or _now())
     path = RobotProfile.default_path(serial)
     if force:
-        profile.save(path)
+        _replace(profile, path)
     else:
         try:
             profile.save(path, exclusive=True)
@@ -98,22 +100,80 @@ def calibrate(
     serial: Annotated[str, typer.Option("--serial", help="Serial of the robot unit, e.g. PE07I7E0E001.")],
     robot_id: Annotated[str | None, typer.Option("--robot-id", help="Running robot to read (default: "
                                                  "$PLEM_ROBOT_ID, else indy).", show_default=False)] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing profile (the old file is kept beside "
+                                        "it as a .bak).")] = False,
 ) -> None:
-    """Read the raw encoders of a running arm at its home pose and save their negation as its offsets."""
+    """Read the raw encoders of a running arm standing at its zero pose (every joint on its zero mark, where it
+    must read 0 rad; not the SRDF's home) and save their negation as the unit's offsets."""
+    from plem.robot.profile import RobotProfile
+
+    path = RobotProfile.default_path(serial)
+    old = _load_or_none(path) if path.exists() else None
+    if path.exists() and not force:
+        raise ProfileError(
+            f"Profile {serial} already exists",
+            what="a new profile, or --force to replace a calibration (the old file is then kept as a backup)",
+            why=f"{path} exists" + (f" with offsets {old.joint_offsets}" if old else " (it cannot be read)"),
+            how=f"inspect it with `plem profile show {serial}`; rerun with --force to calibrate again")
+    reading = _read_encoders(robot_id)
+    offsets = [-raw for raw in reading.raw]
+    stdout.print(f"Calibrating {serial} from robot {reading.robot_id}. It assumes the arm stands at its zero pose: "
+                 "every joint on its zero mark, the pose that must read 0 rad (the configuration reference's "
+                 "\"known zero position\"; not the SRDF's home).", markup=False)
+    near = _named_state_near(reading)
+    if near:
+        print_warnings([f"by its current offsets the arm stands at the SRDF's {near!r}, not at 0 rad: these "
+                        f"offsets make that pose read 0 rad. If it is not on its zero marks, move every joint "
+                        f"there (e.g. in free drive: `plem mode free_drive --robot-id {reading.robot_id}`) and "
+                        f"calibrate again with --force"])
+    table = new_table("Encoders now and the offsets that make this pose read 0 rad", "joint", "raw counts",
+                      "reads now rad", "old offset", "new offset")
+    before = old.joint_offsets if old is not None and len(old.joint_offsets) == len(offsets) else reading.offsets
+    for name, raw, position, earlier, new in zip(reading.joint_names, reading.raw, reading.position, before,
+                                                 offsets, strict=True):
+        table.add_row(name, str(raw), f"{position:+.4f}", str(earlier), str(new))
+    stdout.print(table)
+    profile = RobotProfile(robot_serial=serial, joint_offsets=offsets, profile_date=_now())
+    if old is not None or path.exists():
+        _replace(profile, path)
+    else:
+        profile.save(path, exclusive=True)
+    stdout.print(f"Saved {path}. Launch with robot_serial:={serial} to use these offsets.", markup=False)
+
+
+def _replace(profile: RobotProfile, path: Path) -> None:
+    """Save `profile` over `path`, keeping the old file as a backup, and say where the backup is."""
+    backup = profile.replace(path)
+    if backup is not None:
+        stdout.print(f"Kept the previous profile as {backup}", markup=False)
+
+
+@dataclass(frozen=True)
+class _Encoders:
+    """One reading of a resting arm: its raw counts, the offsets it runs with and the positions they give."""
+
+    robot_id: str
+    joint_names: tuple[str, ...]
+    raw: list[int]
+    offsets: list[int]
+    position: list[float]
+    poses: dict[str, list[float]]
+
+
+def _read_encoders(robot_id: str | None) -> _Encoders:
+    """The raw encoder counts of a running arm at rest (from the driver's next statistics record)."""
     import time
 
     from plem.bridge.client import connect
-    from plem.robot.profile import RobotProfile
 
-    client = connect(robot_id)
-    try:
+    with connect(robot_id) as client:
         state = client.live_state()
         moving = [name for name, v in zip(client.joint_names, state.velocity, strict=True)
                   if abs(v) > CALIBRATION_STANDSTILL]
         if moving or state.mode.name == "TRAJECTORY":
             raise ProfileError(
                 f"robot {client.robot_id} is moving: calibration needs the arm at rest",
-                what="the arm standing still at its home pose (every joint at its mechanical zero)",
+                what="the arm standing still at its zero pose (every joint on its zero mark)",
                 why=f"mode {state.mode.name.lower()}" + (f", moving: {', '.join(moving)}" if moving else ""),
                 how=f"wait for the motion to end (`plem state --robot-id {client.robot_id}`), then calibrate again")
         since = time.monotonic_ns()
@@ -127,21 +187,22 @@ def calibrate(
                                what="the RT driver's statistics with raw encoder counts",
                                why="no statistics record arrived within "
                                    f"{CALIBRATION_WAIT_S:g} s", how="check that its `plem launch` runs")
-        offsets = [-int(raw) for raw in stats["encoders"]]
-        previous = [int(x) for x in stats["joint_offsets"]]
-    finally:
-        client.close()
-    path = RobotProfile.default_path(serial)
-    old = _load_or_none(path) if path.exists() else None
-    profile = RobotProfile(robot_serial=serial, joint_offsets=offsets, profile_date=_now())
-    profile.save(path)
-    table = new_table(f"Calibrated {serial} from robot {client.robot_id}", "joint", "raw counts", "old offset",
-                      "new offset")
-    before = old.joint_offsets if old is not None and len(old.joint_offsets) == len(offsets) else previous
-    for name, new, earlier in zip(client.joint_names, offsets, before, strict=True):
-        table.add_row(name, str(-new), str(earlier), str(new))
-    stdout.print(table)
-    stdout.print(f"Saved {path}. Launch with robot_serial:={serial} to use these offsets.", markup=False)
+        return _Encoders(client.robot_id, client.joint_names, [int(raw) for raw in stats["encoders"]],
+                         [int(x) for x in stats["joint_offsets"]], client.live_state().position.tolist(),
+                         {name: list(values) for name, values in client.channels.state.poses.items()})
+
+
+#: How close (rad, every joint) the arm must be to a named state of the SRDF for calibration to warn about it.
+NAMED_STATE_NEAR_RAD = 0.01
+
+
+def _named_state_near(reading: _Encoders) -> str | None:
+    """The SRDF state other than all zeros that the arm stands at by its current offsets, if any."""
+    for name, values in reading.poses.items():
+        if any(abs(v) > NAMED_STATE_NEAR_RAD for v in values) and all(
+                abs(v - q) <= NAMED_STATE_NEAR_RAD for v, q in zip(values, reading.position, strict=False)):
+            return name
+    return None
 
 
 def _load_or_none(path: Path) -> RobotProfile | None:

@@ -6,7 +6,7 @@ import json
 import os
 import sys
 from collections.abc import Mapping
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -134,6 +134,27 @@ class RobotProfile(BaseModel):
                 why=f"{error.filename or target}: {error.strerror or error}",
                 how=f"make {target.parent} a folder you can write to, or export PLEM_HOME=/path/to/a/writable/folder",
             ) from None
+
+    def replace(self, path: str | os.PathLike[str]) -> Path | None:
+        """Save over the profile at `path`, keeping the file that was there beside it as
+        `<serial>.json.<UTC time>.bak` (not a profile to `plem profile list`); the backup's path, None when
+        there was no file to keep."""
+        target = Path(path).expanduser()
+        backup = None
+        if target.exists():
+            stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S.%fZ")
+            backup = target.with_name(f"{target.name}.{stamp}.bak")
+            try:
+                write_new(backup, target.read_bytes(), mode=PROFILE_MODE)
+            except OSError as error:
+                raise ProfileError(
+                    f"Cannot keep a backup of profile {target}",
+                    what=f"a copy of the old profile beside it ({backup.name}) before it is replaced",
+                    why=f"{error.filename or backup}: {error.strerror or error}",
+                    how=f"make {target.parent} a folder you can write to, or move {target} away yourself",
+                ) from None
+        self.save(target)
+        return backup
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> RobotProfile:
