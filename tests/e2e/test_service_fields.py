@@ -90,6 +90,19 @@ def test_switch_controller_takes_its_own_timeout_field(servers: dict[str, str], 
     assert "timeout=builtin_interfaces.msg.Duration(sec=2, nanosec=0)" in output and "ok: true" in output, output
 
 
+def test_a_refused_hardware_state_change_prints_its_reason_from_rosout(launch: Launch, servers: dict[str, str],
+                                                                       capsys: pytest.CaptureFixture[str]):
+    service_type = "controller_manager_msgs/srv/SetHardwareComponentState"
+    code, output = call(capsys, servers[service_type], service_type,
+                        "{name: indy7_hardware, target_state: {id: 3, label: active}}")
+    assert code == 0 and "ok: false" in output, output
+    assert (f"/rosout [{launch.robot_id}.controller_manager] WARN: set_hardware_component_state failed: unknown "
+            "hardware component 'indy7_hardware' (this robot has 'indy7_v2_hardware')") in output, output
+    code, output = call(capsys, servers[service_type], service_type,   # the name docs/ros2.md gives
+                        "{name: indy7_v2_hardware, target_state: {id: 3, label: active}}")
+    assert code == 0 and "ok: true" in output and "/rosout" not in output, output
+
+
 def test_an_unknown_field_is_a_usage_error_for_every_service_type(capsys: pytest.CaptureFixture[str]):
     for service_type in sorted(served_types()):
         code, output = call(capsys, "/nowhere/service", service_type, "{no_such_field: 1}")

@@ -3,13 +3,17 @@
 A service is the DDS topic pair `rq/<name>Request` / `rr/<name>Reply` (see plem.middleware.names); its type
 is the request's DDS type without `_Request`. Discovery settings come from ROS_DOMAIN_ID and
 ROS_AUTOMATIC_DISCOVERY_RANGE, as for `ros2 service`.
+
+Many ROS 2 replies carry no reason (controller_manager_msgs/srv/SetHardwareComponentState answers `ok: false`
+alone); the server logs it on /rosout, as ros2_control does. `plem service call` prints the warnings and errors
+that the server's node logs on /rosout while it answers, after the response.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -20,13 +24,17 @@ from plem.errors import PlemError
 
 if TYPE_CHECKING:
     from plem.middleware.graph import Graph
-    from plem.middleware.node import Node
+    from plem.middleware.node import Node, Subscription
 
 app = typer.Typer(help="List and call ROS 2 services on the DDS domain (no ROS install needed).",
                   no_args_is_help=True)
 
 #: How often a command waiting for its client to match checks again.
 MATCH_POLL_S = 0.01
+#: How long a failed reply waits for the server's log line on /rosout (published just before the reply).
+REASON_WAIT_S = 0.5
+#: rcl_interfaces/msg/Log levels by number: the ones printed after a response (WARN and above).
+LOG_LEVELS = {30: "WARN", 40: "ERROR", 50: "FATAL"}
 
 
 @app.command("list")
@@ -96,7 +104,8 @@ def call(
     timeout: Annotated[float, typer.Option("--timeout", callback=seconds, help="Seconds to wait for the server, "
                                            "and again for its response.")] = 5.0,
 ) -> None:
-    """Send one request and print the response as YAML (like `ros2 service call`)."""
+    """Send one request and print the response as YAML (like `ros2 service call`), then the warnings the server's
+    node logged on /rosout meanwhile (the reason of a reply such as `ok: false`)."""
     from plem.middleware.graph import Graph
     from plem.middleware.node import Node
     from plem.middleware.types import library
@@ -107,6 +116,7 @@ def call(
     request = message_from_yaml(interfaces, f"{ros_type}_Request", values, "VALUES")
     node = Node(interfaces=interfaces)
     client = node.client(name, ros_type)   # created first: it matches the server while discovery runs
+    rosout = _rosout(node)
     typer.echo("waiting for service to become available...")
     wait_for_server(Graph(node), node, "service", name, ros_type, timeout, lambda: client.ready)
     typer.echo(f"requester: making request: {message_repr(request)}\n")
@@ -118,3 +128,31 @@ def call(
                         how="wait longer with --timeout, or check the server's log") from None
     typer.echo("response:")
     typer.echo(to_yaml(response) + "\n")
+    for line in _server_log(rosout, name, failed=_failed(response)):
+        typer.echo(line)
+
+
+def _rosout(node: Node) -> Subscription[Any]:
+    """A /rosout reader that hears only what is logged from now on (volatile: no earlier history)."""
+    from plem.middleware.qos import QosProfile
+
+    return node.subscription("/rosout", "rcl_interfaces/msg/Log", QosProfile(reliable=True, depth=100))
+
+
+def _failed(response: Any) -> bool:
+    """Whether a response says it failed in its own words: an `ok` or `success` field that is false."""
+    return any(getattr(response, flag, True) is False for flag in ("ok", "success"))
+
+
+def _server_log(rosout: Subscription[Any], service: str, failed: bool) -> list[str]:
+    """The WARN and ERROR lines the service's node logged during the call (for a failed reply, waiting briefly
+    for them), as `/rosout [node] LEVEL: message`."""
+    logger = service.rsplit("/", 1)[0].strip("/").replace("/", ".")   # rcl's logger name of the server's node
+    deadline = time.monotonic() + (REASON_WAIT_S if failed else 0.0)
+    lines: list[str] = []
+    while True:
+        lines += [f"/rosout [{entry.name}] {LOG_LEVELS[entry.level]}: {entry.msg}" for entry in rosout.take()
+                  if entry.name == logger and entry.level in LOG_LEVELS]
+        if lines or time.monotonic() >= deadline:
+            return lines
+        time.sleep(MATCH_POLL_S)
