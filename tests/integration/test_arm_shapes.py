@@ -167,3 +167,20 @@ def test_initial_positions_are_checked_against_the_joints_and_their_ranges(tmp_p
     rendered = refused.value.render()
     assert f"initial_positions:={text}" in rendered and words in rendered, rendered
     assert "HOW: " in rendered and ("initial_positions" in rendered.split("HOW: ")[-1])
+
+
+def test_the_planner_brings_an_arm_outside_a_range_back(tmp_path: Path):
+    """`plem move --to home` plans: from a start outside a range the plan first moves straight back into it."""
+    root, _, _ = generated(tmp_path, "low")
+    robot = built(narrowed(root, "joint2", 0.3, 1.5), MockBus(6, initial_positions=[0.0, 0.1, 0.0, 0.0, 0.0, 0.0]))
+    try:
+        robot.set_mode("hold")
+        plan = robot.plan("home")
+        joint2 = np.array([point.positions[1] for point in plan.trajectory.points])
+        assert joint2[0] == pytest.approx(0.1, abs=1e-4) and joint2[-1] == pytest.approx(0.5)
+        assert np.all(joint2 >= joint2[0] - 1e-9)                       # never farther out than where it was
+        result = robot.move_to("home").wait(TIMEOUT_S)
+        assert result.outcome is TrajectoryOutcome.SUCCEEDED, result
+        assert robot.state().position[1] == pytest.approx(0.5, abs=1e-3) and not faults(robot)
+    finally:
+        robot.shutdown()

@@ -73,6 +73,8 @@ class Planner:
         self._lower = self.arm.to_model_order(limits.min_position)
         self._upper = self.arm.to_model_order(limits.max_position)
         self._solvers: dict[tuple[str, str], IkSolver] = {}
+        #: The start of the request being planned when it is outside a position limit (see `_start`), else None.
+        self._entry: np.ndarray | None = None
         self._rng = np.random.default_rng()
         #: How many plans were made, and the newest (what the view shows before it executes).
         self.plans_made = 0
@@ -253,14 +255,12 @@ class Planner:
         return options, group, q_start
 
     def _start(self, start: Sequence[float]) -> np.ndarray:
+        """The state planning starts from: `start`, brought into the position limits. An arm outside a range is
+        planned for from the nearest state inside it, and the plan begins with the straight move there (back toward
+        the range, never farther out: `_timed`), so a plan can bring it back."""
         q = self._configuration(start, "the start state")
         outside = (q < self._lower - START_SLACK) | (q > self._upper + START_SLACK)
-        if outside.any():
-            names = [self.joint_names[i] for i in np.flatnonzero(self.arm.to_arm_order(outside.astype(float)))]
-            raise PlanningError("the start state is outside the position limits",
-                                what="every joint within its limits", why=f"outside: {', '.join(names)}",
-                                how="move the arm inside its limits first (plem move --to ...)",
-                                code=MoveItCode.START_STATE_INVALID)
+        self._entry = q if outside.any() else None
         clipped: np.ndarray = np.clip(q, self._lower, self._upper)
         return clipped
 
@@ -392,9 +392,13 @@ class Planner:
                              why=why, how=how, code=MoveItCode.NO_IK_SOLUTION)
 
     def _timed(self, states: np.ndarray, options: PlanOptions, began: float, planner: str, straight: bool) -> Plan:
-        """The path (rows in pinocchio's order) timed within the limits and re-checked densely."""
-        limits = planning_limits(self.limits, options.velocity_scale, options.acceleration_scale)
+        """The path (rows in pinocchio's order) timed within the limits and re-checked densely; from the start outside
+        a range when there is one (`_start`)."""
+        if self._entry is not None:
+            states = np.vstack([self._entry, states])
         arm_states = np.array([self.arm.to_arm_order(q) for q in states])
+        limits = planning_limits(self.limits.reaching(arm_states[0]), options.velocity_scale,
+                                 options.acceleration_scale)
         trajectory = to_trajectory(parameterise(arm_states, limits, self.cycle_time_s, straight=straight))
         motion, checked = self._recheck(trajectory, arm_states[0], options.avoid_collisions)
         length = float(np.linalg.norm(np.diff(arm_states, axis=0), axis=1).sum())
@@ -409,7 +413,7 @@ class Planner:
         (one per control cycle) checked against the robot and the scene. Returns it and the states checked."""
         rest = np.zeros(len(start))
         try:
-            motion = as_sent(trajectory, self.limits, (start, rest, rest), self.cycle_time_s)
+            motion = as_sent(trajectory, self.limits.reaching(start), (start, rest, rest), self.cycle_time_s)
         except CommandRejected as error:
             raise PlanningError("the timed plan breaks a limit", what="a plan within every limit the driver enforces",
                                 why=error.why, how="report this: plans are timed within the limits",
