@@ -628,7 +628,8 @@ def _compare_with_urdf(report: ValidationReport, limit: JointLimit, joint: Joint
         found.warning("limits.incomplete", f"{joint.name} has no {', '.join(missing)}",
                       what="velocity, acceleration and jerk limits for jerk-limited motion",
                       why=f"joint_limits.{joint.name} lacks {', '.join(missing)}",
-                      how="add them" + (f"; until then the driver and the planner enforce {derived}" if derived
+                      how=f"add {', '.join(missing)} to joint_limits.{joint.name}"
+                          + (f"; until then the driver and the planner enforce {derived}" if derived
                                         else ""), file=path, line=limit.line)
 
 
