@@ -410,3 +410,53 @@ def test_inject_reads_the_true_state_and_refuses_what_it_cannot_do(network: Netw
     assert garbage.returncode == 2 and "'rate=lots' has no usable value" in garbage.stderr
     wrong = run_plem("ethercat", "inject", "drive-fault", "drive=17", "code=0x7121", f"--index={INDEX}")
     assert wrong.returncode == 1 and "refused drive_fault" in wrong.stderr
+
+
+# -- drives as they are --------------------------------------------------------------------------------------------
+def test_drives_without_rated_torque_run_in_per_mille_said_once(home: Path, tmp_path: Path):
+    network = Network(["robot_type:=indy7_v2", "master_index:=44", "--missing-object", "0x6076"], home)
+    try:
+        robot_id = new_robot_id()
+        with launched(["bus:=ethercat", f"eth_interface:={network.interface}", f"robot_id:={robot_id}",
+                       "robot_type:=indy7_v2", "master_index:=44", "bridge:=false", "record:=false"], [robot_id],
+                      tmp_path, clean_environment(home)) as launch, connect(robot_id) as client:
+            said = launch.output + launch.errors
+            assert said.count("is in per mille of each drive's rated torque") == 1, launch.describe()
+            assert "effort of joint0, joint1, joint2, joint3, joint4, joint5" in said
+            assert "0x6076:0 (Rated torque)" in said and "SDO abort 0x06020000" in said
+            assert '<param name="rated_torque">' in said
+            client.set_mode("hold")
+            target = [0.1, -0.2, 0.2, 0.0, 0.1, 0.0]
+            client.move_joints(target).wait(30)
+            assert np.allclose(client.state().position, target, atol=2e-4)
+            # joint1 holds the arm against gravity: its reading is the drive's own, thousandths of its rated torque
+            drives = network.control.state()
+            assert faults(client) == [] and len(drives["statuswords"]) == 6
+            assert 0 < abs(client.state().effort[1]) <= 32767
+            assert launch.stop() == 0, launch.describe()
+        assert (launch.output + launch.errors).count("per mille") == 1
+    finally:
+        network.close()
+
+
+@pytest.fixture(scope="module")
+def slaveinfo(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """SOEM's own slaveinfo tool, compiled from the vendored sources as SOEM builds its test programs."""
+    soem = Path(__file__).resolve().parents[2] / "third_party" / "soem"
+    program = tmp_path_factory.mktemp("soem") / "slaveinfo"
+    sources = [*soem.glob("soem/*.c"), soem / "osal/linux/osal.c", *soem.glob("oshw/linux/*.c")]
+    includes = [f"-I{soem / d}" for d in ("soem", "osal", "osal/linux", "oshw/linux")]
+    subprocess.run(["gcc", "-O1", "-w", *includes, str(soem / "test/linux/slaveinfo/slaveinfo.c"), *map(str, sources),
+                    "-lpthread", "-lrt", "-o", str(program)], check=True)
+    return program
+
+
+def test_soems_slaveinfo_lists_the_object_dictionary(network: Network, slaveinfo: Path):
+    done = subprocess.run([str(slaveinfo), network.interface, "-sdo"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert out.count("CoE Object Description found") == 6, out[-3000:]
+    assert "Index: 6076 Datatype: 0007 Objectcode: 07 Name: Rated torque" in out
+    assert "Index: 1018 Datatype: 0023 Objectcode: 09 Name: Identity object" in out
+    assert "Name: Vendor ID" in out and "Name: Torque actual value" in out
+    assert "MBX slave:" not in out and "SDO slave:" not in out, out[-3000:]   # no mailbox or SDO Information errors

@@ -369,3 +369,23 @@ def test_a_disappeared_slave_is_missing_from_the_working_counter(master: pysoem.
     assert cycle(master) == master.expected_wkc - 3
     emulator("reappear", 1)
     until(lambda: cycle(master) == master.expected_wkc, "the slave to count again")
+
+
+def test_sdo_information_lists_the_object_dictionary_through_soems_own_reader(master: pysoem.Master) -> None:
+    """pysoem's `od` is SOEM's ecx_readODlist, ecx_readODdescription and ecx_readOE: what `slaveinfo -sdo` uses."""
+    assert master.config_init() == len(IDENTITIES)
+    reach(master, pysoem.PREOP_STATE)
+    dictionary = {obj.index: obj for obj in master.slaves[0].od}
+    assert {objects.DEVICE_TYPE, objects.IDENTITY, objects.RX_PDO, objects.TX_ASSIGN, objects.RATED_TORQUE,
+            *(entry.index for entry in objects.RX_ENTRIES + objects.TX_ENTRIES)} <= set(dictionary)
+    assert all(obj.name.decode() == objects.NAMES[index] for index, obj in dictionary.items())
+    device_type, identity = dictionary[objects.DEVICE_TYPE], dictionary[objects.IDENTITY]
+    assert (device_type.object_code, device_type.data_type, device_type.bit_length) == (0x07, 0x0007, 32)
+    assert (identity.object_code, identity.data_type) == (0x09, 0x0023)
+    assert [(e.name.decode(), e.data_type, e.bit_length) for e in identity.entries] == [
+        ("Number of entries", 0x0005, 8), ("Vendor ID", 0x0007, 32), ("Product code", 0x0007, 32),
+        ("Revision number", 0x0007, 32), ("Serial number", 0x0007, 32)]
+    target, statusword = dictionary[0x607A], dictionary[0x6041]
+    assert (target.data_type, target.bit_length, target.obj_access) == (0x0004, 32, 0x007F)   # rw, RxPDO-mappable
+    assert (statusword.data_type, statusword.bit_length, statusword.obj_access) == (0x0006, 16, 0x0087)
+    assert dictionary[objects.DEVICE_NAME].bit_length == 8 * len(IDENTITIES[0].name)

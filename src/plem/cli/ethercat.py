@@ -44,6 +44,10 @@ def simulate(
     encoder_zero: Annotated[str | None, typer.Option(
         "--encoder-zero", help="Raw encoder reading of each drive at home (comma-separated counts), to practise "
                                "calibration; default 0.", show_default=False)] = None,
+    missing_object: Annotated[list[str] | None, typer.Option(
+        "--missing-object", help="An object index the drives leave out of their dictionaries, as drives that "
+                                 "implement fewer objects do (e.g. 0x6076, the rated torque); repeatable.",
+        show_default=False)] = None,
 ) -> None:
     """Run the virtual EtherCAT network of an arm until Ctrl-C and print the launch line that drives it."""
     from plem.core.config.settings import parse_int_list
@@ -64,7 +68,8 @@ def simulate(
             raise UsageError("--encoder-zero must be whole numbers separated by commas",
                              what="one raw count per joint", why=f"found {encoder_zero!r}",
                              how="e.g. --encoder-zero=1000,-2000,0,0,0,0") from None
-    network = VirtualNetwork(arm_of_plan(plan, zero), index=plan.config.master_index)
+    missing = frozenset(_object_index(text) for text in missing_object or [])
+    network = VirtualNetwork(arm_of_plan(plan, zero, missing), index=plan.config.master_index)
     network.stop = stop_on_signals()
     given = " ".join(f"{name}:={value}" for name, value in values.items() if name != "bus")
 
@@ -76,6 +81,21 @@ def simulate(
                      markup=False)
 
     network.run(ready=announce)
+
+
+def _object_index(text: str) -> int:
+    """An object index of --missing-object: 0x0000-0xFFFF, in hex (0x...) or decimal."""
+    from plem.errors import UsageError
+
+    try:
+        index = int(text, 0)
+    except ValueError:
+        index = -1
+    if not 0 <= index <= 0xFFFF:
+        raise UsageError(f"--missing-object {text!r} is not an object index",
+                         what="an object index from 0x0000 to 0xFFFF, in hex (0x...) or decimal",
+                         why=f"got {text!r}", how="e.g. --missing-object 0x6076")
+    return index
 
 
 INJECTIONS = {

@@ -9,6 +9,7 @@ They are ros2_control `<param>` tags in each `<joint>` of the package's `<ros2_c
     <param name="vendor_id">0x0000066F</param>       optional EtherCAT identity, each an unsigned 32-bit
     <param name="product_code">0x00000001</param>    integer in hex or decimal
     <param name="revision">0x00010000</param>
+    <param name="rated_torque">1.27</param>          optional: the motor's rated torque in N·m (0x6076 / 1000)
 
 `drive_parameters` hands them to the bus; `check_drive_parameters` gives the validator the same problems,
 found by the same parsers. xacro drops line numbers, so `ParamSources` finds where a joint's parameters are
@@ -89,6 +90,9 @@ PARAMS: dict[str, ParamKind] = {
                               "the drive's ESI file"),
     "revision": ParamKind(_u32, f"the drive's EtherCAT revision number, {_IDENTITY}", "0x00010000",
                           "the drive's ESI file"),
+    "rated_torque": ParamKind(_positive_number, "the motor's rated torque in N·m, a positive finite number (the "
+                              "drive's torque objects count thousandths of it)", "1.27",
+                              "the drive's or motor's documentation (object 0x6076, in mN·m)"),
 }
 REQUIRED = ("encoder_resolution", "gear_ratio", "direction")
 
@@ -96,7 +100,8 @@ REQUIRED = ("encoder_resolution", "gear_ratio", "direction")
 @dataclass(frozen=True)
 class DriveParameters:
     """One joint's drive: encoder counts per motor revolution, gearing, counting direction and, optionally, the
-    EtherCAT identity (vendor id, product code, revision) the drive must report."""
+    EtherCAT identity (vendor id, product code, revision) the drive must report and the motor's rated torque (N·m;
+    when absent the drive's 0x6076 gives it)."""
 
     encoder_resolution: int
     gear_ratio: float
@@ -104,6 +109,7 @@ class DriveParameters:
     vendor_id: int | None = None
     product_code: int | None = None
     revision: int | None = None
+    rated_torque: float | None = None
 
     @property
     def counts_per_radian(self) -> float:

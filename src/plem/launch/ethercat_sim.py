@@ -17,8 +17,10 @@ from plem.launch.plan import RobotPlan, plan_robot
 from plem.robot.robot import arm_joint_names, home_position, startup_urdf
 
 
-def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) -> Arm:
-    """The arm the emulated drives move: the plan's joints, URDF, drive parameters and cycle time."""
+def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None,
+                missing_objects: frozenset[int] = frozenset()) -> Arm:
+    """The arm the emulated drives move: the plan's joints, URDF, drive parameters and cycle time (and the objects
+    its drives lack)."""
     urdf, urdf_xml = startup_urdf(plan.report)
     joint_names = arm_joint_names(plan.config, urdf)
     drives = drive_parameters(urdf, joint_names)
@@ -32,7 +34,7 @@ def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None) ->
                           what=f"one raw encoder reading at home per joint ({len(joint_names)})",
                           why=f"got {len(encoder_zero)}", how=f"give {len(joint_names)} whole numbers")
     return Arm(joint_names, urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero,
-               home_position(plan.report, joint_names))
+               home_position(plan.report, joint_names), missing_objects)
 
 
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:

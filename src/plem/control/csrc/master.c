@@ -76,8 +76,7 @@ int plem_master_read(plem_master *m, plem_arm *arm) {
 void plem_master_write(plem_master *m, const plem_arm *arm, const uint16_t *controlwords) {
     for (int i = 0; i < m->dof; i++) {
         uint8_t *out = m->slaves[i + 1].outputs;
-        double units = m->newton_metres_per_unit[i] != 0.0 ? arm->io_torque_offset[i] / m->newton_metres_per_unit[i]
-                                                           : 0.0;
+        double units = arm->io_torque_offset[i] * m->units_per_newton_metre[i];
         units = units > 32767.0 ? 32767.0 : units < -32768.0 ? -32768.0 : rint(units);
         put16(out + PLEM_RX_CONTROLWORD, controlwords[i]);
         put32(out + PLEM_RX_TARGET_POSITION, (uint32_t)arm->io_target_position[i]);   /* the drive's own 32 bits */

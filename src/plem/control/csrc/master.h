@@ -68,6 +68,7 @@ typedef struct plem_master {
     int32_t outstanding;             /* a frame was sent whose answer has not been received */
     int32_t in_cycle;                /* a core thread, or the keepalive, exchanges through this master */
     double newton_metres_per_unit[PLEM_MAX_JOINTS];   /* torque objects (per mille of rated) to N·m at the joint */
+    double units_per_newton_metre[PLEM_MAX_JOINTS];   /* the torque offset sent per N·m; 0: none sent */
     int64_t wire_ns;                 /* the current cycle's time in receive and send */
     plem_master_status status;
     /* the keepalive: frames every period from OP until a core cycles, on a thread that needs no interpreter */

@@ -182,13 +182,23 @@ static PyObject *master_state_check(Master *self, PyObject *args) {
     return PyLong_FromLong(reached);
 }
 
-/* After a failed SDO transfer: SdoError(abort code, words), the abort code 0 when the slave sent none. */
+/* After a failed SDO transfer: SdoError(abort code, words), the abort code 0 when the slave sent none (then the
+ * words say what went wrong instead: SOEM's text of a mailbox error, an answer of the wrong size, no answer). */
 static PyObject *sdo_failed(plem_master *m, int wkc) {
     ec_errort error;
     uint32_t abort = 0;
-    while (ecx_poperror(&m->context, &error))
-        if (error.Etype == EC_ERR_TYPE_SDO_ERROR) abort = (uint32_t)error.AbortCode;
-    const char *words = abort ? ec_sdoerror2string(abort) : wkc == 0 ? "no answer (timeout)" : "mailbox error";
+    const char *words = wkc == 0 ? "no answer (timeout)" : "mailbox error";
+    while (ecx_poperror(&m->context, &error)) {
+        if (error.Etype == EC_ERR_TYPE_SDO_ERROR) {
+            abort = (uint32_t)error.AbortCode;
+            words = ec_sdoerror2string(abort);
+        } else if (!abort && error.Etype == EC_ERR_TYPE_MBX_ERROR) {
+            words = ec_mbxerror2string(error.ErrorCode);
+        } else if (!abort && error.Etype == EC_ERR_TYPE_PACKET_ERROR) {
+            words = error.ErrorCode == 3 ? "the answer is larger than the object's size (data container too small)"
+                                         : "an unexpected answer came back (not the SDO response asked for)";
+        }
+    }
     PyObject *value = Py_BuildValue("(ks)", (unsigned long)abort, words);
     if (value) PyErr_SetObject(SDO_ERROR, value);
     Py_XDECREF(value);
@@ -361,22 +371,33 @@ static PyObject *master_stop_keepalive(Master *self, PyObject *unused) {
 }
 
 static PyObject *master_prepare(Master *self, PyObject *args, PyObject *kwargs) {
-    static char *keywords[] = {"torque_units", "bad_cycles_to_fault", "receive_timeout_us", NULL};
-    PyObject *units;
+    static char *keywords[] = {"torque_units", "bad_cycles_to_fault", "receive_timeout_us", "torque_commands", NULL};
+    PyObject *units, *commands = NULL;
     int bad, timeout;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "Oii", keywords, &units, &bad, &timeout)) return NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "Oii|O", keywords, &units, &bad, &timeout, &commands)) return NULL;
     plem_master *m = usable(self);
     if (!m) return NULL;
     PyObject *sequence = PySequence_Fast(units, "torque_units: a sequence of N·m per torque unit, one per drive");
     if (!sequence) return NULL;
+    PyObject *sent = commands ? PySequence_Fast(commands, "torque_commands: a sequence of booleans, one per drive")
+                              : NULL;
+    if (commands && !sent) {
+        Py_DECREF(sequence);
+        return NULL;
+    }
     Py_ssize_t n = PySequence_Fast_GET_SIZE(sequence);
-    int ok = n >= 1 && n == m->slave_count && bad >= 1 && timeout >= 0 && m->status.expected_working_counter > 0;
+    int ok = n >= 1 && n == m->slave_count && bad >= 1 && timeout >= 0 && m->status.expected_working_counter > 0
+             && (!sent || PySequence_Fast_GET_SIZE(sent) == n);
     for (Py_ssize_t i = 0; ok && i < n; i++) {
         const ec_slavet *s = &m->slaves[i + 1];
         ok = s->Obytes == PLEM_RX_BYTES && s->Ibytes == PLEM_TX_BYTES && s->outputs && s->inputs;
-        m->newton_metres_per_unit[i] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(sequence, i));
+        double per_unit = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(sequence, i));
+        int send = sent ? PyObject_IsTrue(PySequence_Fast_GET_ITEM(sent, i)) : 1;
+        m->newton_metres_per_unit[i] = per_unit;
+        m->units_per_newton_metre[i] = send > 0 && per_unit != 0.0 ? 1.0 / per_unit : 0.0;
     }
     Py_DECREF(sequence);
+    Py_XDECREF(sent);
     if (PyErr_Occurred()) return NULL;
     if (!ok)
         return PyErr_Format(PyExc_ValueError, "prepare: %zd drives, %d slaves, each mapping %d output and %d input "
@@ -448,7 +469,8 @@ static PyMethodDef MASTER_METHODS[] = {
     {"stop_keepalive", (PyCFunction)master_stop_keepalive, METH_NOARGS,
      "Stop the keepalive; returns once its last exchange has ended. Safe to repeat."},
     {"prepare", (PyCFunction)(void (*)(void))master_prepare, METH_VARARGS | METH_KEYWORDS,
-     "prepare(torque_units, bad_cycles_to_fault, receive_timeout_us): ready for a core's cycle."},
+     "prepare(torque_units, bad_cycles_to_fault, receive_timeout_us, torque_commands=None): ready for a core's "
+     "cycle; torque_commands[i] false sends drive i no torque offset."},
     {NULL, NULL, 0, NULL}};
 
 PyTypeObject PLEM_MASTER_TYPE = {

@@ -218,30 +218,53 @@ def check_topology(slaves: Sequence[Slave], joint_names: Sequence[str], drives: 
                     "description package's ros2_control block (`plem ethercat scan` shows each slave's ids)")
 
 
+#: What plem uses each object it reads or writes by SDO for, as its errors say.
+PURPOSES: dict[int, str] = {
+    objects.DEVICE_TYPE: "read to check that the slave is a CiA402 drive",
+    objects.RX_ASSIGN: "written to assign plem's RxPDO 0x1600 (the drive's outputs) to sync manager 2",
+    objects.TX_ASSIGN: "written to assign plem's TxPDO 0x1A00 (the drive's inputs) to sync manager 3",
+    objects.RX_PDO: "written to map plem's outputs: 0x6040 controlword, 0x607A target position, 0x60B1 velocity "
+                    "offset, 0x60B2 torque offset, 0x6060 mode of operation",
+    objects.TX_PDO: "written to map plem's inputs: 0x6041 statusword, 0x6064 position, 0x606C velocity, 0x6077 "
+                    "torque, 0x603F error code, 0x6061 mode display",
+    0x6060: "written to select cyclic synchronous position mode (8)",
+    objects.RATED_TORQUE: "read to turn the drive's torque (thousandths of its rated torque) into N·m",
+}
+
+
+def sdo_failure(error: Exception) -> str:
+    """An SDO failure in words: the abort code with its text (SOEM's), or what went wrong without one."""
+    abort, words = error.args if isinstance(error, core.SdoError) and len(error.args) == 2 else (0, str(error))
+    return f"SDO abort 0x{abort:08X}: {words}" if abort else str(words)
+
+
 def _sdo_error(slave: Slave, position: int, joint: str, index: int, subindex: int, error: Exception) -> EtherCATError:
     entry = objects.ENTRIES_BY_OBJECT.get((index, subindex))
-    name = f" ({entry.name}, {entry.bits} bits)" if entry else ""
-    abort, words = error.args if isinstance(error, core.SdoError) else (0, str(error))
-    detail = f"SDO abort 0x{abort:08X}: {words}" if abort else words
+    size = f", {entry.bits} bits" if entry else ""
+    mapping = index in (objects.RX_ASSIGN, objects.TX_ASSIGN, objects.RX_PDO, objects.TX_PDO)
     return EtherCATError(
-        f"slave {position} ({slave.name}, {joint}) refused object 0x{index:04X}:{subindex}{name}",
-        what="a CiA402 drive in cyclic synchronous position that accepts plem's PDO assignment (RxPDO 0x6040, "
-             "0x607A, 0x60B1, 0x60B2, 0x6060; TxPDO 0x6041, 0x6064, 0x606C, 0x6077, 0x603F, 0x6061)",
-        why=detail,
-        how="check in the drive's documentation that it maps these objects with these sizes (a drive that "
-            "cannot map one needs a firmware or configuration change); `plem ethercat scan` shows the drive")
+        f"slave {position} ({slave.name}, {joint}) refused object {objects.object_name(index, subindex)}",
+        what=f"object {objects.object_name(index, subindex)}{size}, {PURPOSES.get(index, 'used by plem')}",
+        why=sdo_failure(error),
+        how=("check in the drive's documentation that it maps these objects with these sizes (a drive that cannot "
+             "map one needs a firmware or configuration change)" if mapping else
+             f"check in the drive's documentation that it offers object 0x{index:04X} as CiA402 defines it")
+            + "; `plem ethercat scan` shows the drive, SOEM's `slaveinfo <interface> -sdo` its objects")
 
 
 def _read_u32(slave: Slave, position: int, joint: str, index: int) -> int:
     try:
-        return int(struct.unpack("<I", slave.sdo_read(index, 0)[:4].ljust(4, b"\0"))[0])
+        return _u32(slave.sdo_read(index, 0))
     except RuntimeError as error:  # the master's SdoError: an abort, no answer or a mailbox error
         raise _sdo_error(slave, position, joint, index, 0, error) from error
 
 
-def assign_process_data(slave: Slave, position: int, joint: str) -> int:
-    """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode;
-    its rated torque (mN·m)."""
+def _u32(data: bytes) -> int:
+    return int(struct.unpack("<I", data[:4].ljust(4, b"\0"))[0])
+
+
+def assign_process_data(slave: Slave, position: int, joint: str) -> None:
+    """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode."""
     device_type = _read_u32(slave, position, joint, objects.DEVICE_TYPE)
     if device_type & 0xFFFF != objects.CIA402_DEVICE_TYPE & 0xFFFF:
         raise EtherCATError(
@@ -267,7 +290,46 @@ def assign_process_data(slave: Slave, position: int, joint: str) -> int:
         write(assign, 1, struct.pack("<H", pdo))
         write(assign, 0, b"\x01")
     write(0x6060, 0, struct.pack("<b", 8))
-    return _read_u32(slave, position, joint, objects.RATED_TORQUE)
+
+
+@dataclass(frozen=True)
+class RatedTorque:
+    """A drive's rated motor torque in N·m and where it came from; None when neither the package nor the drive
+    gives it (the drive's torque then stays in per mille of it), `source` saying why."""
+
+    newton_metres: float | None
+    source: str
+
+
+def rated_torque(slave: Slave, drive: DriveParameters) -> RatedTorque:
+    """The package's `rated_torque` when it gives one, else the drive's 0x6076 (mN·m); unknown when the drive has no
+    such object, or reads 0, or does not answer it."""
+    if drive.rated_torque is not None:
+        return RatedTorque(drive.rated_torque, "the package's rated_torque")
+    name = objects.object_name(objects.RATED_TORQUE)
+    try:
+        value = _u32(slave.sdo_read(objects.RATED_TORQUE, 0))
+    except RuntimeError as error:  # the master's SdoError: a drive without the object aborts the read
+        return RatedTorque(None, f"reading {name} failed: {sdo_failure(error)}")
+    if value == 0:
+        return RatedTorque(None, f"{name} reads 0")
+    return RatedTorque(value / 1000.0, name)
+
+
+def per_mille_warning(joint_names: Sequence[str], rated: Sequence[RatedTorque]) -> str | None:
+    """The start-up warning for drives whose rated torque is unknown (None when every drive's is known)."""
+    unknown = [(joint, r.source) for joint, r in zip(joint_names, rated, strict=True) if r.newton_metres is None]
+    if not unknown:
+        return None
+    reasons = {source for _, source in unknown}
+    why = (next(iter(reasons)) if len(reasons) == 1
+           else "; ".join(f"{joint}: {source}" for joint, source in unknown))
+    joints = ", ".join(joint for joint, _ in unknown)
+    return (f"effort of {joints} is in per mille of each drive's rated torque, not N·m: the drive gives no rated "
+            f"torque ({why}). Those readings (joint_states effort, `plem state`) count thousandths of the motor's "
+            "rated torque, and free drive sends those drives no gravity torque. For N·m, give each of those joints "
+            '<param name="rated_torque"> (the motor\'s rated torque in N·m) in the description package\'s '
+            "ros2_control block")
 
 
 def check_mapping(slaves: Sequence[Slave], joint_names: Sequence[str]) -> None:
@@ -347,11 +409,11 @@ def close_master(master: Any) -> None:
 
 @dataclass(frozen=True)
 class Segment:
-    """What opening found: the master, its slaves in joint order, rated torques (mN·m) and DC support."""
+    """What opening found: the master, its slaves in joint order, their rated torques and DC support."""
 
     master: Any
     slaves: tuple[SegmentSlave, ...]
-    rated_torque_mnm: tuple[int, ...]
+    rated_torque: tuple[RatedTorque, ...]
     distributed_clocks: tuple[bool, ...]
 
 
@@ -373,8 +435,9 @@ def bring_up(interface: str, joint_names: Sequence[str], drives: Sequence[DriveP
         slaves = segment_slaves(master)
         check_topology(slaves, joint_names, drives)
         reach_state(master, PREOP_STATE, joint_names)
-        rated = tuple(assign_process_data(slave, position, joint_names[position])
-                      for position, slave in enumerate(slaves))
+        for position, slave in enumerate(slaves):
+            assign_process_data(slave, position, joint_names[position])
+        rated = tuple(rated_torque(slave, drive) for slave, drive in zip(slaves, drives, strict=True))
         master.config_map()
         slaves = segment_slaves(master)
         check_mapping(slaves, joint_names)

@@ -15,13 +15,16 @@ watchdog expires in between however long Python takes to build the rest of the r
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from plem.control.compiled import CONSTANTS, MASTER_STATUS
 from plem.control.timing import CoreSeries
+from plem.description.drives import DriveParameters
 from plem.errors import PlemError
 from plem.fieldbus.bus import BusIO, BusSetup, BusStatus, DriveState
 from plem.fieldbus.cia402 import PowerSequencer, decode_statusword
@@ -29,10 +32,12 @@ from plem.fieldbus.ethercat import objects
 from plem.fieldbus.ethercat.bringup import (
     OP_STATE,
     REG_AL_STATUS,
+    RatedTorque,
     Segment,
     bring_up,
     close_master,
     interface_lock,
+    per_mille_warning,
 )
 
 #: Consecutive cycles without a good working counter that fault the arm (10 ms at 1 kHz).
@@ -48,6 +53,7 @@ OP_WITH_ACKNOWLEDGE = OP_STATE | 0x10
 #: Cycles `close()` exchanges at most while the drives switch off, before the slaves leave OP.
 CLOSING_CYCLES = 50
 
+_log = logging.getLogger("plem.ethercat")
 _RX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.RX_ENTRIES])
 _TX_DTYPE = np.dtype([(e.name, e.dtype) for e in objects.TX_ENTRIES])
 
@@ -107,13 +113,14 @@ class EtherCATBus:
             held.enter_context(interface_lock(setup.network_interface, f"an RT driver (master {setup.master_index})"))
             segment = bring_up(setup.network_interface, setup.joint_names, setup.drives, cycle_ns, _hold_exchange)
             held.callback(close_master, segment.master)
-            gear = np.array([d.gear_ratio for d in setup.drives])
-            direction = np.array([d.direction for d in setup.drives])
-            units = np.array(segment.rated_torque_mnm) / 1e6 * gear * direction
-            segment.master.prepare([float(u) for u in units], self.bad_cycles_to_fault,
-                                   max(20, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE)))
+            segment.master.prepare(torque_units(segment.rated_torque, setup.drives), self.bad_cycles_to_fault,
+                                   max(20, round(setup.cycle_time_s * 1e6 * RECEIVE_SHARE)),
+                                   [r.newton_metres is not None for r in segment.rated_torque])
             self._held = held.pop_all()
         self.segment = segment
+        warning = per_mille_warning(setup.joint_names, segment.rated_torque)
+        if warning:
+            _log.warning(warning)
         self._status = np.frombuffer(segment.master.status, dtype=MASTER_STATUS)
         self._decode()
         self.io.target_position[:] = self.io.position
@@ -220,6 +227,13 @@ class EtherCATBus:
             parts.append(f"slave{'s' if len(silent) > 1 else ''} {', '.join(silent)} did not answer")
         parts.extend(states)
         return "; ".join(parts)
+
+
+def torque_units(rated: Sequence[RatedTorque], drives: Sequence[DriveParameters]) -> list[float]:
+    """What one unit of each drive's torque objects is at the joint: N·m (a thousandth of the rated motor torque,
+    geared), or, with the rated torque unknown, one per mille itself; signed by the drive's direction."""
+    return [drive.direction * (1.0 if r.newton_metres is None else r.newton_metres / 1000.0 * drive.gear_ratio)
+            for r, drive in zip(rated, drives, strict=True)]
 
 
 def _hold_exchange(master: Any) -> None:

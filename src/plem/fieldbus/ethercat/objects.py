@@ -23,6 +23,40 @@ SUPPORTED_MODES = 0x6502
 #: Device type 0x1000 of a CiA402 servo drive: profile 402, "servo drive" in the additional information.
 CIA402_DEVICE_TYPE = 0x00020192
 
+#: The names CiA 301 and CiA 402 give the objects plem and its emulated drives use (as a drive's ESI file and
+#: `slaveinfo -sdo` print them).
+NAMES: dict[int, str] = {
+    DEVICE_TYPE: "Device type",
+    DEVICE_NAME: "Manufacturer device name",
+    IDENTITY: "Identity object",
+    SM_COMM_TYPE: "Sync manager communication type",
+    RX_PDO: "RxPDO mapping 1",
+    RX_PDO + 1: "RxPDO mapping 2",
+    TX_PDO: "TxPDO mapping 1",
+    TX_PDO + 1: "TxPDO mapping 2",
+    RX_ASSIGN: "Sync manager 2 PDO assignment (RxPDO)",
+    TX_ASSIGN: "Sync manager 3 PDO assignment (TxPDO)",
+    0x603F: "Error code",
+    0x6040: "Controlword",
+    0x6041: "Statusword",
+    0x6060: "Modes of operation",
+    0x6061: "Modes of operation display",
+    0x6064: "Position actual value",
+    0x606C: "Velocity actual value",
+    RATED_TORQUE: "Rated torque",
+    0x6077: "Torque actual value",
+    0x607A: "Target position",
+    0x60B1: "Velocity offset",
+    0x60B2: "Torque offset",
+    SUPPORTED_MODES: "Supported drive modes",
+}
+
+
+def object_name(index: int, subindex: int = 0) -> str:
+    """`0x6076:0 (Rated torque)`: an object as error messages name it."""
+    name = NAMES.get(index)
+    return f"0x{index:04X}:{subindex}" + (f" ({name})" if name else "")
+
 
 @dataclass(frozen=True)
 class PdoEntry:

@@ -56,6 +56,8 @@ class Arm:
     cycle_time_s: float
     encoder_zero: tuple[int, ...] | None = None
     home_position: tuple[float, ...] | None = None
+    #: Objects the drives' dictionaries leave out, as drives that implement fewer do (e.g. rated torque 0x6076).
+    missing_objects: frozenset[int] = frozenset()
 
 
 class ClockedDrives(EmulatedDrives):
@@ -118,7 +120,7 @@ class VirtualNetwork:
 
     def run(self, ready: Callable[[VirtualNetwork], None] | None = None) -> None:
         """Create the network, serve until `stop` is set, remove the network (on every exit path)."""
-        self.segment = Segment(self.identities, self.drives, seed=self.seed)
+        self.segment = Segment(self.identities, self.drives, seed=self.seed, missing_objects=self.arm.missing_objects)
         self._replace_stale_network()
         self.link.create()
         try:

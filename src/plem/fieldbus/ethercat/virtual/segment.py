@@ -43,7 +43,8 @@ _READ_WRITES = (Command.APRW, Command.FPRW, Command.BRW)
 class Segment:
     """The emulated slaves of one virtual network, in network order, in front of the drives' application."""
 
-    def __init__(self, identities: Sequence[SlaveIdentity], application: DriveApplication, *, seed: int = 0) -> None:
+    def __init__(self, identities: Sequence[SlaveIdentity], application: DriveApplication, *, seed: int = 0,
+                 missing_objects: frozenset[int] = frozenset()) -> None:
         if len(identities) != application.count:
             raise PlemError(f"{len(identities)} slave identities for {application.count} drives",
                             what=f"the segment got {len(identities)} identities, the application has "
@@ -54,7 +55,8 @@ class Segment:
         self.drop_rate = 0.0
         self.delay_s = 0.0
         self._random = random.Random(seed)
-        self.stacks = tuple(DriveStack(identity, application, drive, clock_offset_ns=self._random.randrange(10 ** 12))
+        self.stacks = tuple(DriveStack(identity, application, drive, clock_offset_ns=self._random.randrange(10 ** 12),
+                                       missing_objects=missing_objects)
                             for drive, identity in enumerate(identities))
         self._present = [True] * len(self.stacks)
         self._line: tuple[Esc, ...] = ()

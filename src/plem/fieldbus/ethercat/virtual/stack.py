@@ -7,12 +7,15 @@ It sits behind one `Esc` and does what a slave stack on the drive's microcontrol
   entered with the first outputs after the request when the sync-manager watchdog is on, and refused with
   0x001B if none arrive within the watchdog time. Errors set flag 0x10 in AL status until the master
   acknowledges them (bit 4 of AL control); invalid requests answer 0x0011/0x0012/0x0013.
-- An SDO server (expedited and normal upload/download) over CoE, with the abort codes of ETG.1000.6.
+- An SDO server (expedited and normal upload/download) over CoE, with the abort codes of ETG.1000.6, and
+  SDO Information (CoE service 8: the object list, each object's and each entry's description), so that
+  `slaveinfo <if> -sdo` lists the dictionary; other CoE services get mailbox error 0x0004 (service not supported).
 - Process data: outputs are taken from SM2 into the application's arrays in OP, inputs are packed into
   SM3 from them in SAFEOP and OP, by a `struct` layout precomputed when SAFEOP is entered.
 
 The drive's own PDO mapping differs from plem's table (`DEFAULT_MAPPING`), so a master that does not
-write the assignment in PREOP gets a different process image.
+write the assignment in PREOP gets a different process image. `missing_objects` leaves objects out of the
+dictionary, as drives that implement fewer objects do (many have no rated torque 0x6076).
 """
 
 from __future__ import annotations
@@ -77,6 +80,19 @@ SIZE_INCONSISTENT = 0x0008
 #: CoE services.
 SDO_REQUEST = 2
 SDO_RESPONSE = 3
+SDO_INFORMATION = 8
+#: SDO Information opcodes (ETG.1000.6), and the flag of a fragment that more fragments follow.
+GET_OD_LIST, OD_LIST, GET_OD, OD, GET_OE, OE, SDO_INFO_ERROR = 1, 2, 3, 4, 5, 6, 7
+INCOMPLETE = 0x80
+#: Object list types of Get OD List: counts per type, all, RxPDO-mappable, TxPDO-mappable, backup, settings.
+LIST_COUNTS, LIST_ALL, LIST_RX_MAPPABLE, LIST_TX_MAPPABLE, LIST_BACKUP, LIST_SETTINGS = range(6)
+#: Object codes and data types (CiA 301) of the object descriptions.
+VAR, ARRAY, RECORD = 0x07, 0x08, 0x09
+DATA_TYPES = {"b": 0x0002, "h": 0x0003, "i": 0x0004, "B": 0x0005, "H": 0x0006, "I": 0x0007, "s": 0x0009}
+PDO_MAPPING_TYPE, IDENTITY_TYPE = 0x0021, 0x0023
+#: Object access bits of an entry description: read in PREOP/SAFEOP/OP, write in PREOP/SAFEOP/OP, PDO-mappable.
+READ_ALL, WRITE_PREOP, WRITE_ALL, RX_MAPPABLE, TX_MAPPABLE = 0x0007, 0x0008, 0x0038, 0x0040, 0x0080
+IDENTITY_ENTRIES = ("Vendor ID", "Product code", "Revision number", "Serial number")
 
 #: Modes of operation the drives offer (0x6502): cyclic synchronous position, velocity and torque.
 SUPPORTED_MODES = 0x0380
@@ -132,6 +148,11 @@ class _Variable(NamedTuple):
         value = self.get()
         return value.encode("ascii") if isinstance(value, str) else struct.pack("<" + self.code, value)
 
+    @property
+    def bits(self) -> int:
+        """Its size in bits, as an entry description gives it."""
+        return 8 * len(self.encode())
+
 
 class _Layout(NamedTuple):
     """The process image of one slave: SM2/SM3 addresses, struct formats, and the application arrays they map."""
@@ -181,7 +202,7 @@ class DriveStack:
     """The firmware of one emulated drive (`drive` is its element in the application's arrays), behind `esc`."""
 
     def __init__(self, identity: SlaveIdentity, application: DriveApplication, drive: int, *,
-                 clock_offset_ns: int = 0) -> None:
+                 clock_offset_ns: int = 0, missing_objects: frozenset[int] = frozenset()) -> None:
         self.identity = identity
         self.application = application
         self.drive = drive
@@ -204,7 +225,8 @@ class DriveStack:
         for pdo, entries in DEFAULT_MAPPING.items():
             self._pdo_entries[pdo][:len(entries)] = [e.mapping for e in entries]
             self._pdo_counts[pdo] = len(entries)
-        self._objects = self._dictionary()
+        self._objects = {index: entries for index, entries in self._dictionary().items()
+                         if index not in missing_objects}
         self._enter(INIT)
 
     # ---- AL state machine ------------------------------------------------------------------------------------
@@ -340,20 +362,24 @@ class DriveStack:
     # ---- mailbox ---------------------------------------------------------------------------------------------
 
     def mailbox_received(self, message: bytes) -> None:
-        """Serve one mailbox message: CoE SDO requests; anything else gets a mailbox error."""
+        """Serve one mailbox message: CoE SDO and SDO Information requests; anything else gets a mailbox error."""
         length, _address, _channel, kind = struct.unpack_from("<HHBB", message)
         counter = kind >> 4 & 0x07
         if counter and counter == self._last_request_counter:
             return                                     # the master repeated a message it already sent
         self._last_request_counter = counter
+        service = struct.unpack_from("<H", message, 6)[0] >> 12 if length >= 2 else None
         if length > len(message) - 6:
             self._mailbox_error(SIZE_INCONSISTENT)
         elif kind & 0x0F != MAILBOX_COE:
             self._mailbox_error(PROTOCOL_NOT_SUPPORTED)
-        elif length < 10:
+        elif service not in (SDO_REQUEST, SDO_INFORMATION):
+            self._mailbox_error(SIZE_TOO_SHORT if service is None else SERVICE_NOT_SUPPORTED)
+        elif length < (10 if service == SDO_REQUEST else 8):
             self._mailbox_error(SIZE_TOO_SHORT)
-        elif struct.unpack_from("<H", message, 6)[0] >> 12 != SDO_REQUEST:
-            self._mailbox_error(SERVICE_NOT_SUPPORTED)
+        elif service == SDO_INFORMATION:
+            for fragment in self._sdo_information(message[6:6 + length]):
+                self._send(MAILBOX_COE, fragment)
         else:
             answer = self._sdo(message[6:6 + length])
             if answer is not None:
@@ -432,6 +458,72 @@ class DriveStack:
         variable.set(struct.unpack("<" + variable.code, data)[0])
         return struct.pack("<HBHBI", SDO_RESPONSE << 12, 0x60, index, subindex, 0)
 
+    # ---- SDO Information --------------------------------------------------------------------------------------
+
+    def _sdo_information(self, request: bytes) -> list[bytes]:
+        """The answer to one SDO Information request, in as many mailbox messages as it takes."""
+        opcode = request[2] & 0x7F
+        index = struct.unpack_from("<H", request, 6)[0]
+        try:
+            if opcode == GET_OD_LIST:
+                return _fragments(OD_LIST, struct.pack("<H", index) + self._object_list(index))
+            if opcode == GET_OD:
+                return _fragments(OD, self._object_description(index))
+            if opcode == GET_OE and len(request) >= 9:
+                return _fragments(OE, self._entry_description(index, request[8], request[9] if len(request) > 9
+                                                              else 0))
+            raise _Abort(COMMAND_SPECIFIER_INVALID)
+        except _Abort as abort:
+            return _fragments(SDO_INFO_ERROR, struct.pack("<I", abort.code))
+
+    def _object_list(self, list_type: int) -> bytes:
+        """Get OD List: the indices of one list type, or (type 0) how many objects each type has."""
+        lists = {LIST_ALL: sorted(self._objects), LIST_BACKUP: [], LIST_SETTINGS: [],
+                 LIST_RX_MAPPABLE: sorted({e.index for e in objects.RX_ENTRIES} & set(self._objects)),
+                 LIST_TX_MAPPABLE: sorted({e.index for e in objects.TX_ENTRIES} & set(self._objects))}
+        if list_type == LIST_COUNTS:
+            return struct.pack("<5H", *(len(lists[kind]) for kind in range(LIST_ALL, LIST_SETTINGS + 1)))
+        if list_type not in lists:
+            raise _Abort(VALUE_RANGE_EXCEEDED)
+        return struct.pack(f"<{len(lists[list_type])}H", *lists[list_type])
+
+    def _object_description(self, index: int) -> bytes:
+        """Get OD: an object's data type, highest subindex, object code and name."""
+        entries = self._objects.get(index)
+        if entries is None:
+            raise _Abort(OBJECT_DOES_NOT_EXIST)
+        code, data_type = self._object_kind(index, entries)
+        name = objects.NAMES.get(index, f"Object 0x{index:04X}")
+        return struct.pack("<HHBB", index, data_type, max(entries), code) + name.encode("ascii")
+
+    @staticmethod
+    def _object_kind(index: int, entries: dict[int, _Variable]) -> tuple[int, int]:
+        """The object code and data type of an object: a variable, an array of one type, or a record."""
+        if len(entries) == 1:
+            return VAR, DATA_TYPES[entries[0].code]
+        if index == objects.IDENTITY:
+            return RECORD, IDENTITY_TYPE
+        if index in _MAPPABLE:
+            return RECORD, PDO_MAPPING_TYPE
+        return ARRAY, DATA_TYPES[entries[1].code]
+
+    def _entry_description(self, index: int, subindex: int, value_info: int) -> bytes:
+        """Get OE: one entry's data type, size, access rights and name (no unit, default or limits)."""
+        variable = self._variable(index, subindex)
+        return struct.pack("<HBBHHH", index, subindex, value_info & 0x07, DATA_TYPES[variable.code], variable.bits,
+                           self._access(index, subindex, variable)) \
+            + _entry_name(index, subindex, len(self._objects[index]) == 1).encode("ascii")
+
+    @staticmethod
+    def _access(index: int, subindex: int, variable: _Variable) -> int:
+        """The object access bits of an entry: who may write it when, and whether it can be mapped."""
+        entry = objects.ENTRIES_BY_OBJECT.get((index, subindex))
+        if entry is not None:
+            return READ_ALL | (WRITE_PREOP | WRITE_ALL | RX_MAPPABLE if entry in objects.RX_ENTRIES else TX_MAPPABLE)
+        if variable.set is None:
+            return READ_ALL
+        return READ_ALL | WRITE_PREOP
+
     # ---- object dictionary -----------------------------------------------------------------------------------
 
     def _dictionary(self) -> dict[int, dict[int, _Variable]]:
@@ -494,7 +586,28 @@ class DriveStack:
                 raise _Abort(SUBINDEX0_NOT_ZERO)
             if index in _ASSIGNABLE and value and value not in _ASSIGNABLE[index]:
                 raise _Abort(VALUE_RANGE_EXCEEDED)
+            if index in _MAPPABLE and value and value >> 16 not in self._objects:
+                raise _Abort(OBJECT_DOES_NOT_EXIST)
             if index in _MAPPABLE and value and value not in _MAPPABLE[index]:
                 raise _Abort(CANNOT_BE_MAPPED)
             self._pdo_entries[index][subindex - 1] = value
         return write
+
+
+def _entry_name(index: int, subindex: int, variable: bool) -> str:
+    """An entry's name: the object's own for a variable, the count at subindex 0, the identity's fields."""
+    if variable:
+        return objects.NAMES.get(index, f"Object 0x{index:04X}")
+    if subindex == 0:
+        return "Number of entries"
+    if index == objects.IDENTITY and subindex <= len(IDENTITY_ENTRIES):
+        return IDENTITY_ENTRIES[subindex - 1]
+    return f"SubIndex {subindex:03d}"
+
+
+def _fragments(opcode: int, data: bytes) -> list[bytes]:
+    """An SDO Information response in mailbox-sized fragments, each with its CoE and information headers."""
+    room = MAILBOX_SIZE - 6 - 6                    # the mailbox header, then the CoE and SDO information headers
+    chunks = [data[at:at + room] for at in range(0, len(data), room)] or [b""]
+    return [struct.pack("<HBBH", SDO_INFORMATION << 12, opcode | (INCOMPLETE if left else 0), 0, left) + chunk
+            for left, chunk in zip(range(len(chunks) - 1, -1, -1), chunks, strict=True)]
