@@ -7,6 +7,7 @@ that is refused, or fails, shows its WHAT/WHY/HOW on the page; the arm then stay
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -45,8 +46,9 @@ class TeachPanel:
                                             hint="Show the sliders and the target; nothing moves until you click")
             self.speed = gui.add_slider("speed scale", min=0.05, max=1.0, step=0.05, initial_value=DEFAULT_SPEED_SCALE,
                                         disabled=True)
-            self.sliders = [gui.add_slider(name, min=float(low), max=float(high), step=0.001, initial_value=0.0,
-                                           disabled=True)
+            self.sliders = [gui.add_slider(name, min=float(low) if math.isfinite(low) else -math.pi,
+                                           max=float(high) if math.isfinite(high) else math.pi, step=0.001,
+                                           initial_value=0.0, disabled=True)
                             for name, low, high in zip(client.joint_names, limits.min_position, limits.max_position,
                                                        strict=True)]
             self.move_joints = gui.add_button("move to the sliders", disabled=True)
@@ -66,7 +68,10 @@ class TeachPanel:
             self.status.content = _error_text(error)
             return
         if on and state is not None:
-            for slider, value in zip(self.sliders, state.position, strict=True):
+            for slider, value, low, high in zip(self.sliders, state.position, self.client.limits.min_position,
+                                                self.client.limits.max_position, strict=True):
+                if not math.isfinite(low) and not math.isfinite(high):   # a continuous joint: a turn either way
+                    slider.min, slider.max = float(value) - 2 * math.pi, float(value) + 2 * math.pi
                 slider.value = float(value)  # type: ignore[misc]  # viser's setter is declared apart from its getter
             wxyz, position = matrix_pose(self.scene.link_transform(state.position, self.scene.model.tool_link))
             self.target = self.server.scene.add_transform_controls("/teach/target", scale=TARGET_SCALE, wxyz=wxyz,
