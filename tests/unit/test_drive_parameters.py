@@ -106,6 +106,11 @@ def test_identity_is_optional_per_joint():
     assert [d.vendor_id for d in drives] == [2, None, None] and drives[1].product_code is None
 
 
+def test_rated_torque_is_optional_per_joint_in_newton_metres():
+    model = urdf({"joint0": {**GOOD, "rated_torque": "2.5"}, "joint1": GOOD, "joint2": GOOD})
+    assert [d.rated_torque for d in drive_parameters(model, JOINTS)] == [2.5, None, None]
+
+
 @pytest.mark.parametrize("direction", ["1", "+1", "-1"])
 def test_direction_accepts_plus_and_minus_one(direction):
     assert drive_parameters(urdf(every({**GOOD, "direction": direction})), JOINTS)[0].direction == int(direction)
@@ -131,6 +136,8 @@ MALFORMED = [
 ] + [
     (name, value) for name in ("vendor_id", "product_code", "revision")
     for value in ("-1", "+5", "4294967296", "0x100000000", "0x", "0xZZ", "12ab", "1.0", "")
+] + [
+    ("rated_torque", value) for value in ("0", "-1.27", "nan", "inf", "1.27Nm", "")
 ]
 
 
