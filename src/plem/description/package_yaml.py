@@ -133,10 +133,11 @@ def _unwrapped(document: YamlDocument, section: str | None) -> YamlDocument:
     builder = _Builder(document)
     for path, params in _in_rclcpp_order(list(_nodes(document.root))):
         origin = (*path, PARAMETERS)
-        if section is None:
-            wanted = params
+        if section is None:  # kinematics.yaml: MoveIt's parameter, else the groups among the node's parameters
             if isinstance(params.get(KINEMATICS_PARAMETER), dict):
                 wanted, origin = params[KINEMATICS_PARAMETER], (*origin, KINEMATICS_PARAMETER)
+            else:
+                wanted = {key: value for key, value in params.items() if isinstance(value, dict)}
             for key, value in wanted.items():
                 builder.merge((str(key),), value, (*origin, str(key)))
         elif section in params:
