@@ -13,9 +13,10 @@ endpoint. A graph reads that topic only when asked to (`nodes=True`).
 
 from __future__ import annotations
 
+import logging
 import time
 import uuid
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,6 +36,10 @@ from plem.middleware.node_graph import DISCOVERY_TOPIC, DISCOVERY_TYPE
 from plem.middleware.qos import QosProfile
 
 _ANY_SAMPLE = SampleState.Any | ViewState.Any | InstanceState.Any
+#: At most this many samples in a row that the binding cannot convert are skipped in one pass (then the next
+#: pass goes on): a bound, so a reader that fails for another reason cannot spin.
+MAX_UNCONVERTIBLE = 64
+_log = logging.getLogger("plem.dds")
 _LATE_JOINER_DURABILITY = (Policy.Durability.TransientLocal, Policy.Durability.Transient,
                            Policy.Durability.Persistent)
 #: How ROS 2 tools name an endpoint that no node on ros_discovery_info claims.
@@ -244,10 +249,10 @@ class Graph:
 
     def _take(self) -> None:
         for publisher, reader in self._readers.items():
-            for sample in reader.take(N=1024):
+            for sample in _take_each(reader):
                 self._update(sample, publisher)
         if self._participants is not None and self._node_reader is not None:
-            for sample in self._participants.take(N=1024):
+            for sample in _take_each(self._participants):
                 if not sample.sample_info.valid_data:   # the participant left: its nodes with it
                     self._announcements.pop(sample.key.bytes, None)
             for info in self._node_reader.take(1024):
@@ -264,6 +269,27 @@ class Graph:
         type_name = names.ros_type_name(sample.type_name) or sample.type_name
         self._endpoints[sample.key] = Endpoint(ros_name[1], type_name, publisher, _profile(sample.qos), ros_name[0],
                                                sample.key.bytes, sample.participant_key.bytes, _type_hash(sample.qos))
+
+
+def _take_each(reader: BuiltinDataReader) -> Iterator[Any]:
+    """The discovery samples waiting in a built-in reader, taken one at a time.
+
+    The cyclonedds binding converts a whole batch at once and raises a bare Exception ("Callfunc endpoint
+    constructor errored") when it cannot convert one endpoint of it, losing the batch: taken one by one, only
+    that endpoint is skipped and every other one is still seen, so a peer the binding cannot describe never
+    ends a command.
+    """
+    skipped = 0
+    while skipped < MAX_UNCONVERTIBLE:
+        try:
+            samples = reader.take(N=1)
+        except Exception as error:  # noqa: BLE001 - the binding raises bare Exception for one sample; it is consumed
+            skipped += 1
+            _log.debug("a discovery sample the cyclonedds binding cannot convert was skipped: %s", error)
+            continue
+        if not samples:
+            return
+        yield samples[0]
 
 
 def _gid(gid: Any) -> bytes:
