@@ -298,3 +298,12 @@ def test_a_driver_that_cannot_build_its_robot_names_the_package(tmp_path, monkey
     error = caught.value
     assert "indy7_v2_description" in error.summary and "Several frames match the filter" in error.why
     assert f"plem validate {root} --strict" in error.how and "cycle_time" not in error.how
+
+
+def test_kinematics_groups_straight_among_a_nodes_parameters(tmp_path):
+    path = tmp_path / "kinematics.yaml"
+    path.write_text("move_group:\n  ros__parameters:\n    use_sim_time: false\n    arm:\n"
+                    "      kinematics_solver_timeout: 0.01\n")
+    document = read_package_yaml(path)
+    assert document.root == {"arm": {"kinematics_solver_timeout": 0.01}}
+    assert document.line("arm", "kinematics_solver_timeout") == 5
