@@ -241,6 +241,21 @@ def run(command: DocCommand, cwd: Path, env: dict[str, str], robot_id: str, home
         run_to_end(command, argv, cwd, env, {"robot_id": robot_id, "home": str(home)})
 
 
+def run_all(commands: list[DocCommand], cwd: Path, env: dict[str, str], robot_id: str, home: Path,
+            launch: Launch | None = None) -> None:
+    """Run commands in order and report every one that failed, not only the first (a launch that died ends it)."""
+    failures = []
+    for command in commands:
+        try:
+            run(command, cwd, env, robot_id, home)
+        except (AssertionError, subprocess.TimeoutExpired) as failure:
+            failures.append(f"{command.where()}\n{failure}")
+        if launch is not None and launch.process.poll() is not None:
+            failures.append(f"the arm's launch ended after {command.where()}\n{launch.describe()}")
+            break
+    assert not failures, f"{len(failures)} of {len(commands)} commands failed:\n\n" + "\n\n".join(failures)
+
+
 def write_doc_files(path: Path, directory: Path) -> None:
     for name, text in doc_files(path).items():
         (directory / name).write_text(text)
@@ -252,8 +267,7 @@ def test_commands_that_need_no_arm(doc: Path, tmp_path: Path) -> None:
     home = tmp_path / "home"
     env = clean_environment(home, PLEM_HOME=str(home / ".plem"))
     write_doc_files(doc, tmp_path)
-    for command in runnable((doc,), "offline"):
-        run(command, tmp_path, env, "indy", home)
+    run_all(runnable((doc,), "offline"), tmp_path, env, "indy", home)
 
 
 @pytest.mark.parametrize("doc", docs_with("refused"), ids=doc_name)
@@ -288,9 +302,7 @@ def test_commands_on_a_launched_arm(doc: Path, robot: Launch, tmp_path: Path) ->
     assert robot.process.poll() is None, robot.describe()
     env = {**robot.env, "PLEM_ROBOT_ID": robot.robot_id, "PLEM_HOME": str(tmp_path / ".plem")}
     write_doc_files(doc, tmp_path)
-    for command in runnable((doc,), "arm"):
-        run(command, tmp_path, env, robot.robot_id, Path(robot.env["HOME"]))
-    assert robot.process.poll() is None, robot.describe()
+    run_all(runnable((doc,), "arm"), tmp_path, env, robot.robot_id, Path(robot.env["HOME"]), robot)
 
 
 # -- the docs' other launches --------------------------------------------------------------------------------------
