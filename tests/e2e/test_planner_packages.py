@@ -39,6 +39,7 @@ def client(launch: Launch) -> Iterator[RobotClient]:
 
 def test_the_launch_states_the_limits_it_derives(launch: Launch, client: RobotClient) -> None:
     assert "max_acceleration = max_velocity / 0.5 s (joint3 6.283, joint4 6.283, joint5 6.283 rad/s²)" in launch.output
+    assert "plem move --to Home, plem topic list" in launch.output  # the hint names the SRDF's own spelling
     assert "max_jerk = max_acceleration / 0.1 s (joint0 30, joint1 30, joint2 30, joint3 62.83" in launch.output
     limits = client.limits  # what the core enforces, as the driver published it
     np.testing.assert_allclose(limits.max_acceleration, [3.0, 3.0, 3.0, *(limits.max_velocity[3:] / 0.5)])

@@ -24,6 +24,7 @@ from plem.ipc.robot_description import SharedDescription, remove_description, sh
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
 from plem.launch.startup import exit_description, first_line
+from plem.planning.named_states import ZERO, find_state
 from plem.robot.config import RT_KERNEL_FLAG
 
 if TYPE_CHECKING:
@@ -197,7 +198,12 @@ class Supervisor:
             self.say(f"kernel: not PREEMPT_RT ({RT_KERNEL_FLAG} is absent), so nothing bounds how late the loop "
                      "wakes: expect overruns while the machine is busy (docs/runtime.md, Timing)")
         self.say("Ctrl-C stops the arm smoothly and exits. In another terminal: plem state --watch, "
-                 "plem move --to home, plem topic list")
+                 f"plem move --to {self._first_state()}, plem topic list")
+
+    def _first_state(self) -> str:
+        """The named state to suggest: the first robot's `home` as `plem move` finds it, else `zero`."""
+        srdf = self.plans[0].report.srdf if self.plans else None
+        return find_state("home", [state.name for state in srdf.group_states] if srdf else []) or ZERO
 
     def _off(self, component: str, argument: str) -> str:
         """Why a component did not start: the launch file left it out, or its argument is false."""
