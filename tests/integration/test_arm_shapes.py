@@ -114,6 +114,20 @@ def test_the_simulated_arm_starts_inside_a_range_excluding_zero_and_moves(tmp_pa
         robot.shutdown()
 
 
+def test_the_simulated_arm_starts_inside_the_limits_joint_limits_yaml_narrows(tmp_path: Path):
+    """Zero is inside the URDF's range of joint2 but not inside joint_limits.yaml's [0.3, 1.5]: the arm starts at
+    the SRDF's home, inside both."""
+    root, _, _ = generated(tmp_path, "low")
+    robot = built(narrowed(root, "joint2", 0.3, 1.5))
+    try:
+        assert np.allclose(robot.bus.true_positions, [0.0, 0.5, 1.0, 0.0, 1.0, 0.0], atol=1e-6)
+        robot.set_mode("hold")
+        robot.step(200)
+        assert not faults(robot)
+    finally:
+        robot.shutdown()
+
+
 # -- an arm outside a range ---------------------------------------------------------------------------------------
 
 def test_an_arm_outside_a_range_holds_and_is_brought_back_never_farther_out(tmp_path: Path):

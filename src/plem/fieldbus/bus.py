@@ -45,7 +45,9 @@ class BusSetup:
 
     `counts_per_radian` is signed: negative where a drive counts against the joint's axis. `drives` are
     the description package's drive parameters (ids, gearing, direction), empty when it has none.
-    `home_position` is the SRDF's `home` pose in joint order, when it names every joint.
+    `home_position` is the SRDF's `home` pose in joint order, when it names every joint. `position_limits` are
+    the lowest and highest positions the driver allows each joint (joint_limits.yaml within the URDF's), for a
+    simulated arm to start inside them.
     """
 
     joint_names: tuple[str, ...]
@@ -56,6 +58,7 @@ class BusSetup:
     master_index: int = 0
     drives: tuple[DriveParameters, ...] = ()
     home_position: tuple[float, ...] | None = None
+    position_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
     @property
     def dof(self) -> int:

@@ -210,7 +210,10 @@ class MockBus:
         view["friction"][:] = self._friction
         self._set_limits(arm, setup.joint_names)
         if not self._start_given:
-            view["q"][:] = start_position(view["lower"], view["upper"], setup.home_position)
+            lower, upper = view["lower"], view["upper"]
+            if setup.position_limits is not None:   # inside the limits the driver enforces, not only the URDF's
+                lower, upper = np.maximum(lower, setup.position_limits[0]), np.minimum(upper, setup.position_limits[1])
+            view["q"][:] = start_position(lower, upper, setup.home_position)
         if arm is not None:
             from plem.control.kinematics import compiled_model
 

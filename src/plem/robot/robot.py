@@ -485,9 +485,10 @@ class RobotBuilder:
                                             model.counts_per_radian() if model else
                                             (DEFAULT_COUNTS_PER_RADIAN,) * config.dof)
         bus = self._bus(config)
-        setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, urdf_xml,
-                         config.network_interface, config.master_index, drives, home_position(report, joint_names))
         limits = ArmLimits.from_joint_limits(report.limits, joint_names)
+        setup = BusSetup(joint_names, tuple(counts), config.cycle_time * 1e-6, urdf_xml,
+                         config.network_interface, config.master_index, drives, home_position(report, joint_names),
+                         (tuple(limits.min_position), tuple(limits.max_position)))
         dynamics = ArmDynamics(urdf_xml, joint_names)
         state_block = self.state_block(limits) if self.state_block else StateBlock(config.dof)
         bus.open(setup)
