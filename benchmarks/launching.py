@@ -91,8 +91,10 @@ def launch(robot_id: str, env: dict[str, str], log: Path, children: list[subproc
                                    stdout=output, stderr=subprocess.STDOUT, text=True, env=env,
                                    start_new_session=True)
     children.append(process)
-    deadline = time.monotonic() + START_TIMEOUT_S
+    deadline, seen = time.monotonic() + START_TIMEOUT_S, ""
     while "Ctrl-C stops" not in (text := log.read_text()):
+        if text != seen:   # a launch slowed by a busy machine says how far it got: the wait follows it
+            deadline, seen = time.monotonic() + START_TIMEOUT_S, text
         if process.poll() is not None or time.monotonic() > deadline:
             raise SystemExit(f"plem launch did not start (exit {process.poll()}):\n{text}")
         time.sleep(0.1)
