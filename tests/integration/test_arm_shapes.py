@@ -198,3 +198,12 @@ def test_the_planner_brings_an_arm_outside_a_range_back(tmp_path: Path):
         assert robot.state().position[1] == pytest.approx(0.5, abs=1e-3) and not faults(robot)
     finally:
         robot.shutdown()
+
+
+def test_initial_positions_beyond_the_urdfs_range_are_refused_before_the_arm_jumps_there(tmp_path: Path):
+    """No arm can be beyond its hard stops: the simulated arm refuses to start there (it used to be stopped at the
+    limit in its first cycle, an encoder jump and a fault)."""
+    bus = MockBus(6, initial_positions=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ConfigError) as refused:
+        built(zero_outside_joint4(tmp_path), bus)
+    assert "joint4 = 0 is outside [-3.04, -0.15]" in refused.value.why and "initial_positions" in refused.value.how

@@ -209,7 +209,9 @@ class MockBus:
         view["raw_zero"][:] = self._raw_zero
         view["friction"][:] = self._friction
         self._set_limits(arm, setup.joint_names)
-        if not self._start_given:
+        if self._start_given:
+            self._check_inside_hard_stops(setup.joint_names)
+        else:
             lower, upper = view["lower"], view["upper"]
             if setup.position_limits is not None:   # inside the limits the driver enforces, not only the URDF's
                 lower, upper = np.maximum(lower, setup.position_limits[0]), np.minimum(upper, setup.position_limits[1])
@@ -391,6 +393,18 @@ class MockBus:
         if source is None or isinstance(source, str) and source.lstrip().startswith("<"):
             return source
         return read_regular_text(Path(source), MAX_XML_BYTES, "URDF")
+
+    def _check_inside_hard_stops(self, joint_names: Sequence[str]) -> None:
+        """A ConfigError when initial_positions put a joint beyond the URDF's range, where no arm can be (the
+        simulation would stop it there at once, a jump its encoder reports)."""
+        view = self._view
+        outside = [f"{name} = {q:g} is outside [{low:g}, {high:g}]" for name, q, low, high in
+                   zip(joint_names, view["q"], view["lower"], view["upper"], strict=True) if not low <= q <= high]
+        if outside:
+            raise ConfigError("initial_positions of the simulated arm are beyond the URDF's joint range",
+                              what="every initial position within its joint's <limit lower upper> in the URDF",
+                              why="; ".join(outside),
+                              how="pass initial_positions inside the ranges (initial_positions:= on the command line)")
 
     def _set_limits(self, arm: ArmDynamics | None, joint_names: Sequence[str]) -> None:
         """Effort limits, hard stops and the servo's error cap in joint order, from the URDF (or effort_limits)."""
