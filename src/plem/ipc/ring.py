@@ -239,6 +239,24 @@ class RingReader:
         """A float64 copy of the next record of a `write_values` ring, or None when there is nothing new."""
         return self._next(values=True)
 
+    def read_values_many(self) -> np.ndarray:
+        """A float64 copy of every new record of a `write_values` ring at once, oldest first (shape: records ×
+        values); records overwritten before or during the copy are left out and counted in `dropped`."""
+        ring = self._ring
+        head = ring.head
+        if head - self._cursor > ring.slots:
+            self.dropped += head - ring.slots - self._cursor
+            self._cursor = head - ring.slots
+        numbers = np.arange(self._cursor, head, dtype=np.int64)
+        slots = numbers % ring.slots
+        expected = (2 * numbers + 2).astype(np.uint64)
+        before = ring._seq[slots]
+        records = ring._f64[slots]                           # a copy (fancy indexing), then the seqlock check
+        whole = (before == expected) & (ring._seq[slots] == before)
+        self.dropped += int(numbers.size - np.count_nonzero(whole))
+        self._cursor = head
+        return records if whole.all() else records[whole]
+
 
 class RingConsumer:
     """The single consumer of a bounded ring, whose cursor lives in the shared header."""
