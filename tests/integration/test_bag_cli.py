@@ -89,7 +89,6 @@ def recorder_of(robot_dir: Path, now: list[int], storage: str = "mcap", flush_pe
     settings = RecordingSettings(robot_dir, storage=storage, segment_s=1.0, flush_period_s=flush_period_s)
     recorder = Recorder(settings, robot_dir.name, MONITOR_TOPICS, STORE, clock=lambda: now[0],
                         disk_usage=lambda _: (100, 10, 90), description=URDF)
-    recorder.start()
     return recorder
 
 

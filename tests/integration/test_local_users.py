@@ -341,7 +341,6 @@ def record_with_a_fault(directory: Path, group: int | None) -> None:
     clock = Clock()
     recorder = Recorder(RecordingSettings(directory, segment_s=1.0, group=group), "arm", MONITOR_TOPICS, STORE,
                         clock=clock)
-    recorder.start()
     feed(recorder, clock, range(1500))
     fault(recorder, clock, 1500)
     recorder.close()

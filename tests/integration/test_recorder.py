@@ -54,7 +54,6 @@ class Clock:
 def make(tmp_path: Path, clock: Clock, disk: Disk, **settings: float) -> Recorder:
     recorder = Recorder(RecordingSettings(tmp_path / "arm", **{"segment_s": 1.0, **settings}), "arm",
                         MONITOR_TOPICS, STORE, clock=clock, disk_usage=disk)
-    recorder.start()
     return recorder
 
 
@@ -232,9 +231,9 @@ def test_a_full_disk_keeps_the_segment_counts_the_loss_and_recording_resumes(sma
     robot = small_disk / "arm"
     recorder = Recorder(RecordingSettings(robot, segment_s=3600.0, disk_threshold=90.0), "arm", MONITOR_TOPICS,
                         STORE, clock=clock)
-    recorder.start()
-    first = recorder.segment.directory
     samples = Samples(recorder, clock)
+    samples.next()                                          # the first message opens the first segment
+    first = recorder.segment.directory
     samples.until(lambda: recorder.stopped is not None)
     assert recorder.stopped.errno == errno.ENOSPC and recorder.stopped.interrupted == str(first)
     assert open_files_under(small_disk) == [], "every file of the stopped segment is closed"
@@ -284,9 +283,9 @@ def test_a_full_disk_under_sqlite3_stops_recording_with_honest_counts(small_disk
     robot = small_disk / "arm"
     recorder = Recorder(RecordingSettings(robot, storage="sqlite3", segment_s=3600.0, disk_threshold=90.0), "arm",
                         MONITOR_TOPICS, STORE, clock=clock)
-    recorder.start()
-    first = recorder.segment.directory
     samples = Samples(recorder, clock)
+    samples.next()
+    first = recorder.segment.directory
     samples.until(lambda: recorder.stopped is not None)
     assert recorder.stopped.errno == errno.ENOSPC and open_files_under(small_disk) == []
     samples.until(lambda: samples.cycle % 1000 == 999)

@@ -75,7 +75,6 @@ def test_a_bag_dir_made_unwritable_while_recording_stops_it_once_and_it_resumes(
         clock = Clock()
         recorder = Recorder(RecordingSettings(robot, segment_s=1.0), "arm", MONITOR_TOPICS, STORE, clock=clock,
                             disk_usage=lambda _: (100, 10, 90))
-        recorder.start()
         feed(recorder, clock, range(1500))
         robot.chmod(0o500)                                   # the segment from cycle 2000 on cannot be created
         feed(recorder, clock, range(1500, 2500))
@@ -86,6 +85,7 @@ def test_a_bag_dir_made_unwritable_while_recording_stops_it_once_and_it_resumes(
         robot.chmod(0o700)
         clock.now += S
         recorder.maintain()
+        feed(recorder, clock, range(13_500, 13_501))        # the next message opens the new segment
         resumed = recorder.segment is not None
         recorder.close()
         return json.dumps({"stopped": stopped, "resumed": resumed, "lost": recorder.unrecorded})

@@ -11,7 +11,9 @@ owner-only, or readable by the group of `shm_group:=` as the robot's shared memo
 
 from __future__ import annotations
 
+import functools
 import logging
+import os
 import sys
 import threading
 import time
@@ -21,27 +23,39 @@ from plem.bridge.client import DriverGone, RobotClient, connect
 from plem.ipc.state_segment import process_alive
 from plem.launch.component import announce, run_component
 from plem.launch.plan import bag_directory, plan_robot
-from plem.middleware.monitor_feed import MONITOR_TOPICS, MonitorFeed, QueueCount
+from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
 from plem.middleware.types import library
 from plem.recording.access import restrict_umask
+from plem.recording.feed import RecordingFeed
 from plem.recording.problems import refuse_unusable
 from plem.recording.recorder import Recorder
 from plem.recording.status import remove_status, write_status
 
 _log = logging.getLogger("plem.recorder")
-#: How often the recorder reads the rings (they hold about 4 s at 1 kHz).
-PUMP_PERIOD_S = 0.02
+#: How often the recorder reads the rings (they hold about 4 s at 1 kHz): each read is one batch, whose fixed
+#: cost (a few numpy calls) a longer period spreads over more records.
+PUMP_PERIOD_S = 0.1
 LIVENESS_PERIOD_S = 0.5
 #: After a stop signal, how long the recorder waits for the driver to finish its smooth stop.
 DRAIN_TIMEOUT_S = 10.0
+#: The recorder process's nice value: ahead of the machine's ordinary processes, so a busy machine still gives it
+#: the few percent of a core it needs within the four seconds the rings hold (never ahead of the real-time loops,
+#: which run SCHED_FIFO).
+RECORDER_NICE = -10
 
 
-def record(arguments: dict[str, str], stop: threading.Event) -> None:
-    """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`.
+def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = None) -> None:
+    """Record until the RT driver is gone, or `DRAIN_TIMEOUT_S` after `stop`; at `nice` when given and allowed.
 
     A bag_dir the recorder cannot create or write into is one RecordingError (WHAT/WHY/HOW), raised before
     the driver is even looked for.
     """
+    if nice is not None:
+        try:
+            os.setpriority(os.PRIO_PROCESS, 0, nice)
+        except PermissionError as error:
+            _log.warning("recording at normal priority: nice %d refused (%s); on a busy machine the recorder may "
+                         "lose cycles: run plem launch as root, or give it CAP_SYS_NICE", nice, error.strerror)
     refuse_unusable(bag_directory(arguments))            # before the plan, whose checks would stumble on it
     plan = plan_robot(arguments, generate=False)
     settings = replace(plan.recording(), group=plan.shm_group)
@@ -49,28 +63,27 @@ def record(arguments: dict[str, str], stop: threading.Event) -> None:
     recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,
                         description=plan.robot_description)
     client = connect(plan.robot_id, plan.config.dof)
-    feed = MonitorFeed(client, interfaces, plan.joint_state_rate(), history=True)
+    feed = RecordingFeed(client, interfaces, plan.joint_state_rate())
     try:
-        recorder.start()
         announce({"ready": True, "directory": str(settings.directory), "settings": settings.describe()})
         run(client, feed, recorder, stop, plan.shm_group)
     finally:
         try:
-            feed.pump(recorder)
+            feed.pump_batch(recorder)
         finally:
             recorder.close()
             remove_status(plan.robot_id)
             client.close()
 
 
-def run(client: RobotClient, feed: MonitorFeed, recorder: Recorder, stop: threading.Event,
+def run(client: RobotClient, feed: RecordingFeed, recorder: Recorder, stop: threading.Event,
         group: int | None = None) -> None:
     """Pump the feed into the recorder, keep the disk in check, publish the recorder's counters."""
     next_check = time.monotonic()
     drain_deadline: float | None = None
     published = True
     while True:
-        feed.pump(recorder)
+        feed.pump_batch(recorder)
         recorder.maintain()
         now = time.monotonic()
         if now >= next_check:
@@ -111,7 +124,7 @@ def driver_running(client: RobotClient) -> bool:
 def main(argv: list[str] | None = None) -> int:
     """The recorder process; its umask is owner-only because rosbags creates the bag files itself."""
     restrict_umask()
-    return run_component("recorder", record, argv)
+    return run_component("recorder", functools.partial(record, nice=RECORDER_NICE), argv)
 
 
 if __name__ == "__main__":

@@ -1,17 +1,21 @@
 """The flight recorder of one robot: monitoring messages into bounded bag segments, with a disk guard.
 
-A `Recorder` is the `MonitorSink` of a `MonitorFeed`. It writes every message into the open segment and
-starts a new one every `segment_s`; given the robot's URDF text, it records it as robot_description at
-the start of every segment, so a bag directory alone is enough to replay the arm. `maintain()` (about
-once a second) deletes closed segments past the retention window or while the disk is fuller than the
-threshold, never the open one nor one kept for a fault. On a fault it puts the open segment on disk at
-once, keeps every segment holding the `flight_window_s` before it, and logs where in the bags the fault is.
+A `Recorder` is the sink of a `RecordingFeed` (whole batches, `record`) or of a `MonitorFeed` (message by
+message, as batches of one). It writes every message into the open segment and starts a new one every
+`segment_s` of message time; a segment opens with its first message and is named by that message's stamp,
+so a recorder that runs behind still names every segment by what it holds. Given the robot's URDF text, it
+records it as robot_description at the start of every segment, so a bag directory alone is enough to replay
+the arm.
+`maintain()` (about once a second) deletes closed segments past the retention window or while the disk is
+fuller than the threshold, never the open one nor one kept for a fault. On a fault it puts the open segment
+on disk at once, keeps every segment holding the `flight_window_s` before it, and logs where in the bags the
+fault is.
 
 A write the disk refuses stops recording: the open segment is finished with everything written to it
 (`SegmentWriter.salvage`), the cause is logged once as WHAT/WHY/HOW, and what follows is counted as not
 recorded. That segment stays out of the guard's reach while recording is stopped. Recording resumes in a
-new segment once the disk is below its threshold again (a full disk) or at the next guard pass that can
-write (any other cause); the resume is logged with the messages not recorded meanwhile.
+new segment, opened by the next message, once the disk is below its threshold again (a full disk) or at the
+next guard pass (any other cause); the resume is logged with the messages not recorded meanwhile.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from rosbags.typesys.store import Typestore
 
 from plem.control.events import Event, EventKind
@@ -41,6 +46,27 @@ from plem.recording.settings import RecordingSettings
 
 Clock = Callable[[], int]
 DiskUsage = Callable[[Path], tuple[int, int, int]]
+
+
+@dataclass(frozen=True)
+class Messages:
+    """Messages of one topic (its short name, rt_raw): stamps (ns, ascending) and equal-size payloads (messages ×
+    bytes); an rt_event comes alone, with its event."""
+
+    name: str
+    stamps: np.ndarray
+    payloads: np.ndarray
+    event: Event | None = None
+
+    @classmethod
+    def one(cls, name: str, wall_ns: int, payload: bytes, event: Event | None = None) -> Messages:
+        """A single message."""
+        return cls(name, np.array([wall_ns], np.int64), np.frombuffer(payload, np.uint8)[None, :], event)
+
+    def split(self, cut: int) -> tuple[Messages, Messages]:
+        """The messages before index `cut` and those from it on."""
+        return (Messages(self.name, self.stamps[:cut], self.payloads[:cut], self.event),
+                Messages(self.name, self.stamps[cut:], self.payloads[cut:], self.event))
 
 
 @dataclass
@@ -94,6 +120,7 @@ class Recorder:
         self.closed: list[Segment] = []
         self.segment: SegmentWriter | None = None
         self.stopped: Stopped | None = None
+        self._resume_due = False                 # a guard pass found the disk usable: the next message resumes
         self._segment_ns = round(settings.segment_s * 1e9)
         self._segment_start = 0
         self._next_guard = 0
@@ -109,33 +136,81 @@ class Recorder:
     # -- MonitorSink -----------------------------------------------------------------------------------
     def rt_raw(self, cdr: bytes, wall_ns: int) -> None:
         """Record one cycle's RtRaw, already in CDR."""
-        self._write("rt_raw", wall_ns, cdr)
+        self.record([Messages.one("rt_raw", wall_ns, cdr)])
 
     def joint_state(self, message: Any, wall_ns: int) -> None:
         """Record a sensor_msgs/JointState."""
-        self._write("joint_states", wall_ns, message.serialize())
+        self.record([Messages.one("joint_states", wall_ns, message.serialize())])
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
         """Record an RtEvent; a fault also keeps the segments of the flight window before it."""
-        self._write("rt_events", wall_ns, message.serialize())
-        if event.kind == EventKind.FAULT:
-            self._keep_fault_window(event, wall_ns)
+        self.record([Messages.one("rt_events", wall_ns, message.serialize(), event)])
 
     def rt_monitor_stats(self, message: Any, wall_ns: int) -> None:
         """Record an RtMonitorStats."""
-        self._write("rt_monitor_stats", wall_ns, message.serialize())
+        self.record([Messages.one("rt_monitor_stats", wall_ns, message.serialize())])
+
+    def record(self, batch: list[Messages]) -> None:
+        """Write a batch of messages in stamp order, each into the segment its stamp belongs to."""
+        batch = [messages for messages in batch if len(messages.stamps)]
+        while batch:
+            try:
+                segment = self._segment_for(min(int(messages.stamps[0]) for messages in batch))
+            except OSError as error:
+                self._stop(error)
+                segment = None
+            if segment is None:
+                self._not_recorded(batch)
+                return
+            parts = [messages.split(int(np.searchsorted(messages.stamps, self._segment_start + self._segment_ns)))
+                     for messages in batch]
+            here = [part for part, _ in parts if len(part.stamps)]
+            batch = [rest for _, rest in parts if len(rest.stamps)]
+            try:
+                self._append(segment, here)
+            except OSError as error:
+                self._stop(error)
+                self._not_recorded(here)
+                continue
+            try:                                      # a flush refused here is written again by `_stop`
+                segment.flush_due()
+            except OSError as error:
+                self._stop(error)
+            for part in here:
+                if part.event is not None and part.event.kind == EventKind.FAULT:
+                    self._keep_fault_window(part.event, int(part.stamps[0]))
+
+    def _append(self, segment: SegmentWriter, batch: list[Messages]) -> None:
+        segment.append_groups([(f"{self.namespace}/{messages.name}", messages.stamps, messages.payloads)
+                               for messages in batch])
+        self.written += sum(len(messages.stamps) for messages in batch)
+
+    def _not_recorded(self, batch: list[Messages]) -> None:
+        for messages in batch:
+            self.unrecorded += len(messages.stamps)
+            if self.stopped is not None:
+                self.stopped.lost[messages.name] += len(messages.stamps)
 
     def queues(self) -> list[QueueCount]:
         """The bag itself: messages written, and messages not recorded (recording stopped or a write failed)."""
         return [QueueCount("bag", 0, 0, self.written, self.unrecorded)]
 
     # -- segments --------------------------------------------------------------------------------------
-    def start(self) -> None:
-        """Open the first segment; RecordingError when the directory takes none."""
-        try:
-            self._open(self.clock())
-        except OSError as error:
-            raise write_problem(self.settings.directory, error) from None
+    def _segment_for(self, wall_ns: int) -> SegmentWriter | None:
+        """The segment for a message stamped `wall_ns`: the open one until it is `segment_s` long, else a new one
+        opened with (and named by) this message; None while recording is stopped and no guard pass let it resume.
+        OSError when a segment cannot be closed or opened."""
+        if self.stopped is not None and not self._resume_due:
+            return None
+        if self.segment is not None and wall_ns - self._segment_start >= self._segment_ns:
+            self._close()
+        if self.segment is None:
+            self._resume_due = False
+            self._open(wall_ns)
+            if self.stopped is not None:
+                stopped, self.stopped = self.stopped, None
+                self._log_resume(stopped)
+        return self.segment
 
     def _open(self, wall_ns: int) -> None:
         path = self.archive.new_segment_path(wall_ns)
@@ -144,8 +219,7 @@ class Recorder:
                                      self.access)
         self._segment_start = wall_ns
         if self._description is not None:
-            self.segment.append(f"{self.namespace}/{DESCRIPTION_TOPIC}", wall_ns, self._description)
-            self.written += 1
+            self._append(self.segment, [Messages.one(DESCRIPTION_TOPIC, wall_ns, self._description)])
         self.archive.log("segment_opened", f"recording into {path}", segment=path.name,
                          storage=self.settings.storage)
 
@@ -165,30 +239,6 @@ class Recorder:
         self.closed.append(self.archive.closed_segment(path)
                            or Segment(str(path), self._segment_start, self.clock(), directory_size(path),
                                       self.archive.is_kept(path)))
-
-    def _write(self, name: str, wall_ns: int, data: bytes) -> None:
-        if self.segment is None:
-            self._not_recorded(name)
-            return
-        try:
-            if wall_ns - self._segment_start >= self._segment_ns:
-                self._close()
-                self._open(wall_ns)
-            self.segment.append(f"{self.namespace}/{name}", wall_ns, data)
-        except OSError as error:
-            self._stop(error)
-            self._not_recorded(name)
-            return
-        self.written += 1                          # in the segment: a flush refused below is written again by `_stop`
-        try:
-            self.segment.flush_due()
-        except OSError as error:
-            self._stop(error)
-
-    def _not_recorded(self, name: str) -> None:
-        self.unrecorded += 1
-        if self.stopped is not None:
-            self.stopped.lost[name] += 1
 
     def close(self) -> None:
         """Finish the open segment; called once when recording ends. A stop still on is logged with its count."""
@@ -262,18 +312,11 @@ class Recorder:
                              "resumes)", logging.WARNING, percent=round(percent(freed), 1))
         self._full_warned = over
         if self.stopped is not None and not (over and self.stopped.errno in SPACE_ERRORS):
-            self._resume(now)
+            self._resume_due = True                              # the next message opens a segment
 
-    def _resume(self, now: int) -> None:
-        """Open a new segment after a stop; the segment the stop interrupted is rebuilt if it was left unfinished."""
-        stopped = self.stopped
-        assert stopped is not None
-        try:
-            self._open(now)
-        except OSError as error:
-            self._stop(error)
-            return
-        self.stopped = None
+    def _log_resume(self, stopped: Stopped) -> None:
+        """A new segment opened after a stop: say so; the segment the stop interrupted is rebuilt if unfinished."""
+        now = self.clock()
         name = self.segment.name if self.segment is not None else ""
         self.archive.log("recording_resumed", f"recording resumed in segment {name} after a stop "
                          f"({stopped.cause}): {stopped.describe(now)}", logging.WARNING, **stopped.fields(now))

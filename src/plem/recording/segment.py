@@ -31,7 +31,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Final, cast
 
-from rosbags.rosbag2 import StoragePlugin, Writer
+import numpy as np
+from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys.store import Typestore
@@ -39,6 +40,7 @@ from rosbags.typesys.store import Typestore
 from plem.core.files import file_kind
 from plem.errors import ConfigError
 from plem.recording.access import OWNER_ONLY, FileAccess
+from plem.recording.bulk_writer import BulkWriter
 
 STORAGES = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
 #: rosbag2 metadata version written (ROS 2 Jazzy writes 9).
@@ -157,7 +159,7 @@ class SegmentWriter:
         self.access = access
         self.messages = 0
         self.start_ns: int | None = None                     # the earliest stamp written: a reader's start time
-        self._writer = Writer(directory, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+        self._writer = BulkWriter(directory, version=BAG_VERSION, storage_plugin=STORAGES[storage])
         self._flush_period_ns = round(flush_period_s * 1e9)
         self._next_flush = 0
         self._file: StagedFile | None = None
@@ -204,14 +206,21 @@ class SegmentWriter:
             self._reserve.unlink()
 
     def append(self, topic: str, timestamp_ns: int, data: bytes) -> None:
-        """Add one message to the segment (MCAP: to its pending chunk, in memory); `flush_due` puts it on disk."""
+        """Add one message to the segment, as `append_groups` adds many."""
+        self.append_groups([(topic, np.array([timestamp_ns], np.int64), np.frombuffer(data, np.uint8)[None, :])])
+
+    def append_groups(self, groups: Sequence[tuple[str, np.ndarray, np.ndarray]]) -> None:
+        """Add messages to the segment (MCAP: to its pending chunk, in memory) in stamp order; `flush_due` puts them
+        on disk. Each group: a topic, stamps (ns, ascending) and equal-size payloads (messages × bytes)."""
         with _storage_errors():
-            self._writer.write(self._connections[topic], timestamp_ns, data)
-        self.messages += 1
-        self._uncommitted += 1
-        self._uncommitted_bytes += len(data)
-        if self.start_ns is None or timestamp_ns < self.start_ns:
-            self.start_ns = timestamp_ns
+            self._writer.write_groups([(self._connections[topic], stamps, payloads)
+                                       for topic, stamps, payloads in groups])
+        for _, stamps, payloads in groups:
+            self.messages += len(stamps)
+            self._uncommitted += len(stamps)
+            self._uncommitted_bytes += payloads.size
+            if len(stamps) and (self.start_ns is None or int(stamps.min()) < self.start_ns):
+                self.start_ns = int(stamps.min())
 
     def flush_due(self) -> None:
         """Flush when the flush period has passed or `CHUNK_BYTES` are pending."""
