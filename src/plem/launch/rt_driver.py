@@ -65,7 +65,7 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
         for created in channels:
             created.remove()
         if isinstance(error, Exception) and not isinstance(error, PlemError):
-            _log.exception("building the robot failed")
+            _log.debug("building the robot failed", exc_info=error)  # the user gets the error below, not a traceback
             raise _build_failed(plan, error) from error
         raise
     channels[0].publish_events(robot.events)
@@ -80,7 +80,7 @@ def _build_failed(plan: RobotPlan, error: Exception) -> PlemError:
                      what=f"a robot built from {plan.package} (URDF {plan.report.files.urdf})",
                      why=" ".join(str(error).split()) or type(error).__name__,
                      how=f"run `plem validate {plan.package} --strict` and fix what it reports; if it reports "
-                         "nothing, this is a defect of plem: report it with this message and the driver's log above")
+                         "nothing, this is a defect of plem: report it with this message")
 
 
 def _slab(channels: RobotChannels) -> MotionSlab:
