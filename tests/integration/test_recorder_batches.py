@@ -17,13 +17,16 @@ from plem.ipc.segment import SharedSegment
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import RawEncoder
 from plem.middleware.types import library
+from plem.recording.archive import directory_size
 from plem.recording.bulk_cdr import JointStateEncoder, raw_payloads
+from plem.recording.disk_use import STATS_QUEUES, disk_use, size
 from plem.recording.recorder import Messages, Recorder
 from plem.recording.settings import RecordingSettings
 
 S = 1_000_000_000
 START = 1_800_000_000 * S + 700_000_000
-STORE = library().store
+LIBRARY = library()
+STORE = LIBRARY.store
 
 
 def records(count: int, dof: int, seed: int = 0) -> np.ndarray:
@@ -103,3 +106,29 @@ def test_segments_are_named_by_their_first_message_when_the_recorder_runs_behind
                 "/arm/rt_raw", "/arm/rt_monitor_stats", "/arm/robot_description"}
             assert [stamp for _, stamp, _ in messages] == sorted(stamp for _, stamp, _ in messages)
     assert cycles == list(range(3500))
+
+
+def test_the_disk_use_estimate_matches_what_a_recording_takes(tmp_path: Path):
+    """Ten seconds as the recorder writes them (rt_raw at 1 kHz, joint_states at 100 Hz, stats at 10 Hz naming the
+    queues it reports, 5 s segments): the bag directory's growth per hour is within 5 % of the estimate."""
+    dof, names = 6, [f"joint{index}" for index in range(6)]
+    settings = RecordingSettings(tmp_path / "arm", segment_s=5.0, retention_s=1800.0)
+    estimate = disk_use(settings, names, 0.001, 100.0, LIBRARY)
+    recorder = Recorder(settings, "arm", MONITOR_TOPICS, STORE, clock=lambda: START)
+    values = records(10_000, dof)
+    stamps = START + np.arange(10_000, dtype=np.int64) * 1_000_000
+    new = LIBRARY.new
+    stats = new(MONITOR_TOPICS["rt_monitor_stats"], queues=[
+        new("plem_msgs/msg/QueueStats", name=name, capacity=4096, written=10**6) for name in STATS_QUEUES]).serialize()
+    joints = JointStateEncoder(names)
+    for first in range(0, 10_000, 100):
+        batch, picks = slice(first, first + 100), np.arange(first, first + 100, 10)
+        recorder.record([Messages("rt_raw", stamps[batch], raw_payloads(values[batch], stamps[batch], dof)),
+                         Messages("joint_states", stamps[picks], joints.payloads(values[picks], stamps[picks])),
+                         Messages.one("rt_monitor_stats", int(stamps[first]), stats)])
+    recorder.close()
+    per_hour = directory_size(tmp_path / "arm") * 360
+    assert per_hour == pytest.approx(estimate.bytes_per_hour, rel=0.05)
+    assert estimate.retained_bytes == pytest.approx(estimate.bytes_per_hour * 1805 / 3600)
+    text = estimate.describe()
+    assert text.startswith(f"about {size(estimate.bytes_per_hour)} an hour at 1000 Hz; retention 30 min keeps at most")

@@ -26,6 +26,7 @@ from plem.launch.plan import bag_directory, plan_robot
 from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
 from plem.middleware.types import library
 from plem.recording.access import restrict_umask
+from plem.recording.disk_use import disk_use
 from plem.recording.feed import RecordingFeed
 from plem.recording.problems import refuse_unusable
 from plem.recording.recorder import Recorder
@@ -65,7 +66,9 @@ def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = 
     client = connect(plan.robot_id, plan.config.dof)
     feed = RecordingFeed(client, interfaces, plan.joint_state_rate())
     try:
-        announce({"ready": True, "directory": str(settings.directory), "settings": settings.describe()})
+        use = disk_use(settings, client.joint_names, client.cycle_time_s, plan.joint_state_rate(), interfaces)
+        announce({"ready": True, "directory": str(settings.directory),
+                  "settings": f"{settings.describe()}; {use.describe()}"})
         run(client, feed, recorder, stop, plan.shm_group)
     finally:
         try:
