@@ -125,7 +125,8 @@ def test_bring_up_calibrate_move_free_drive_and_stop(network: Network, home: Pat
         true = np.array(network.control.state()["positions"])
         assert np.allclose(measured, target, atol=2e-4), measured
         assert np.allclose(true, measured, atol=1e-5), (true, measured)
-        client.set_mode("free_drive")
+        client.set_mode("free_drive")   # gravity feed-forward through the drives' torque offset (0x60B2)
+        assert wait_until(lambda: network.control.state()["torque_offsets"][1] != 0, 10)
         client.set_mode("hold")
         assert faults(client) == []
         pid = launch.driver_pids()[launch.robot_id]
@@ -432,9 +433,14 @@ def test_drives_without_rated_torque_run_in_per_mille_said_once(home: Path, tmp_
             client.move_joints(target).wait(30)
             assert np.allclose(client.state().position, target, atol=2e-4)
             # joint1 holds the arm against gravity: its reading is the drive's own, thousandths of its rated torque
-            drives = network.control.state()
-            assert faults(client) == [] and len(drives["statuswords"]) == 6
+            assert faults(client) == []
             assert 0 < abs(client.state().effort[1]) <= 32767
+            # free drive holds the arm up with a gravity torque these drives cannot be sent: refused, arm held
+            with pytest.raises(CommandRejected) as refused:
+                client.set_mode("free_drive")
+            assert "free drive needs each drive's rated torque" in str(refused.value)
+            assert "rated_torque" in refused.value.how
+            assert client.state().mode.name == "HOLD" and network.control.state()["torque_offsets"] == [0] * 6
             assert launch.stop() == 0, launch.describe()
         assert (launch.output + launch.errors).count("per mille") == 1
     finally:

@@ -106,7 +106,7 @@ INJECTIONS = {
     "delay-frames": ("delay", "seconds=0.002: every answer comes back this late"),
     "disappear": ("disappear", "slave=N: slave N neither answers nor counts"),
     "reappear": ("reappear", "slave=N: slave N is back on the line"),
-    "state": ("state", "the emulated arm's true positions and the drives' statuswords"),
+    "state": ("state", "the emulated arm's true positions, the drives' statuswords and torque offsets"),
 }
 
 

@@ -282,6 +282,10 @@ class ArmRuntime:
     # -- requests ----------------------------------------------------------------------------------
     def submit(self, command: Command) -> CommandHandle:
         """Hand a request to the core; its handle is answered from the cycles that take it."""
+        if isinstance(command, SetMode) and command.mode is Mode.FREE_DRIVE:
+            refusal: CommandRejected | None = getattr(self.bus, "free_drive_refusal", None)
+            if refusal is not None:   # e.g. drives whose torque units are unknown: no gravity torque reaches them
+                raise refusal
         token = next(self._tokens)
         request = _Request(command)
         with self._submitting:

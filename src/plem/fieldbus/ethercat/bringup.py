@@ -327,7 +327,8 @@ def per_mille_warning(joint_names: Sequence[str], rated: Sequence[RatedTorque]) 
     joints = ", ".join(joint for joint, _ in unknown)
     return (f"effort of {joints} is in per mille of each drive's rated torque, not N·m: the drive gives no rated "
             f"torque ({why}). Those readings (joint_states effort, `plem state`) count thousandths of the motor's "
-            "rated torque, and free drive sends those drives no gravity torque. For N·m, give each of those joints "
+            "rated torque, and free drive is refused (its gravity torque cannot be sent). For N·m and free drive, "
+            "give each of those joints "
             '<param name="rated_torque"> (the motor\'s rated torque in N·m) in the description package\'s '
             "ros2_control block")
 

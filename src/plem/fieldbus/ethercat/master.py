@@ -25,7 +25,7 @@ import numpy as np
 from plem.control.compiled import CONSTANTS, MASTER_STATUS
 from plem.control.timing import CoreSeries
 from plem.description.drives import DriveParameters
-from plem.errors import PlemError
+from plem.errors import CommandRejected, PlemError
 from plem.fieldbus.bus import BusIO, BusSetup, BusStatus, DriveState
 from plem.fieldbus.cia402 import PowerSequencer, decode_statusword
 from plem.fieldbus.ethercat import objects
@@ -84,6 +84,7 @@ class EtherCATBus:
                             how=f"use the default, {DEFAULT_BAD_CYCLES_TO_FAULT}")
         self.bad_cycles_to_fault = bad_cycles_to_fault
         self.io = BusIO(0)
+        self.joint_names: tuple[str, ...] = ()
         self.segment: Segment | None = None
         self._held = contextlib.ExitStack()
         self._status: np.ndarray | None = None
@@ -97,6 +98,24 @@ class EtherCATBus:
         return None if self.segment is None else self.segment.master
 
     @property
+    def free_drive_refusal(self) -> CommandRejected | None:
+        """Why free drive cannot run on these drives (None when it can): it holds the arm up with a gravity torque
+        in N·m, which a drive whose rated torque is unknown cannot be sent, so without it the arm would fall."""
+        if self.segment is None:
+            return None
+        unknown = [(joint, r.source) for joint, r in zip(self.joint_names, self.segment.rated_torque, strict=True)
+                   if r.newton_metres is None]
+        if not unknown:
+            return None
+        return CommandRejected(
+            "free drive needs each drive's rated torque",
+            what="a rated torque for every drive, to send free drive's gravity torque in the drive's units",
+            why=f"unknown for {', '.join(joint for joint, _ in unknown)} ({unknown[0][1]}); without the gravity "
+                "torque the arm would fall",
+            how='give each joint <param name="rated_torque"> (the motor\'s rated torque in N·m) in the description '
+                "package's ros2_control block and launch again; until then move the arm with `plem move`")
+
+    @property
     def exchange(self) -> CoreSeries | None:
         """Time each cycle spends in SOEM's receive and send (None while closed)."""
         return None if self._status is None else CoreSeries(self._status[0]["exchange"])
@@ -107,6 +126,7 @@ class EtherCATBus:
         """Bring the drives of `setup` to OP on `setup.network_interface`, disabled and holding where they are."""
         n = setup.dof
         self.io = BusIO(n)
+        self.joint_names = setup.joint_names
         cycle_ns = round(setup.cycle_time_s * 1e9)
         self._period_s = setup.cycle_time_s
         with contextlib.ExitStack() as held:

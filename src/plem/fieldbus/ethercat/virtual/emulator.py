@@ -187,7 +187,8 @@ class VirtualNetwork:
             return {"ok": True, "frames": drives.frames, "positions": arm.true_positions.tolist(),
                     "velocities": arm.true_velocities.tolist(),
                     "statuswords": drives.statusword.tolist(),
-                    "position_actual": drives.position_actual.tolist()}
+                    "position_actual": drives.position_actual.tolist(),
+                    "torque_offsets": drives.torque_offset.tolist()}
 
     def _serve_control(self, server: socket.socket) -> None:
         server.setblocking(True)
