@@ -74,6 +74,12 @@ def read_timeline(robot: RobotBags, start_ns: int | None = None, end_ns: int | N
     return timeline_of(robot.robot_id, robot_segments(robot), start_ns, end_ns, max_points)
 
 
+def recorded_faults(segments: list[SegmentInfo]) -> list[Marker]:
+    """Every fault the segments recorded, oldest first, read from rt_events alone (not the 1 kHz samples)."""
+    readable = [segment for segment in segments if segment.readable]
+    return [marker for marker in _markers(readable, EVERYTHING) if marker.kind == "fault"]
+
+
 def extent(segments: list[SegmentInfo]) -> Window | None:
     """The first and last log time of the segments a timeline reads; None when none reads."""
     spans = [(segment.start_ns, segment.start_ns + segment.duration_ns) for segment in segments

@@ -1,8 +1,9 @@
 """The recorded arm replayed from the flight recorder's bags: a timeline to scrub and play, with marks at each fault
 and mode change, a jump to the seconds before each fault, and the joint values and loop latency plotted beside.
 
-The whole recording is read at a coarse resolution; a fault's window (the flight recorder's seconds before it,
-and a little after) is read again at up to 1 kHz when the user jumps to it.
+The whole recording is read at a coarse resolution when it is shown; a fault's window (the flight recorder's
+seconds before it, and a little after) is read at up to 1 kHz when the user jumps to it, or alone when the replay
+opens at a fault.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from plem.launch.arguments import DEFAULTS
 from plem.recording.archive import iso_time, read_event_log
 from plem.recording.plot import mode_name
 from plem.recording.summary import BagError, RobotBags, find_bags, pick_robot, robot_segments
-from plem.recording.timeline import Marker, Timeline, read_timeline, segment_warnings
+from plem.recording.timeline import Marker, Timeline, read_timeline, recorded_faults, segment_warnings
 from plem.view.feed import joints_text
 from plem.view.model import ViewModel
 from plem.view.readouts import Readouts
@@ -42,58 +43,68 @@ class Replay:
     """One robot's recording, ready to be shown."""
 
     bags: RobotBags
-    overview: Timeline              # the whole recording, coarse
-    timeline: Timeline              # what is shown: the overview, or a fault's window at full rate
+    timeline: Timeline              # what is shown: the whole recording (coarse), or a fault's window at full rate
     warnings: list[str] = field(default_factory=list)
     fault: Marker | None = None
+    _overview: Timeline | None = None
 
     @classmethod
     def of_bags(cls, directory: Path, robot: str | None = None, fault: int | None = None) -> Replay:
-        """The recording of `robot` (default: the one recorded last); at its `fault`-th fault (1-based) if given."""
+        """The recording of `robot` (default: the one recorded last); at its `fault`-th fault (1-based) if given.
+
+        With a fault only its window is read (the faults are found in rt_events alone), never the whole recording.
+        """
         bags, warnings = pick_robot(find_bags(directory), robot, directory, "showing")
-        warnings += segment_warnings(robot_segments(bags))
-        overview = read_timeline(bags, max_points=OVERVIEW_POINTS)
-        if overview.description is None:
-            raise BagError(f"the bags of {bags.robot_id} hold no robot_description", what="a recording with the "
-                           "robot's URDF (/{robot_id}/robot_description, recorded at the start of each segment)",
-                           why="these bags were recorded without it", how="record again with this version of plem "
-                           "(plem launch ... record:=true), or plot them with `plem bag plot`")
-        replay = cls(bags, overview, overview, warnings)
-        if fault is not None:
-            faults = overview.faults()
+        segments = robot_segments(bags)
+        warnings += segment_warnings(segments)
+        if fault is None:
+            overview = read_timeline(bags, max_points=OVERVIEW_POINTS)
+            replay = cls(bags, overview, warnings, None, overview)
+        else:
+            faults = recorded_faults(segments)
             if not 1 <= fault <= len(faults):
                 raise BagError(f"there is no fault {fault} in the bags of {bags.robot_id}",
                                what=f"--fault between 1 and {len(faults)}" if faults else "a recorded fault",
                                why=f"{len(faults)} faults recorded", how="`plem bag info DIR` lists the faults"
                                if faults else "leave --fault out to replay the whole recording")
-            replay.focus(faults[fault - 1])
+            marker = faults[fault - 1]
+            replay = cls(bags, read_timeline(bags, *fault_window(bags, marker), max_points=WINDOW_POINTS), warnings,
+                         marker)
+        if replay.timeline.description is None:
+            raise BagError(f"the bags of {bags.robot_id} hold no robot_description", what="a recording with the "
+                           "robot's URDF (/{robot_id}/robot_description, recorded at the start of each segment)",
+                           why="these bags were recorded without it", how="record again with this version of plem "
+                           "(plem launch ... record:=true), or plot them with `plem bag plot`")
         return replay
 
     def focus(self, fault: Marker | None) -> None:
-        """Read the window around `fault` (the flight recorder's seconds before it) at full rate; None: everything."""
+        """Read the window around `fault` (the flight recorder's seconds before it) at full rate; None: everything
+        (read once, at a coarse resolution)."""
         self.fault = fault
         if fault is None:
-            self.timeline = self.overview
+            if self._overview is None:
+                self._overview = read_timeline(self.bags, max_points=OVERVIEW_POINTS)
+            self.timeline = self._overview
             return
-        before_ns = int(self._window_s(fault) * 1e9)
-        self.timeline = read_timeline(self.bags, fault.time_ns - before_ns, fault.time_ns + int(AFTER_FAULT_S * 1e9),
-                                      max_points=WINDOW_POINTS)
-
-    def _window_s(self, fault: Marker) -> float:
-        """The flight recorder's seconds before `fault`, as the recorder logged them (the launch's default when the
-        event log does not say)."""
-        try:
-            entries = list(read_event_log(self.bags.directory))
-        except PlemError:
-            entries = []
-        logged = [entry.get("window_s") for entry in entries if entry.get("kind") == "fault"
-                  and entry.get("cycle") == fault.cycle]
-        window = logged[-1] if logged else None
-        return float(window) if isinstance(window, int | float) else float(DEFAULTS["flight_recorder_seconds"])
+        self.timeline = read_timeline(self.bags, *fault_window(self.bags, fault), max_points=WINDOW_POINTS)
 
     def show(self, server: viser.ViserServer) -> ReplayPage:
         """Draw the replay on `server`'s page."""
         return ReplayPage(server, self)
+
+
+def fault_window(bags: RobotBags, fault: Marker) -> tuple[int, int]:
+    """From the flight recorder's seconds before `fault`, as the recorder logged them (the launch's default when the
+    event log does not say), to `AFTER_FAULT_S` after it (ns since the epoch)."""
+    try:
+        entries = list(read_event_log(bags.directory))
+    except PlemError:
+        entries = []
+    logged = [entry.get("window_s") for entry in entries if entry.get("kind") == "fault"
+              and entry.get("cycle") == fault.cycle]
+    window = logged[-1] if logged else None
+    before = float(window) if isinstance(window, int | float) else float(DEFAULTS["flight_recorder_seconds"])
+    return fault.time_ns - int(before * 1e9), fault.time_ns + int(AFTER_FAULT_S * 1e9)
 
 
 class ReplayPage:
