@@ -18,8 +18,10 @@ from plem.middleware.qos import LATCHED
 from plem.view.feed import READOUTS, Snapshot
 from plem.view.ros_feed import RosFeed
 from plem.view.server import ViewError
+from tests.e2e.browser import page_of, wait_for_text
 from tests.e2e.launched import Launch, join_domain, launched_robot, new_robot_id, wait_for, wait_until
 from tests.e2e.ros_peer import JOINT_NAMES
+from tests.e2e.test_view_live import View
 
 #: Generous deadlines: the launch, the bridge and this process share a busy 2-core machine.
 DISCOVERY_S = 30.0
@@ -122,3 +124,14 @@ def test_a_robot_nobody_publishes_is_an_error_naming_the_topic(robot: Launch):
     assert f"no publisher of /{robot_id}/robot_description" in error.why
     assert f"ROS_DOMAIN_ID={robot.env['ROS_DOMAIN_ID']}" in error.why
     assert "bridge:=true" in error.how and "plem topic list" in error.how
+
+
+def test_the_page_over_dds_offers_no_teach_folder(robot: Launch):
+    """docs/view.md: over --ros the teach panel is not offered; the page has no Teach folder at all."""
+    view = View(robot, "--ros")
+    try:
+        with page_of(view.url) as page:
+            text = wait_for_text(page, lambda shown: "joints" in shown and "°" in shown)
+            assert "Teach" not in text and "teach" not in text.lower()
+    finally:
+        assert view.stop() == 0

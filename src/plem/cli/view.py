@@ -71,8 +71,7 @@ def _live(robot_id: str, ros: bool, host: str, port: int, rate: float, stop: thr
     if ros:
         from plem.view.ros_feed import RosFeed
 
-        feed, source, teacher = RosFeed(robot_id), "DDS", None
-        teach_note = "Teach needs the robot on this host: run `plem view` there (without --ros)."
+        feed, source, teacher, teach_note = RosFeed(robot_id), "DDS", None, ""   # no Teach folder: docs/view.md
     else:
         from plem.view.live import LiveFeed
 
