@@ -161,7 +161,7 @@ def test_node_info_lists_topics_services_and_actions(robot, ns):
 
 def test_unknown_names_say_how_to_list_what_exists(robot, ns):
     running = {
-        "node": start(robot, "node", "info", f"{ns}/arm_controler", "--timeout", "1"),
+        "node": start(robot, "node", "info", f"{ns}/joint_trajectory_controler", "--timeout", "1"),
         "topic": start(robot, "topic", "info", f"{ns}/joint_state", "--timeout", "1"),
         "service": start(robot, "service", "call", f"{ns}/controller_manager/list_controler",
                          "controller_manager_msgs/srv/ListControllers", "--timeout", "1"),
