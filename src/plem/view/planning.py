@@ -50,6 +50,8 @@ class PlannerWatch:
             self._scene_seen = int(scene["version"])
             self._objects = list(scene["objects"])
         attached = any(entry.get("attached_to") for entry in self._objects)
+        if position is not None:
+            self.scene.follow_plan(position)
         if position is not None and (scene is not None or attached):
             self.scene.show_objects(self._objects, position)
         self.state = f"running — {len(self._objects)} objects, {self._plans_seen} plans"

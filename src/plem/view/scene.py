@@ -4,6 +4,7 @@ when a planner runs, its planning scene's objects and the newest planned path.""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,8 @@ from plem.view.model import ViewModel
 GHOST_COLOR = (0.25, 0.55, 1.0, 0.35)
 OBJECT_COLOR = (0.85, 0.45, 0.2)
 PATH_COLOR = (0.1, 0.7, 0.3)
+#: How close (rad, every joint) the arm must be to a plan's start or end to count as there.
+PLAN_REACHED_RAD = 1e-3
 AXES_LENGTH, AXES_RADIUS = 0.12, 0.004
 #: Positions closer than this (rad) to the ones drawn are not sent again.
 UNCHANGED_RAD = 1e-5
@@ -30,6 +33,22 @@ def _wxyz(xyzw: Sequence[float]) -> tuple[float, float, float, float]:
 def matrix_pose(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(wxyz, position) of a 4×4 transform."""
     return viser.transforms.SO3.from_matrix(matrix[:3, :3]).wxyz, matrix[:3, 3].copy()
+
+
+@dataclass
+class PlanShown:
+    """The plan drawn: where it starts and ends (rad), its duration, its label and what the label says of it."""
+
+    start: np.ndarray
+    end: np.ndarray
+    duration_s: float
+    label: Any
+    state: str = ""
+
+    def show(self, state: str) -> None:
+        """Put `state` on the label beside the duration."""
+        self.state = state
+        self.label.text = f"plan {self.duration_s:.2f} s — {state}"
 
 
 class ArmScene:
@@ -54,6 +73,7 @@ class ArmScene:
         self._drawn: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
         self._objects: dict[str, Any] = {}
         self._path: list[Any] = []
+        self._plan: PlanShown | None = None
 
     def show(self, position: np.ndarray, command_position: np.ndarray | None) -> bool:
         """Move the drawn arms to these positions; False when nothing changed enough to send."""
@@ -84,17 +104,30 @@ class ArmScene:
         return name if name in self._kinematics.link_map else self.model.base_link
 
     def show_path(self, points: Sequence[Sequence[float]], duration_s: float) -> None:
-        """The tool's path along a plan's points, with its duration."""
+        """The tool's path along a plan's points, labelled with its duration and, until the arm moves along it,
+        "not executed" (a dry run, or a plan not sent yet)."""
         for handle in self._path:
             handle.remove()
-        self._path = []
+        self._path, self._plan = [], None
         if len(points) < 2:
             return
         tool = np.array([self.link_transform(np.asarray(p), self.model.tool_link)[:3, 3] for p in points])
         scene = self.server.scene
+        label = scene.add_label("/plan/end", "", position=tuple(tool[-1]))
         self._path = [scene.add_spline_catmull_rom("/plan/path", tool, thickness=4.0, thickness_units="screen",
-                                                   color=PATH_COLOR),
-                      scene.add_label("/plan/end", f"plan {duration_s:.2f} s", position=tuple(tool[-1]))]
+                                                   color=PATH_COLOR), label]
+        self._plan = PlanShown(np.asarray(points[0], float), np.asarray(points[-1], float), duration_s, label)
+        self._plan.show("dry run — not executed")
+
+    def follow_plan(self, position: np.ndarray) -> None:
+        """Say on the plan's label whether the arm ran it: still at its start, on its way, or at its end."""
+        plan = self._plan
+        if plan is None or plan.state == "executed":
+            return
+        if np.max(np.abs(position - plan.end)) <= PLAN_REACHED_RAD:
+            plan.show("executed")
+        elif np.max(np.abs(position - plan.start)) > PLAN_REACHED_RAD:
+            plan.show("executing")
 
     def show_objects(self, objects: Sequence[dict[str, Any]], arm_position: np.ndarray) -> None:
         """The planning scene's objects (boxes, spheres, cylinders, meshes), attached ones on their links."""
