@@ -14,7 +14,9 @@ from plem.control.kinematics import ArmDynamics
 from plem.control.trajectory import JointTrajectory, TrajectoryOutcome
 from plem.description.validate import validate_package
 from plem.errors import CommandRejected, ConfigError, MultipleErrors
+from plem.fieldbus.ethercat.virtual.emulator import ClockedDrives
 from plem.fieldbus.mock import MockBus
+from plem.launch.ethercat_sim import arm_of_plan
 from plem.launch.plan import plan_robot
 from plem.robot import Robot
 from plem.robot.resolution import LAUNCH_DEFAULTS, resolve_arm_config
@@ -167,11 +169,24 @@ def test_initial_positions_are_taken_on_the_simulated_arm(tmp_path: Path):
     assert plan_robot({"bus": "mock", "description_package": str(root)}, generate=False).initial_positions is None
 
 
+def test_the_virtual_networks_arm_starts_at_initial_positions_inside_the_enforced_limits(tmp_path: Path):
+    """bus:=ethercat_sim's emulated drives start where initial_positions:= says, else inside joint_limits.yaml."""
+    root = zero_outside_joint4(tmp_path)
+    given = plan_robot({"bus": "ethercat_sim", "description_package": str(root),
+                        "initial_positions": "0,0.5,0,-1.2,0,1"}, generate=False)
+    drives = ClockedDrives(arm_of_plan(given, start=given.initial_positions))
+    np.testing.assert_allclose(drives.arm.true_positions, [0.0, 0.5, 0.0, -1.2, 0.0, 1.0], atol=1e-9)
+    own = plan_robot({"bus": "ethercat_sim", "description_package": str(root)}, generate=False)
+    limits = own.limits()
+    start = ClockedDrives(arm_of_plan(own)).arm.true_positions
+    assert np.all((limits.min_position <= start) & (start <= limits.max_position)), start
+
+
 @pytest.mark.parametrize(("bus", "text", "words"), [
     ("mock", "0,0,0,-1,0", "5 numbers for 6 joints"),
     ("mock", "0,0,0,-1,0,1e3", "not a list of plain numbers"),
     ("mock", "0,0,0,0,0,0", f"joint4 = 0 is outside [{FR3_JOINT4[0]:g}, {FR3_JOINT4[1]:g}]"),
-    ("ethercat_sim", "0,0,0,-1,0,0", "bus:=ethercat_sim starts its emulated arm at zero"),
+    ("ethercat", "0,0,0,-1,0,0", "bus:=ethercat drives a real arm, which starts where it is"),
 ])
 def test_initial_positions_are_checked_against_the_joints_and_their_ranges(tmp_path: Path, bus: str, text: str,
                                                                            words: str):

@@ -53,12 +53,13 @@ def simulate(
     from plem.core.config.settings import parse_int_list
     from plem.errors import UsageError
     from plem.fieldbus.ethercat.virtual.emulator import VirtualNetwork
-    from plem.launch.arguments import parse
+    from plem.launch.arguments import initial_positions, parse
     from plem.launch.component import stop_on_signals
     from plem.launch.ethercat_sim import arm_of_plan
     from plem.launch.plan import plan_robot
 
     values = parse(arguments or [])
+    start_text = values.pop("initial_positions", None)   # the emulated arm's, not the master's launch argument
     plan = plan_robot({**values, "bus": "ethercat"}, generate=False)
     zero = None
     if encoder_zero is not None:
@@ -69,7 +70,8 @@ def simulate(
                              what="one raw count per joint", why=f"found {encoder_zero!r}",
                              how="e.g. --encoder-zero=1000,-2000,0,0,0,0") from None
     missing = frozenset(_object_index(text) for text in missing_object or [])
-    network = VirtualNetwork(arm_of_plan(plan, zero, missing), index=plan.config.master_index)
+    start = None if start_text is None else initial_positions(start_text, "ethercat_sim", plan.limits())
+    network = VirtualNetwork(arm_of_plan(plan, zero, missing, start), index=plan.config.master_index)
     network.stop = stop_on_signals()
     given = " ".join(f"{name}:={value}" for name, value in values.items() if name != "bus")
 

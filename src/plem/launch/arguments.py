@@ -14,6 +14,9 @@ from plem.errors import ConfigError
 from plem.robot.config import ARM_SETTINGS
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
 
+#: The buses whose arm is simulated, and so can start anywhere inside its limits.
+SIMULATED_BUSES = ("mock", "ethercat_sim")
+
 
 def model_default(setting: Setting) -> object:
     """The value of a configuration setting in the default arm's preset (e.g. 98 for rt_priority)."""
@@ -48,7 +51,8 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
                    "{robot_id}/ (frame_prefix:=none for none)"),
     LaunchArgument("start_enabled", "", "enable the drives and hold, trajectory controller active, once started; "
                    "default: true on bus:=mock and ethercat_sim, false on ethercat (docs/ros2.md)"),
-    LaunchArgument("initial_positions", "", "where the simulated arm starts (bus:=mock): comma-separated rad (m for "
+    LaunchArgument("initial_positions", "", "where the simulated arm starts (bus:=mock or ethercat_sim): "
+                   "comma-separated rad (m for "
                    "a prismatic joint), one per joint in drive order, each inside its range; default: zero, else the "
                    "SRDF's home, else the middle of each range"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
@@ -92,12 +96,13 @@ def initial_positions(text: str, bus: str, limits: ArmLimits) -> tuple[float, ..
     def refused(why: str, how: str) -> ConfigError:
         return ConfigError(f"invalid launch argument initial_positions:={shown(text)}",
                            what=f"{limits.dof} comma-separated positions (rad, m for a prismatic joint), one for each "
-                                f"of {names}, each inside its range, on bus:=mock", why=why, how=how)
+                                f"of {names}, each inside its range, on a simulated arm (bus:=mock or ethercat_sim)",
+                           why=why, how=how)
 
-    if bus != "mock":
-        raise refused(f"bus:={bus} " + ("drives a real arm, which starts where it is" if bus == "ethercat" else
-                                        "starts its emulated arm at zero, the SRDF's home or the middle of each range"),
-                      "use bus:=mock to start the simulated arm elsewhere, or leave initial_positions out")
+    if bus not in SIMULATED_BUSES:
+        raise refused(f"bus:={bus} drives a real arm, which starts where it is",
+                      "use bus:=mock or bus:=ethercat_sim to start a simulated arm elsewhere, or leave "
+                      "initial_positions out")
     values = number_list(text)
     if values is None:
         raise refused(f"'{shown(text)}' is not a list of plain numbers (digits 0-9, an optional sign and point)",

@@ -18,9 +18,9 @@ from plem.robot.robot import arm_joint_names, home_position, startup_urdf
 
 
 def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None,
-                missing_objects: frozenset[int] = frozenset()) -> Arm:
-    """The arm the emulated drives move: the plan's joints, URDF, drive parameters and cycle time (and the objects
-    its drives lack)."""
+                missing_objects: frozenset[int] = frozenset(), start: tuple[float, ...] | None = None) -> Arm:
+    """The arm the emulated drives move: the plan's joints, URDF, drive parameters, cycle time and limits (and the
+    objects its drives lack); it starts at `start` when given, else at zero, home or mid-range within the limits."""
     urdf, urdf_xml = startup_urdf(plan.report)
     joint_names = arm_joint_names(plan.config, urdf)
     drives = drive_parameters(urdf, joint_names)
@@ -33,14 +33,16 @@ def arm_of_plan(plan: RobotPlan, encoder_zero: tuple[int, ...] | None = None,
         raise ConfigError("wrong number of encoder zeros for the virtual network",
                           what=f"one raw encoder reading at home per joint ({len(joint_names)})",
                           why=f"got {len(encoder_zero)}", how=f"give {len(joint_names)} whole numbers")
+    limits = plan.limits()
     return Arm(joint_names, urdf_xml, drives, plan.config.cycle_time * 1e-6, encoder_zero,
-               home_position(plan.report, joint_names), missing_objects)
+               home_position(plan.report, joint_names), start,
+               (tuple(limits.min_position), tuple(limits.max_position)), missing_objects)
 
 
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     """Run the robot's virtual network (numbered by its master_index) until `stop`."""
     plan = plan_robot(arguments, generate=False)
-    network = VirtualNetwork(arm_of_plan(plan), index=plan.config.master_index)
+    network = VirtualNetwork(arm_of_plan(plan, start=plan.initial_positions), index=plan.config.master_index)
     network.stop = stop
     network.run(ready=lambda running: announce({"ready": True, "interface": running.master_interface,
                                                 "slaves": len(running.identities)}))

@@ -37,12 +37,14 @@ class EmulatedDrives:
     def __init__(self, joint_names: Sequence[str], urdf_xml: str | None, drives: Sequence[DriveParameters],
                  cycle_time_s: float, raw_zero: Sequence[int] | None = None,
                  initial_positions: Sequence[float] | None = None,
-                 home_position: Sequence[float] | None = None) -> None:
+                 home_position: Sequence[float] | None = None,
+                 position_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None) -> None:
         n = len(joint_names)
         self.count = n
         self.arm = MockBus(n, urdf_xml, raw_zero=raw_zero, initial_positions=initial_positions)
         self.arm.open(BusSetup(tuple(joint_names), tuple(d.signed_counts_per_radian for d in drives), cycle_time_s,
-                               urdf_xml, home_position=None if home_position is None else tuple(home_position)))
+                               urdf_xml, home_position=None if home_position is None else tuple(home_position),
+                               position_limits=position_limits))
         gear_ratio = np.array([d.gear_ratio for d in drives])
         effort = self.arm.effort_limits
         rated = np.where(np.isfinite(effort), np.round(effort / gear_ratio * 1000.0), DEFAULT_RATED_TORQUE_MNM)

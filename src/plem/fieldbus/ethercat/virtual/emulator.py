@@ -56,6 +56,10 @@ class Arm:
     cycle_time_s: float
     encoder_zero: tuple[int, ...] | None = None
     home_position: tuple[float, ...] | None = None
+    #: Where the arm starts (initial_positions:=), and the position limits the driver enforces, which the start
+    #: found otherwise stays within.
+    initial_positions: tuple[float, ...] | None = None
+    position_limits: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     #: Objects the drives' dictionaries leave out, as drives that implement fewer do (e.g. rated torque 0x6076).
     missing_objects: frozenset[int] = frozenset()
 
@@ -65,7 +69,8 @@ class ClockedDrives(EmulatedDrives):
 
     def __init__(self, arm: Arm) -> None:
         super().__init__(arm.joint_names, arm.urdf_xml, arm.drives, arm.cycle_time_s, raw_zero=arm.encoder_zero,
-                         home_position=arm.home_position)
+                         initial_positions=arm.initial_positions, home_position=arm.home_position,
+                         position_limits=arm.position_limits)
         self.lock = threading.Lock()
         self.cycle_time_s = arm.cycle_time_s
         self.last_step = time.monotonic()
