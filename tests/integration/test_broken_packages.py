@@ -390,7 +390,7 @@ CASES = [
          "limits.incomplete", WARNING, line="joint0:", message={"why": "max_jerk"}),
     Case("rp2_limits_joint6_missing", yaml_entry(LIMITS, "joint6", ""), "limits.missing_joint",
          ERROR, message={"summary": "joint6"}, robot=RP2),
-    # --- controllers.yaml (optional; the built-in packages have none)
+    # --- controllers.yaml (optional: a package without one gets the generated arm_controller)
     Case("controllers_unknown_joint", write(CONTROLLERS, controllers_yaml([*JOINTS[:5], "joint_5"])),
          "controllers.unknown_joint", ERROR, line="- joint_5"),
     Case("controllers_yaml_syntax", write(CONTROLLERS, controllers_yaml(JOINTS) + "  bad: [\n"),
