@@ -24,12 +24,13 @@ from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
 from plem.middleware.raw_cdr import RawEncoder, raw_dof, raw_dtype, raw_field
 from plem.middleware.types import library
 from plem.recording import plot
-from plem.recording.archive import Archive
-from plem.recording.recorder import Recorder
+from plem.recording.archive import Archive, iso_time
+from plem.recording.bulk_cdr import raw_payloads
+from plem.recording.recorder import Messages, Recorder
 from plem.recording.segment import SegmentWriter
 from plem.recording.settings import RecordingSettings
 from plem.recording.status import remove_status, write_status
-from plem.recording.summary import BagError, find_bags
+from plem.recording.summary import BagError, find_bags, pick_robot
 from plem.recording.timeline import read_timeline
 from tests.e2e.cli import run_plem
 
@@ -331,8 +332,9 @@ def test_plot_of_a_bag_dir_with_several_robots_plots_the_newest_and_says_so(tmp_
     out = tmp_path / "run.png"
     code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(out))
     assert code == 0, err
-    assert (f"WARNING: {tmp_path} holds the bags of 2 robots (arm, arm2): plotting arm2, the one recorded last; "
-            "pass --robot ID for another, or --robot all for one PNG per robot") in err
+    assert (f"WARNING: {tmp_path} holds the bags of 2 robots (arm, arm2): plotting arm2, the one whose last message "
+            "is the latest (2027-01-15T09:00:01.") in err
+    assert "; pass --robot ID for another, or --robot all for one PNG per robot" in err
     assert f"wrote {out} (" in stdout and "): arm2 from 2027-01-15T09:00:00.000Z" in stdout
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     code, stdout, err = plem(capsys, "bag", "plot", str(tmp_path), "--out", str(out), "--robot", "all")
@@ -341,6 +343,21 @@ def test_plot_of_a_bag_dir_with_several_robots_plots_the_newest_and_says_so(tmp_
     assert [line.split(" (")[0] for line in stdout.splitlines()] == [f"wrote {path}" for path in written]
     assert all(path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for path in written)
     assert sorted(path.name for path in tmp_path.glob("*.png")) == ["run-arm.png", "run-arm2.png", "run.png"]
+
+
+def test_the_default_robot_is_the_one_whose_last_message_is_latest(tmp_path: Path):
+    """arm's newest segment starts after arm2's only one, but arm2 recorded on for longer: arm2 is picked, and the
+    warning says why (its segment names alone would pick arm)."""
+    record(tmp_path / "arm", samples=3000, start=START + 30 * S)            # segments from 30 s; the last ends at 33 s
+    recorder = Recorder(RecordingSettings(tmp_path / "arm2", segment_s=60.0), "arm2", MONITOR_TOPICS, STORE,
+                        clock=lambda: START)
+    stamps = START + np.arange(40_000, dtype=np.int64) * 1_000_000       # one segment from 0 s to 40 s
+    recorder.record([Messages("rt_raw", stamps, raw_payloads(np.zeros((40_000, 43)), stamps, 6))])
+    recorder.close()
+    chosen, warnings = pick_robot(find_bags(tmp_path), None, tmp_path, "plotting")
+    assert chosen.robot_id == "arm2"
+    assert warnings == [f"{tmp_path} holds the bags of 2 robots (arm, arm2): plotting arm2, the one whose last message "
+                        f"is the latest ({iso_time(int(stamps[-1]))}); pass --robot ID for another"]
 
 
 def test_plot_writes_only_a_regular_file_in_an_existing_directory(bag_dir: Path, tmp_path: Path,

@@ -200,7 +200,8 @@ def _refuse_output(out: Path) -> None:
 
 def _robots_to_plot(found: list[RobotBags], robot: str | None, directory: Path,
                     out: Path) -> list[tuple[RobotBags, Path]]:
-    """The robots --robot names (default: the one recorded last, said when there are others) and the PNG of each."""
+    """The robots --robot names (default: the one whose last message is latest, said when there are others) and the
+    PNG of each."""
     from plem.recording.summary import pick_robot
 
     if robot == "all":
@@ -241,7 +242,8 @@ def plot(
     out: Annotated[Path, typer.Option("--out", "-o", help="PNG file to write (with --robot all: one per robot, "
                                       "named OUT-ROBOT_ID.png).", show_default=False)],
     robot: Annotated[str | None, typer.Option("--robot", help="Robot to plot when DIR holds several (default: the "
-                                              "one recorded last; all: every one).", show_default=False)] = None,
+                                              "one whose last message is latest; all: every one).",
+                                              show_default=False)] = None,
     start: Annotated[str | None, typer.Option("--from", help=f"Plot from this time: {TIME_FORMS}.",
                                               show_default=False)] = None,
     end: Annotated[str | None, typer.Option("--to", help=f"Plot up to this time: {TIME_FORMS}.",

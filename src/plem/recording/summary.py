@@ -26,7 +26,7 @@ from plem.errors import PlemError
 from plem.launch.arguments import DEFAULTS
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_field, raw_fields
-from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, read_event_log
+from plem.recording.archive import KEEP_SUFFIX, bag_metadata, directory_size, extent_of, iso_time, read_event_log
 from plem.recording.mcap_records import (
     CHUNK,
     MAGIC,
@@ -95,9 +95,9 @@ def find_bags(path: Path) -> list[RobotBags]:
 
 def pick_robot(robots: list[RobotBags], robot_id: str | None, directory: Path, doing: str,
                also: str = "") -> tuple[RobotBags, list[str]]:
-    """The bags of `robot_id`, else of the robot recorded last with a warning naming the others (`doing` it, e.g.
-    "plotting"); BagError naming the robots there when `robot_id` is not one of them. `also`: the other choices
-    --robot offers, as the messages end with them."""
+    """The bags of `robot_id`, else of the robot whose last message is the latest, with a warning naming it and the
+    others (`doing` it, e.g. "plotting"); BagError naming the robots there when `robot_id` is not one of them.
+    `also`: the other choices --robot offers, as the messages end with them."""
     if robot_id is not None:
         for bags in robots:
             if bags.robot_id == robot_id:
@@ -105,13 +105,22 @@ def pick_robot(robots: list[RobotBags], robot_id: str | None, directory: Path, d
         raise BagError(f"no bags of robot {robot_id} in {directory}", what=f"bags of {robot_id}",
                        why=f"robots found: {', '.join(bags.robot_id for bags in robots)}",
                        how=f"pass one of them with --robot{also}")
-    # the newest segment's name (robot_YYYY_MM_DD-HH_MM_SS) holds the latest time
-    newest = max(robots, key=lambda found: found.segments[-1].name.removeprefix(f"{found.robot_id}_"))
     if len(robots) == 1:
-        return newest, []
+        return robots[0], []
+    ends = {bags.robot_id: last_message_time(bags) for bags in robots}
+    newest = max(robots, key=lambda found: ends[found.robot_id])
     return newest, [f"{directory} holds the bags of {len(robots)} robots "
-                    f"({', '.join(bags.robot_id for bags in robots)}): {doing} {newest.robot_id}, the one recorded "
-                    f"last; pass --robot ID for another{also}"]
+                    f"({', '.join(bags.robot_id for bags in robots)}): {doing} {newest.robot_id}, the one whose last "
+                    f"message is the latest ({iso_time(ends[newest.robot_id])}); pass --robot ID for another{also}"]
+
+
+def last_message_time(bags: RobotBags) -> int:
+    """The log time (ns) of a robot's last recorded message: the end of its newest segment that tells one (0: none)."""
+    for path in reversed(bags.segments):
+        info = segment_info(path)
+        if info.start_ns is not None and info.duration_ns is not None:
+            return info.start_ns + info.duration_ns
+    return 0
 
 
 # -- reading payloads --------------------------------------------------------------------------------------
