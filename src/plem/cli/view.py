@@ -26,7 +26,8 @@ def view(
                                              "under DIR (the recorder's bag_dir, a robot's or a segment).",
                                              show_default=False)] = None,
     robot: Annotated[str | None, typer.Option("--robot", help="With --bag: the robot to replay when DIR holds "
-                                              "several (default: the one whose last message is latest).", show_default=False)] = None,
+                                              "several (default: the one whose last message is latest).",
+                                              show_default=False)] = None,
     fault: Annotated[int | None, typer.Option("--fault", min=1, help="With --bag: open at the N-th recorded fault "
                                               "(1 = the first), the seconds before it.", show_default=False)] = None,
     host: Annotated[str, typer.Option("--host", help="Address to serve on; the teach panel is offered only on "

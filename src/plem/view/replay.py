@@ -50,7 +50,8 @@ class Replay:
 
     @classmethod
     def of_bags(cls, directory: Path, robot: str | None = None, fault: int | None = None) -> Replay:
-        """The recording of `robot` (default: the one whose last message is latest); at its `fault`-th fault (1-based) if given.
+        """The recording of `robot` (default: the one whose last message is latest); at its `fault`-th fault
+        (1-based) if given.
 
         With a fault only its window is read (the faults are found in rt_events alone), never the whole recording.
         """
