@@ -31,7 +31,7 @@ from plem.recording.segment import SegmentWriter
 from plem.recording.settings import RecordingSettings
 from plem.recording.status import remove_status, write_status
 from plem.recording.summary import BagError, find_bags, pick_robot
-from plem.recording.timeline import read_timeline
+from plem.recording.timeline import Marker, Timeline, read_timeline
 from tests.e2e.cli import run_plem
 
 S = 1_000_000_000
@@ -613,3 +613,23 @@ def test_raw_field_matches_rosbags_deserialization(dof: int):
                                                                              for m in messages])
     for name in ("position", "velocity", "effort", "command_position", "command_velocity", "command_acceleration"):
         np.testing.assert_array_equal(raw_field(data, starts_array, name, dof), [getattr(m, name) for m in messages])
+
+
+def test_plot_keeps_joints_on_one_path_apart_and_fault_labels_inside_their_panel():
+    """Two joints moving identically: each measured line has its own marker at its own offset, so both show; a
+    fault label longer than the panel is clipped to it."""
+    count = 400
+    stamps = START + np.arange(count, dtype=np.int64) * MS
+    same = np.linspace(0.0, 1.0, count)
+    positions = np.column_stack([same, same, -same])
+    fault = Marker(int(stamps[200]), "fault", "fault: " + "a very long reason " * 10, 200)
+    line = Timeline("arm", ["joint_1", "joint_2", "joint_3"], stamps, positions, positions, np.zeros_like(positions),
+                    np.full(count, int(Mode.HOLD)), np.full(count, 50.0), np.full(count, 50.0), [fault], None)
+    figure = plot.figure(line, "arm")
+    lines = {artist.get_gid(): artist for axes in figure.axes for artist in axes.get_lines()}
+    first, second = lines["measured:joint_1"], lines["measured:joint_2"]
+    assert first.get_marker() != second.get_marker() and "None" not in (first.get_marker(), second.get_marker())
+    assert first.get_markevery()[0] != second.get_markevery()[0], "markers at different samples"
+    [label] = [text for axes in figure.axes for text in axes.texts if text.get_gid() == "fault_label"]
+    assert label.get_clip_on() and label.get_clip_box() is not None
+    assert label.get_clip_box().bounds == label.axes.bbox.bounds, "clipped to its own panel"

@@ -1,6 +1,7 @@
-"""One robot's timeline as a figure: joint positions (measured solid, commanded dashed, one colour per joint),
-velocities and the loop's wake-up latency over absolute time (UTC), with the modes as shaded bands and the
-faults as labelled lines, and the latency histogram with its percentiles; `render` makes it a PNG.
+"""One robot's timeline as a figure: joint positions (measured solid with a marker of its own, commanded dashed,
+one colour per joint), velocities and the loop's wake-up latency over absolute time (UTC), with the modes as
+shaded bands and the faults as labelled lines (labels clipped to their panel), and the latency histogram with
+its percentiles; `render` makes it a PNG.
 
 Legends sit right of the axes, never over the data. Every artist drawn from the timeline has a gid for
 tests to find: measured:<joint>, commanded:<joint>, velocity:<joint>, mode:<mode>, fault, fault_label,
@@ -32,8 +33,12 @@ MODE_COLORS = {"idle": "tab:gray", "hold": "tab:blue", "trajectory": "tab:green"
                "fault": "tab:red"}
 BAND_ALPHA = 0.12
 FAULT_COLOR = "crimson"
-#: Characters of a fault's reason shown next to its line.
+#: Characters of a fault's reason shown next to its line (clipped to the panel beyond that).
 LABEL_CHARS = 60
+#: Each joint's marker, placed every `MARKS` samples at an offset of its own, so that joints on the same path stay
+#: visible (and told apart) where their lines coincide.
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "*")
+MARKS = 12
 
 
 def mode_name(code: int) -> str:
@@ -91,10 +96,13 @@ def figure(timeline: Timeline, title: str) -> Figure:
     figure.suptitle(f"{title}\n{iso_time(int(timeline.time_ns[0]))} to {iso_time(int(timeline.time_ns[-1]))}")
     x = _dates(timeline.time_ns)
     measured = []
+    dof = len(timeline.joint_names)
+    every = max(1, len(x) // MARKS)
     for index, name in enumerate(timeline.joint_names):
         color = f"C{index % 10}"
         measured += position.plot(x, timeline.position[:, index], color=color, linewidth=0.9, label=name,
-                                  gid=f"measured:{name}")
+                                  gid=f"measured:{name}", marker=MARKERS[index % len(MARKERS)], markersize=4,
+                                  markevery=(index * every // dof, every))
         position.plot(x, timeline.command_position[:, index], color=color, linewidth=0.9, linestyle="--",
                       gid=f"commanded:{name}")
         velocity.plot(x, timeline.velocity[:, index], color=color, linewidth=0.8, gid=f"velocity:{name}")
@@ -114,7 +122,7 @@ def figure(timeline: Timeline, title: str) -> Figure:
     for fault, fault_x in zip(faults, at, strict=True):
         text = fault.label if len(fault.label) <= LABEL_CHARS else fault.label[:LABEL_CHARS - 1] + "…"
         position.text(float(fault_x), 0.98, f" {text}", transform=position.get_xaxis_transform(), rotation=90,
-                      ha="right", va="top", fontsize="small", color=FAULT_COLOR, gid="fault_label",
+                      ha="right", va="top", fontsize="small", color=FAULT_COLOR, gid="fault_label", clip_on=True,
                       bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.7, "pad": 1})
     locator = AutoDateLocator(tz=dt.UTC)  # type: ignore[no-untyped-call]  # matplotlib.dates is untyped
     position.xaxis.set_major_locator(locator)
