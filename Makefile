@@ -53,7 +53,10 @@ test-slow: $(TEST_STAMP)
 	$(BIN)/pytest -q -m slow
 
 # The core built with AddressSanitizer and UndefinedBehaviorSanitizer (any finding aborts), in a copy of the package,
-# running the core's tests; the interpreter itself is not instrumented, so the ASan runtime is preloaded.
+# running the core's tests; the interpreter itself is not instrumented, so the ASan runtime is preloaded, and the C++
+# runtime with it: ASan finds the real __cxa_throw only in libraries loaded before it (pinocchio's bindings throw).
+SANITIZE_PRELOAD = LD_PRELOAD="$$(gcc -print-file-name=libasan.so) $$(gcc -print-file-name=libstdc++.so.6)" \
+	ASAN_OPTIONS=detect_leaks=0
 test-sanitized: $(TEST_STAMP)
 	rm -rf $(SANITIZED) && mkdir -p $(SANITIZED)
 	cp -r src/plem $(SANITIZED)/plem && rm -f $(SANITIZED)/plem/control/_core*.so
@@ -63,9 +66,9 @@ test-sanitized: $(TEST_STAMP)
 		-I"$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["include"])')" \
 		src/plem/control/csrc/*.c $(SANITIZED)/soem/*.o -lm -lpthread -lrt \
 		-o $(SANITIZED)/plem/control/_core$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_config_var("EXT_SUFFIX"))')
-	LD_PRELOAD="$$(gcc -print-file-name=libasan.so)" ASAN_OPTIONS=detect_leaks=0 PYTHONPATH=$(SANITIZED) \
+	$(SANITIZE_PRELOAD) PYTHONPATH=$(SANITIZED) \
 		$(BIN)/python -c 'import plem.control._core as c, sys; sys.exit(0 if "$(SANITIZED)" in c.__file__ else "not the sanitized core: " + c.__file__)'
-	LD_PRELOAD="$$(gcc -print-file-name=libasan.so)" ASAN_OPTIONS=detect_leaks=0 PYTHONPATH=$(SANITIZED) \
+	$(SANITIZE_PRELOAD) PYTHONPATH=$(SANITIZED) \
 		$(BIN)/pytest -q -p no:cacheprovider $(CORE_TESTS)
 
 clean:
