@@ -83,10 +83,7 @@ LAUNCH_SAYS: dict[str, tuple[str, ...]] = {
 }
 #: Commands that fail today by a defect of plem's code (reported, not the doc's): their failure makes a test xfail
 #: with this reason as long as nothing else fails.
-KNOWN_DEFECTS: dict[str, str] = {
-    "plem topic hz /indy/rt_raw": "Ctrl-C of `plem topic hz` without --duration mostly ends in a segfault, "
-                                  "'Internal error: DDSException ... while waiting in WaitSet' or a traceback",
-}
+KNOWN_DEFECTS: dict[str, str] = {}
 #: Commands the docs say are refused, with what the refusal names.
 REFUSED: dict[str, str] = {"plem launch robots:=robots.yaml": "enp3s0"}
 

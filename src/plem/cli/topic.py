@@ -7,9 +7,13 @@ start fast.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
 from collections import deque
+from collections.abc import Iterator
 from enum import StrEnum
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -29,6 +33,8 @@ from plem.cli.ros_messages import message_from_yaml, message_repr, to_yaml
 from plem.errors import PlemError, UsageError
 
 if TYPE_CHECKING:
+    from cyclonedds.core import WaitSet
+
     from plem.middleware.graph import Endpoint, Graph
     from plem.middleware.node import Node, Subscription
 
@@ -180,6 +186,33 @@ def _unknown_type(name: str, ros_type: str, node: Node) -> PlemError:
                          "src/plem/middleware/interfaces/<package>/msg/")
 
 
+@contextlib.contextmanager
+def _ctrl_c_noted() -> Iterator[threading.Event]:
+    """Ctrl-C sets the event instead of raising KeyboardInterrupt in the middle of a DDS call; the command's loop
+    sees it at its next wake-up, stops and exits 130."""
+    interrupted = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda _signum, _frame: interrupted.set())
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if interrupted.is_set():
+        raise typer.Exit(130)
+
+
+def _woken(waitset: WaitSet, seconds: float, interrupted: threading.Event) -> bool:
+    """Wait up to `seconds` for data; False once Ctrl-C was pressed (a wait the signal cut short fails in Cyclone,
+    which is then no error)."""
+    from cyclonedds.core import DDSException
+
+    try:
+        waitset.wait(int(seconds * 1e9))
+    except DDSException:
+        if not interrupted.is_set():
+            raise
+    return not interrupted.is_set()
+
+
 def _subscribe(topic: str, timeout: float, depth: int, reliable: bool | None = None) -> tuple[Node, Subscription[Any]]:
     """Wait for a publisher of `topic`, then subscribe with its type and a QoS it can serve."""
     from plem.middleware.graph import Graph
@@ -224,12 +257,12 @@ def echo(
     node, subscription = _subscribe(topic, timeout, ECHO_DEPTH, reliable)
     waitset = node.waitset([subscription])
     received = 0
-    while not limit or received < limit:
-        waitset.wait(int(WAKE_S * 1e9))
-        for message in subscription.take(limit - received if limit else 256):
-            if message.sample_info.valid_data:
-                typer.echo(to_yaml(message, no_arr) + "\n---")
-                received += 1
+    with _ctrl_c_noted() as interrupted:
+        while (not limit or received < limit) and _woken(waitset, WAKE_S, interrupted):
+            for message in subscription.take(limit - received if limit else 256):
+                if message.sample_info.valid_data:
+                    typer.echo(to_yaml(message, no_arr) + "\n---")
+                    received += 1
 
 
 def _report(stamps: deque[int], new: int) -> None:
@@ -266,18 +299,18 @@ def hz(
     start = time.monotonic()
     end = start + duration if duration is not None else math.inf
     next_report = start + 1.0
-    while True:
-        now = time.monotonic()
-        if now >= next_report:
-            _report(stamps, new)
-            new, next_report = 0, next_report + 1.0
-        if now >= end:
-            return
-        waitset.wait(int(min(next_report - now, end - now, WAKE_S) * 1e9))
-        for sample in subscription.take(HZ_DEPTH):
-            if sample.sample_info.valid_data:
-                stamps.append(sample.sample_info.source_timestamp)
-                new += 1
+    with _ctrl_c_noted() as interrupted:
+        while True:
+            now = time.monotonic()
+            if now >= next_report:
+                _report(stamps, new)
+                new, next_report = 0, next_report + 1.0
+            if now >= end or not _woken(waitset, min(next_report - now, end - now, WAKE_S), interrupted):
+                return
+            for sample in subscription.take(HZ_DEPTH):
+                if sample.sample_info.valid_data:
+                    stamps.append(sample.sample_info.source_timestamp)
+                    new += 1
 
 
 # -- pub -----------------------------------------------------------------------------------------------------------
