@@ -81,9 +81,6 @@ LAUNCH_SAYS: dict[str, tuple[str, ...]] = {
         ("into {home}/data/bags/{robot_id} ", "retention 120 min, disk_threshold 80 %"),
     "plem launch bus:=mock record:=false": ("recorder      off (record:=false)",),
 }
-#: Commands that fail today by a defect of plem's code (reported, not the doc's): their failure makes a test xfail
-#: with this reason as long as nothing else fails.
-KNOWN_DEFECTS: dict[str, str] = {}
 #: Commands the docs say are refused, with what the refusal names.
 REFUSED: dict[str, str] = {"plem launch robots:=robots.yaml": "enp3s0"}
 
@@ -150,7 +147,7 @@ def test_every_doc_command_is_run_or_listed_with_a_reason() -> None:
 def test_the_tables_name_only_commands_the_docs_have() -> None:
     texts = {command.text for command in doc_commands()}
     tables = {"NOT_RUN": NOT_RUN, "FIRST_LINES": FIRST_LINES, "SAYS": SAYS, "LAUNCH_SAYS": LAUNCH_SAYS,
-              "REFUSED": REFUSED, "KNOWN_DEFECTS": KNOWN_DEFECTS}
+              "REFUSED": REFUSED}
     stale = [f"{table}: {text}" for table, entries in tables.items() for text in entries if text not in texts]
     assert not stale, "no doc has these commands any more:\n" + "\n".join(stale)
 
@@ -247,21 +244,16 @@ def run(command: DocCommand, cwd: Path, env: dict[str, str], robot_id: str, home
 def run_all(commands: list[DocCommand], cwd: Path, env: dict[str, str], robot_id: str, home: Path,
             launch: Launch | None = None) -> None:
     """Run commands in order and report every one that failed, not only the first (a launch that died ends it)."""
-    failures, known = [], []
+    failures = []
     for command in commands:
         try:
             run(command, cwd, env, robot_id, home)
         except (AssertionError, subprocess.TimeoutExpired) as failure:
-            if command.text in KNOWN_DEFECTS:
-                known.append(f"{KNOWN_DEFECTS[command.text]}: {command.where()}\n{failure}")
-            else:
-                failures.append(f"{command.where()}\n{failure}")
+            failures.append(f"{command.where()}\n{failure}")
         if launch is not None and launch.process.poll() is not None:
             failures.append(f"the arm's launch ended after {command.where()}\n{launch.describe()}")
             break
-    assert not failures, f"{len(failures)} of {len(commands)} commands failed:\n\n" + "\n\n".join(failures + known)
-    if known:
-        pytest.xfail("a known defect of plem: " + "\n\n".join(known))
+    assert not failures, f"{len(failures)} of {len(commands)} commands failed:\n\n" + "\n\n".join(failures)
 
 
 def write_doc_files(path: Path, directory: Path) -> None:
