@@ -433,6 +433,7 @@ def test_timeline_between_two_times_holds_only_them(bag_dir: Path):
 
 def test_plot_marks_faults_and_modes_and_draws_commanded_against_measured(bag_dir: Path):
     from matplotlib.dates import ConciseDateFormatter, date2num, num2date
+    from matplotlib.legend import Legend
 
     def x_of(ns: int) -> float:
         return float(date2num(np.datetime64(ns, "ns")))
@@ -463,12 +464,19 @@ def test_plot_marks_faults_and_modes_and_draws_commanded_against_measured(bag_di
         np.testing.assert_allclose(commanded.get_ydata(), measured.get_ydata() + 0.01)
     figure.canvas.draw()
     renderer = figure.canvas.get_renderer()
-    for axes in figure.axes:
+    for axes in (figure.axes[0], *figure.axes[2:]):
         legend, box = axes.get_legend(), axes.get_window_extent(renderer)
         assert legend is not None and legend.get_window_extent(renderer).x0 > box.x1, "legends right of the data"
         assert not legend.get_window_extent(renderer).overlaps(box)
-    assert [t.get_text() for t in figure.axes[1].get_legend().get_texts()] == ["hold", "trajectory", "fault",
-                                                                              "fault event"]
+    # the modes hold for every panel over time: one legend above them all, under the title
+    [modes_legend] = [artist for artist in position.artists if isinstance(artist, Legend)]
+    assert [t.get_text() for t in modes_legend.get_texts()] == ["hold", "trajectory", "fault", "fault event"]
+    assert "position, velocity and latency panels" in modes_legend.get_title().get_text()
+    above = modes_legend.get_window_extent(renderer)
+    assert all(above.y0 >= axes.get_window_extent(renderer).y1 for axes in figure.axes), "above every panel"
+    [title] = figure.texts
+    assert above.y1 <= title.get_window_extent(renderer).y0, "under the title"
+    assert figure.axes[1].get_legend() is None, "no legend of its own by the velocity panel"
     assert isinstance(position.xaxis.get_major_formatter(), ConciseDateFormatter)
     first, last = (num2date(x) for x in position.get_xlim())
     assert first <= datetime(2027, 1, 15, 8, 0, tzinfo=UTC) < datetime(2027, 1, 15, 8, 0, 3, 499000, tzinfo=UTC) <= last

@@ -1,10 +1,12 @@
-"""The view's pieces on real files and a real planner: the model drawn from a URDF, the description a launch
-shares in /dev/shm, the planner's answer to a view, and the page's text."""
+"""The view's pieces on real files and a real planner: the model drawn from a URDF, what the page receives of it,
+the description a launch shares in /dev/shm, the planner's answer to a view, and the page's text."""
 
 from __future__ import annotations
 
 import json
 import os
+import struct
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -12,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from PIL import Image
 
 from plem.control.limits import ArmLimits
 from plem.description.validate import validate_package
@@ -31,6 +34,8 @@ from plem.planning.service import PlannerService
 from plem.view.feed import drives_text
 from plem.view.model import ViewModel
 from plem.view.readouts import plain
+from plem.view.scene import ArmScene
+from plem.view.server import start_server
 from tests.e2e.cli import run_plem
 
 INDY7 = "indy7_v2_description"
@@ -73,6 +78,70 @@ def test_meshes_of_the_package_are_drawn(indy7: tuple[str, tuple[str, ...]], tmp
     assert model.missing == []
     extents = sorted(tuple(np.round(mesh.extents, 3)) for mesh in model.load().scene.geometry.values())
     assert (0.1, 0.2, 0.3) in extents
+
+
+def _glb_material(mesh: trimesh.Trimesh) -> dict:
+    """The glTF material a browser gets for `mesh`: viser sends each URDF mesh as GLB exported by trimesh."""
+    glb = mesh.export(file_type="glb")
+    (length,) = struct.unpack_from("<I", glb, 12)
+    materials = json.loads(glb[20:20 + length]).get("materials") or [{}]
+    return dict(materials[0].get("pbrMetallicRoughness", {}))
+
+
+def test_the_arm_is_drawn_matte_in_its_own_colours(indy7: tuple[str, tuple[str, ...]], tmp_path: Path) -> None:
+    """A mesh without a material is bare metal in glTF (black under plain lights): every mesh gets a non-metallic
+    one in its URDF colour, or keeps its texture."""
+    urdf, joints = indy7
+    materials = [_glb_material(mesh) for mesh in ViewModel(urdf, joints).load().scene.geometry.values()]
+    assert materials and all(material.get("metallicFactor") == 0.0 for material in materials)
+    colours = {tuple(np.round(material["baseColorFactor"][:3], 2)) for material in materials}
+    assert colours == {(0.89, 0.89, 0.89), (0.35, 0.35, 0.37)}      # indy_white and indy_grey of the URDF
+    package = tmp_path / "textured" / "meshes"
+    package.mkdir(parents=True)
+    box = trimesh.creation.box((0.1, 0.1, 0.1))
+    box.visual = trimesh.visual.TextureVisuals(
+        uv=np.zeros((len(box.vertices), 2)),
+        material=trimesh.visual.material.SimpleMaterial(image=Image.new("RGB", (4, 4), "red")))
+    box.export(package / "box.obj")
+    visual = urdf.index("<geometry>", urdf.index("<visual>"))
+    with_mesh = (urdf[:visual] + '<geometry><mesh filename="package://textured/meshes/box.obj"/>'
+                 + urdf[urdf.index("</geometry>", visual):])
+    model = ViewModel(with_mesh, joints, {"textured": str(tmp_path / "textured")})
+    textured = [mesh for mesh in model.load().scene.geometry.values() if np.allclose(mesh.extents, 0.1)]
+    assert len(textured) == 1
+    glb_material = _glb_material(textured[0])
+    assert glb_material["metallicFactor"] == 0.0 and "baseColorTexture" in glb_material
+
+
+def test_the_page_is_lit_without_an_environment_image(indy7: tuple[str, tuple[str, ...]]) -> None:
+    """What a browser receives: no environment image (filtering it freezes a software-drawn page for seconds before
+    its first frame) and a hemisphere light in its place."""
+    import msgspec
+    import viser
+    import zstandard
+    from websockets.sync.client import connect
+    from websockets.typing import Subprotocol
+
+    urdf, joints = indy7
+    server = start_server("127.0.0.1", 0, "lights")
+    try:
+        ArmScene(server, ViewModel(urdf, joints))
+        received: dict[str, list[dict]] = {}
+        with connect(f"ws://127.0.0.1:{server.get_port()}", max_size=None,
+                     subprotocols=[Subprotocol(f"viser-v{viser.__version__}")]) as page:
+            deadline = time.monotonic() + 60
+            while "GlbMessage" not in received or "HemisphereLightMessage" not in received:
+                assert time.monotonic() < deadline, f"the page received only {sorted(received)}"
+                frame = page.recv(timeout=60)
+                assert isinstance(frame, bytes)
+                size, compressed = struct.unpack_from("<QQ", frame)
+                window = msgspec.msgpack.decode(zstandard.ZstdDecompressor().decompress(
+                    frame[16:16 + compressed], max_output_size=size))
+                for message in window["messages"]:
+                    received.setdefault(message["type"], []).append(message)
+    finally:
+        server.stop()
+    assert [message["hdri_data"] for message in received["EnvironmentMapMessage"]][-1] is None
 
 
 def test_joints_the_urdf_lacks_are_refused_with_what_to_do(indy7: tuple[str, tuple[str, ...]]) -> None:

@@ -65,7 +65,8 @@ def view(
 
 
 def _live(robot_id: str, ros: bool, host: str, port: int, rate: float, stop: threading.Event) -> None:
-    from plem.view.live_view import LiveView
+    """Serve the live page. The address is printed as soon as the server listens: the browser loads the page while
+    the scene is built (the page fills in as it arrives)."""
     from plem.view.server import loopback, start_server, url
 
     feed: Feed
@@ -84,9 +85,11 @@ def _live(robot_id: str, ros: bool, host: str, port: int, rate: float, stop: thr
                                        "move the arm.")
     try:
         server = start_server(host, port, f"plem view: {robot_id}")
+        typer.echo(f"plem view: {robot_id} live from {source} at {url(server)} — Ctrl-C to stop (the arm runs on)")
+        from plem.view.live_view import LiveView
+
         live = LiveView(server, feed, planner=not ros, teach=teacher, teach_note=teach_note)
         print_warnings([f"mesh not found: {uri}" for uri in live.model.missing])
-        typer.echo(f"plem view: {robot_id} live from {source} at {url(server)} — Ctrl-C to stop (the arm runs on)")
         live.run(stop, rate)
         server.stop()
     finally:

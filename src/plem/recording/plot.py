@@ -3,9 +3,10 @@ one colour per joint), velocities and the loop's wake-up latency over absolute t
 shaded bands and the faults as labelled lines (labels clipped to their panel), and the latency histogram with
 its percentiles; `render` makes it a PNG.
 
-Legends sit right of the axes, never over the data. Every artist drawn from the timeline has a gid for
-tests to find: measured:<joint>, commanded:<joint>, velocity:<joint>, mode:<mode>, fault, fault_label,
-latency, latency_histogram, percentile:<name>.
+Legends sit right of the axes, never over the data; the modes' legend, which holds for every panel over time,
+sits under the title. Every artist drawn from the timeline has a gid for tests to find: measured:<joint>,
+commanded:<joint>, velocity:<joint>, mode:<mode>, fault, fault_label, latency, latency_histogram,
+percentile:<name>.
 """
 
 from __future__ import annotations
@@ -86,6 +87,7 @@ def figure(timeline: Timeline, title: str) -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.dates import AutoDateLocator, ConciseDateFormatter
     from matplotlib.figure import Figure
+    from matplotlib.legend import Legend
     from matplotlib.lines import Line2D
 
     figure = Figure(figsize=SIZE, dpi=DPI, layout="constrained")
@@ -136,7 +138,12 @@ def figure(timeline: Timeline, title: str) -> Figure:
               Line2D([], [], color="0.3", linewidth=0.9, linestyle="--", label="commanded")]
     _legend(position, handles=[*measured, *styles])
     fault_line = [Line2D([], [], color=FAULT_COLOR, linewidth=1.2, label="fault event")] if faults else []
-    _legend(velocity, handles=[*bands.values(), *fault_line], title="mode")
+    mode_keys = [*bands.values(), *fault_line]
+    modes = Legend(position, mode_keys, [str(key.get_label()) for key in mode_keys], loc="lower center",
+                   bbox_to_anchor=(0.5, 1.01), borderaxespad=0.0, ncols=len(mode_keys), fontsize="small",
+                   title="mode, shaded over the position, velocity and latency panels")
+    modes.get_title().set_fontsize("small")
+    position.add_artist(modes).set_clip_on(False)     # unclipped: the layout makes room for it above the panel
     _legend(latency, handles=latency_line)
     _histogram(histogram, timeline.all_latency_us)
     return figure

@@ -9,7 +9,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+import trimesh
 import yourdfpy
+from trimesh.visual import ColorVisuals, TextureVisuals
+from trimesh.visual.material import PBRMaterial
 
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.model import parse_urdf
@@ -17,6 +20,8 @@ from plem.errors import PlemError
 from plem.planning.groups import end_link
 
 URDF_SOURCE = Path("robot_description")
+#: How rough the arm's surfaces are drawn (0 mirror, 1 chalk).
+ROUGHNESS = 0.6
 
 
 class ViewModel:
@@ -61,8 +66,11 @@ class ViewModel:
     def load(self) -> yourdfpy.URDF:
         """A fresh yourdfpy model with its visual meshes (each drawn arm needs its own)."""
         logging.getLogger("yourdfpy").setLevel(logging.ERROR)  # a missing mesh is reported through `missing`
-        return yourdfpy.URDF.load(io.StringIO(self.urdf_xml), filename_handler=self._file, build_scene_graph=True,
+        urdf = yourdfpy.URDF.load(io.StringIO(self.urdf_xml), filename_handler=self._file, build_scene_graph=True,
                                   load_meshes=True, build_collision_scene_graph=False, load_collision_meshes=False)
+        for mesh in urdf.scene.geometry.values():
+            matte(mesh)
+        return urdf
 
     def configuration(self, positions: np.ndarray) -> np.ndarray:
         """The URDF's actuated joint values for the arm's positions (other joints at 0)."""
@@ -70,3 +78,19 @@ class ViewModel:
         known = self._order >= 0
         values[self._order[known]] = np.asarray(positions, dtype=float)[known]
         return values
+
+
+def matte(mesh: trimesh.Trimesh) -> None:
+    """Give `mesh` a non-metallic material in its own colour or texture: a mesh without one is drawn as bare metal
+    (glTF's default), which shows only reflections and is black under the view's plain lights."""
+    visual = mesh.visual
+    if isinstance(visual, ColorVisuals):
+        material = PBRMaterial(baseColorFactor=visual.main_color, metallicFactor=0.0,  # type: ignore[no-untyped-call]
+                               roughnessFactor=ROUGHNESS)
+        mesh.visual = TextureVisuals(material=material)  # type: ignore[no-untyped-call]  # trimesh is untyped
+    elif isinstance(visual, TextureVisuals) and visual.material is not None:
+        pbr = (visual.material if isinstance(visual.material, PBRMaterial)
+               else visual.material.to_pbr())  # type: ignore[no-untyped-call]  # trimesh is untyped
+        if pbr.metallicFactor is None:
+            pbr.metallicFactor = 0.0
+        visual.material = pbr
