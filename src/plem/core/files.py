@@ -120,7 +120,12 @@ def read_regular(path: Path, max_bytes: int, role: str) -> bytes:
                 "" if stat.S_ISDIR(status.st_mode) else "; reading one can block forever or never end"),
             how=f"point to the {role} itself, not to a device, FIFO, socket or folder")
     with os.fdopen(fd, "rb") as handle:
-        data = handle.read(max_bytes + 1) if status.st_size <= max_bytes else b""
+        try:
+            data = handle.read(max_bytes + 1) if status.st_size <= max_bytes else b""
+        except OSError as error:  # /proc/self/mem and its kind: regular by its type, unreadable as a file
+            raise ConfigError(f"Cannot read {path}", what=f"a readable {role} at {path}",
+                              why=f"reading it fails: {error.strerror or error}",
+                              how=f"point to the {role} itself, a file on disk") from None
         if status.st_size > max_bytes or len(data) > max_bytes:
             raise ConfigError(
                 f"File too large: {path}", what=f"a {role} of at most {size_text(max_bytes)}",
