@@ -1,8 +1,10 @@
 """A client's link to its robot's planner process: plans, IK, FK and the planning scene.
 
 Requests and answers travel as JSON frames on `/dev/shm/{robot_id}_planner`, one request at a time per
-client. Errors come back as PlanningError with MoveIt's error code. Plans are executed by the client
-itself through the robot's command path, never by the planner.
+client. Errors come back as PlanningError with MoveIt's error code; a planner working on another client's
+request answers at once that it is busy. A request whose answer does not come in time is given up: the
+connection closes, which cancels it in the planner. Plans are executed by the client itself through the
+robot's command path, never by the planner.
 """
 
 from __future__ import annotations
@@ -53,17 +55,31 @@ class PlannerLink:
                                     why=error.why, how=error.how, code=MoveItCode.FAILURE) from None
             try:
                 connection.sendall(frame(json.dumps({"id": request_id, "op": op, **args}).encode()))
-                answer = self._answer(connection, request_id, wait_s)
+                answer = _read_answer(connection, self._reader, request_id, wait_s)
             except (OSError, CommandSocketError) as error:
-                self._close()
-                raise PlanningError("the planner did not answer", what=f"an answer within {wait_s:.0f} s",
-                                    why=f"{type(error).__name__}: {error}"[:300],
-                                    how="check the launch's output for the planner's state; plem launch restarts "
-                                        "nothing by itself: relaunch the robot if the planner stopped",
-                                    code=MoveItCode.FAILURE) from None
+                self._close()  # a request still running in the planner is cancelled by this
+                raise _no_answer(wait_s, error) from None
         if answer.get("error") is not None:
             raise _error(answer["error"])
         return answer.get("result")
+
+    def cancel(self) -> str | None:
+        """Cancel the request the planner is working on (this client's or another's), on a connection of its own;
+        what it was, or None when it was idle."""
+        try:
+            connection = command_socket.connect(self.robot_id, service="planner")
+        except CommandSocketError as error:
+            raise PlanningError(f"robot '{self.robot_id}' has no planner running", what=error.what,
+                                why=error.why, how=error.how, code=MoveItCode.FAILURE) from None
+        with connection:
+            request_id = new_request_id()
+            try:
+                connection.sendall(frame(json.dumps({"id": request_id, "op": "cancel"}).encode()))
+                answer = _read_answer(connection, FrameReader(MAX_ANSWER_BYTES), request_id, ANSWER_MARGIN_S)
+            except (OSError, CommandSocketError) as error:
+                raise _no_answer(ANSWER_MARGIN_S, error) from None
+        cancelled: str | None = (answer.get("result") or {}).get("cancelled")
+        return cancelled
 
     def close(self) -> None:
         """Drop the connection (the planner runs on)."""
@@ -77,25 +93,34 @@ class PlannerLink:
             self._reader = FrameReader(MAX_ANSWER_BYTES)
         return self._socket
 
-    def _answer(self, connection: socket.socket, request_id: str, timeout_s: float) -> dict[str, Any]:
-        deadline = time.monotonic() + timeout_s
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise TimeoutError(f"no answer within {timeout_s:.0f} s")
-            connection.settimeout(remaining)
-            data = connection.recv(1 << 20)
-            if not data:
-                raise ConnectionResetError("the planner closed the connection")
-            for payload in self._reader.feed(data):
-                answer: dict[str, Any] = json.loads(payload)
-                if answer.get("id") == request_id:
-                    return answer
-
     def _close(self) -> None:
         if self._socket is not None:
             self._socket.close()
             self._socket = None
+
+
+def _read_answer(connection: socket.socket, reader: FrameReader, request_id: str, timeout_s: float) -> dict[str, Any]:
+    """The answer to request `request_id` on `connection`, within `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise TimeoutError(f"no answer within {timeout_s:.0f} s")
+        connection.settimeout(remaining)
+        data = connection.recv(1 << 20)
+        if not data:
+            raise ConnectionResetError("the planner closed the connection")
+        for payload in reader.feed(data):
+            answer: dict[str, Any] = json.loads(payload)
+            if answer.get("id") == request_id:
+                return answer
+
+
+def _no_answer(wait_s: float, error: Exception) -> PlanningError:
+    return PlanningError("the planner did not answer", what=f"an answer within {wait_s:.0f} s",
+                         why=f"{type(error).__name__}: {error}"[:300],
+                         how="check the launch's output for the planner's state; plem launch restarts nothing by "
+                             "itself: relaunch the robot if the planner stopped", code=MoveItCode.FAILURE)
 
 
 class LocalPlannerLink:
@@ -114,6 +139,10 @@ class LocalPlannerLink:
         if answer.get("error") is not None:
             raise _error(answer["error"])
         return answer.get("result")
+
+    def cancel(self) -> str | None:
+        """Cancel the request the planner is working on (from another thread); what it was, or None."""
+        return None if self._service is None else self._service.cancel()
 
     def close(self) -> None:
         """Nothing to close: the planner lives as long as its robot."""
@@ -214,6 +243,11 @@ class PlanningCalls:
             seed=None if seed is None else [float(v) for v in seed], timeout_s=timeout,
             avoid_collisions=avoid_collisions, position_only=position_only)
         return result
+
+    def cancel_planning(self) -> str | None:
+        """Cancel the plan, IK or Cartesian path the robot's planner is working on, whichever client asked for it;
+        says what was cancelled (None when the planner was idle). The request's client gets PREEMPTED."""
+        return self._planner().cancel()
 
     def compute_fk(self, positions: Sequence[float] | None = None, links: Sequence[str] = ()) -> dict[str, Pose]:
         """The pose of each link (default: the group's tip) in the root frame at `positions` (default: now)."""

@@ -31,8 +31,8 @@ LinkOption = Annotated[str, typer.Option("--link", help="Link to bring to --to-p
 GroupOption = Annotated[str, typer.Option("--group", help="Planning group of the SRDF (default: its first).")]
 PlannerOption = Annotated[str, typer.Option("--planner", help="OMPL planner, e.g. RRTConnect (the default), RRTstar.")]
 CartesianOption = Annotated[bool, typer.Option("--cartesian", help="Move the tool along a straight line to --to-pose.")]
-SpeedOption = Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, (0, 1].")]
-PlanningTimeOption = Annotated[float, typer.Option("--planning-time", help="Seconds the planner may take.")]
+SpeedOption = Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, from 0.01 to 1.")]
+PlanningTimeOption = Annotated[float, typer.Option("--planning-time", help="Seconds the planner may take, at most 60.")]
 TimeoutOption = Annotated[float, typer.Option("--timeout", help="Seconds to wait for the motion.")]
 
 
@@ -78,14 +78,16 @@ def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
 
 
 def _options(group: str, planner: str, speed_scale: float, planning_time: float) -> PlanOptions:
-    from plem.planning.goals import PlanOptions
+    from plem.planning.goals import MAX_PLANNING_TIME_S, MIN_SPEED_SCALE, PlanOptions
 
-    if not 0.0 < speed_scale <= 1.0:
-        raise UsageError("--speed-scale must be in (0, 1]", what="a fraction of full speed above 0, at most 1",
-                         why=f"--speed-scale {speed_scale}", how="e.g. --speed-scale 0.5")
-    if not 0.0 < planning_time <= 600.0:
-        raise UsageError("--planning-time must be in (0, 600] s", what="seconds the planner may take",
-                         why=f"--planning-time {planning_time}", how="e.g. --planning-time 5")
+    if not MIN_SPEED_SCALE <= speed_scale <= 1.0:
+        raise UsageError(f"--speed-scale must be from {MIN_SPEED_SCALE:g} to 1",
+                         what=f"a fraction of full speed, at least {MIN_SPEED_SCALE:g} (slower motions would take "
+                              "days), at most 1", why=f"--speed-scale {speed_scale:g}", how="e.g. --speed-scale 0.5")
+    if not 0.0 < planning_time <= MAX_PLANNING_TIME_S:
+        raise UsageError(f"--planning-time must be in (0, {MAX_PLANNING_TIME_S:g}] s",
+                         what=f"seconds the planner may take, at most {MAX_PLANNING_TIME_S:g}",
+                         why=f"--planning-time {planning_time:g}", how="e.g. --planning-time 5")
     return PlanOptions(group, planner, planning_time, speed_scale, speed_scale)
 
 

@@ -9,6 +9,12 @@ from plem.planning.poses import Pose
 
 #: Default planning time (s), as MoveIt's allowed_planning_time.
 PLANNING_TIME_S = 5.0
+#: Longest planning time a plan or Cartesian path may ask for (s): the planner serves one request at a time.
+MAX_PLANNING_TIME_S = 60.0
+#: Longest time one IK request may ask for (s), and the most a kinematics.yaml timeout gives one.
+MAX_IK_TIMEOUT_S = 10.0
+#: Smallest velocity or acceleration scale a plan may ask for: slower plans would take days to run and to check.
+MIN_SPEED_SCALE = 0.01
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from plem.description.model import SrdfGroup, SrdfModel, UrdfModel
 from plem.description.package_yaml import read_package_yaml
 from plem.description.validate import KNOWN_SOLVERS
 from plem.errors import ConfigError
+from plem.planning.goals import MAX_IK_TIMEOUT_S
 
 #: The solver plem runs for every known kinematics_solver name.
 SOLVER = "plem/pinocchio (damped least squares, random restarts)"
@@ -32,8 +33,9 @@ class KinematicsSettings:
 
     @property
     def budget_s(self) -> float:
-        """The time one IK request may take: the timeout, times the attempts where a package still sets them."""
-        return self.timeout_s * (self.attempts or 1)
+        """The time one IK request may take: the timeout, times the attempts where a package still sets them, at
+        most MAX_IK_TIMEOUT_S."""
+        return min(self.timeout_s * (self.attempts or 1), MAX_IK_TIMEOUT_S)
 
 
 @dataclass(frozen=True)

@@ -140,11 +140,12 @@ class IkSolver:
 
     def solve(self, target: pin.SE3, seed: np.ndarray, *, timeout_s: float = 0.005,
               position_only: bool = False, accept: Callable[[np.ndarray], bool] | None = None,
-              rng: np.random.Generator | None = None,
+              rng: np.random.Generator | None = None, stop: Callable[[], bool] | None = None,
               position_tolerance: float = 1e-5, orientation_tolerance: float = 1e-5) -> IkResult:
         """A configuration putting the tip frame at `target` (world frame), searched from `seed`, then random seeds.
 
-        `accept(q)` may refuse a solution (a collision check, say); the search then goes on. Errors are in m and rad.
+        `accept(q)` may refuse a solution (a collision check, say); the search then goes on. `stop()`, asked between
+        seeds, ends the search early (a cancelled request). Errors are in m and rad.
         """
         deadline = time.perf_counter() + timeout_s
         _check_budget(timeout_s, position_tolerance, orientation_tolerance)
@@ -168,7 +169,7 @@ class IkSolver:
             cost = position_error**2 + orientation_error**2
             if cost < best_cost:
                 best_cost, best = cost, (full, position_error, orientation_error)
-            if time.perf_counter() >= deadline:
+            if time.perf_counter() >= deadline or (stop is not None and stop()):
                 break
             x = rng.uniform(self._sample_low, self._sample_high)
         positions, position_error, orientation_error = (full, position_error, orientation_error) if success else best

@@ -58,13 +58,15 @@ def planner_name(planner_id: str) -> str:
 
 
 def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarray], bool], start: np.ndarray,
-              goals: Sequence[np.ndarray], planner_id: str = "", timeout_s: float = 5.0) -> PathResult:
+              goals: Sequence[np.ndarray], planner_id: str = "", timeout_s: float = 5.0,
+              stop: Callable[[], bool] = lambda: False) -> PathResult:
     """A path from `start` to any of `goals` through states `is_free` accepts, within [lower, upper].
 
     OMPL samples within finite bounds: a joint without limits (a continuous joint, unwrapped) is planned within
     `sampling_bounds`, from π below the lowest of its start and goals to π above the highest. Straight steps
     between states are checked every CHECK_STEP rad. Raises PlanningError when no path is found within
-    `timeout_s` (code TIMED_OUT) or the planner gives up (PLANNING_FAILED).
+    `timeout_s` (code TIMED_OUT) or the planner gives up (PLANNING_FAILED); `stop()` ends the search early (its
+    caller says why).
     """
     name = planner_name(planner_id)
     dof = len(start)
@@ -93,7 +95,8 @@ def plan_path(lower: np.ndarray, upper: np.ndarray, is_free: Callable[[np.ndarra
     setup.setGoal(goal_states)
     setup.setPlanner(PLANNERS[name](information))
     began = time.perf_counter()
-    status = setup.solve(timeout_s)
+    deadline = began + timeout_s
+    status = setup.solve(ob.PlannerTerminationCondition(lambda: time.perf_counter() >= deadline or stop()))
     planning_time = time.perf_counter() - began
     if not setup.haveExactSolutionPath():
         code = MoveItCode.TIMED_OUT if planning_time >= timeout_s * 0.99 else MoveItCode.PLANNING_FAILED

@@ -8,7 +8,7 @@ that plem's trajectory path runs as sent. One planner is not thread-safe: caller
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -18,12 +18,22 @@ from plem.control.kinematics import ArmDynamics, has_link, link_frame
 from plem.control.limits import ArmLimits
 from plem.control.spline import Spline
 from plem.control.trajectory import JointTrajectory
+from plem.core.paths import pinned_packages
 from plem.description.model import SrdfModel, UrdfModel
 from plem.description.validate import ValidationReport
 from plem.errors import CommandRejected, MoveItCode, PlanningError
 from plem.planning.cartesian import cartesian_states
 from plem.planning.collision import CollisionChecker
-from plem.planning.goals import Goal, NamedGoal, Plan, PlanOptions, PoseGoal
+from plem.planning.goals import (
+    MAX_IK_TIMEOUT_S,
+    MAX_PLANNING_TIME_S,
+    MIN_SPEED_SCALE,
+    Goal,
+    NamedGoal,
+    Plan,
+    PlanOptions,
+    PoseGoal,
+)
 from plem.planning.groups import PlanningGroup, read_groups
 from plem.planning.inverse_kinematics import IkResult, IkSolver
 from plem.planning.named_states import resolve_state, with_zero
@@ -41,6 +51,8 @@ GOAL_SOLUTIONS = 4
 POSE_TOLERANCE = 1e-5
 #: A start state this far outside a position limit (rad) is taken as on the limit (encoder noise).
 START_SLACK = 1e-6
+#: Commanded states re-checked between two looks at whether the request was cancelled.
+CANCEL_CHECK_STATES = 1000
 
 
 class Planner:
@@ -48,7 +60,11 @@ class Planner:
 
     def __init__(self, urdf_xml: str, urdf: UrdfModel, srdf: SrdfModel, joint_names: Sequence[str],
                  limits: ArmLimits, cycle_time_s: float, kinematics: Path | None = None,
-                 frame_prefix: str = "") -> None:
+                 frame_prefix: str = "", packages: Mapping[str, Path] | None = None) -> None:
+        #: Packages `package://` URIs resolve to before the search path (the launched package, given by path).
+        self.packages = dict(packages or {})
+        #: Asked while a request runs: true when its client cancelled it or went away (set by the planner's service).
+        self.cancelled: Callable[[], bool] = _never
         self.arm = ArmDynamics(urdf_xml, joint_names)
         self.joint_names = tuple(joint_names)
         self.limits = limits
@@ -68,7 +84,8 @@ class Planner:
         self.scene = PlanningScene()
         self.urdf_xml = urdf_xml
         self.disabled_pairs = [(a, b) for a, b, _ in srdf.disabled_collisions]
-        self.collisions = CollisionChecker(self.arm.model, urdf_xml, self.disabled_pairs)
+        with pinned_packages(self.packages):
+            self.collisions = CollisionChecker(self.arm.model, urdf_xml, self.disabled_pairs)
         self._scene_version = self.scene.version
         self._lower = self.arm.to_model_order(limits.min_position)
         self._upper = self.arm.to_model_order(limits.max_position)
@@ -90,7 +107,7 @@ class Planner:
                                 how="add an SRDF with a planning group (see docs/planning.md), or launch with "
                                     "planner:=false", code=MoveItCode.INVALID_GROUP_NAME)
         return cls(report.urdf_xml, report.urdf, report.srdf, joint_names, limits, cycle_time_s,
-                   report.files.kinematics, frame_prefix)
+                   report.files.kinematics, frame_prefix, {report.files.name: report.files.root})
 
     # -- names --------------------------------------------------------------------------------------------
     def group(self, name: str = "") -> PlanningGroup:
@@ -129,6 +146,11 @@ class Planner:
         """Joint positions that put `link` (the group's tip) at `pose` in `frame`, nearest the seed found;
         collision-free with `avoid_collisions`. Raises PlanningError NO_IK_SOLUTION with the tries and the best
         residual."""
+        if timeout_s is not None and timeout_s > MAX_IK_TIMEOUT_S:
+            raise PlanningError("the IK timeout is too long", what=f"an IK timeout of at most {MAX_IK_TIMEOUT_S:g} s",
+                                why=f"the request asks for {timeout_s:g} s (the planner serves one request at a time)",
+                                how=f"ask for {MAX_IK_TIMEOUT_S:g} s or less (timeout in the IK request), or 0 for "
+                                    "kinematics.yaml's kinematics_solver_timeout", code=MoveItCode.TIMED_OUT)
         chosen = self.group(group)
         start = self._configuration(seed, "the seed")
         self._sync_scene()
@@ -136,7 +158,9 @@ class Planner:
         solver = self._solver(chosen, link)
         budget = chosen.settings.budget_s if timeout_s is None or timeout_s <= 0 else timeout_s
         result = solver.solve(target, start, timeout_s=budget, position_only=position_only,
-                              accept=self.collisions.is_free if avoid_collisions else None, rng=self._rng)
+                              accept=self.collisions.is_free if avoid_collisions else None, rng=self._rng,
+                              stop=self.cancelled)
+        self._check_cancelled()
         if not result.success:
             raise self._no_solution(chosen, link or chosen.tip_link, result, result.attempts, budget)
         return self.arm.to_arm_order(result.positions)
@@ -160,8 +184,12 @@ class Planner:
             remaining = options.timeout_s - (time.perf_counter() - began)
             if remaining <= 0.0:
                 break
-            path = plan_path(self._lower[indices], self._upper[indices], is_free, q_start[indices],
-                             [q[indices] for q in goals], options.planner_id, remaining)
+            try:
+                path = plan_path(self._lower[indices], self._upper[indices], is_free, q_start[indices],
+                                 [q[indices] for q in goals], options.planner_id, remaining, self.cancelled)
+            except PlanningError:
+                self._check_cancelled()
+                raise
             states = np.repeat(q_start[None], len(path.states), axis=0)
             states[:, indices] = path.states
             try:
@@ -184,7 +212,17 @@ class Planner:
         targets = [self._in_root(pose, frame, q_start) for pose in waypoints]
 
         def step(target: pin.SE3, seed: np.ndarray) -> np.ndarray | None:
-            result = solver.solve(target, seed, timeout_s=group.settings.timeout_s)
+            self._check_cancelled()
+            if time.perf_counter() - began >= options.timeout_s:
+                raise PlanningError("the Cartesian path took longer than its planning time",
+                                    what=f"a Cartesian path within {options.timeout_s:g} s",
+                                    why=f"solving its steps took longer than {options.timeout_s:g} s",
+                                    how="use a larger max_step (fewer steps) or allow more planning time "
+                                        f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
+                                    code=MoveItCode.TIMED_OUT)
+            left = began + options.timeout_s - time.perf_counter()
+            result = solver.solve(target, seed, timeout_s=max(min(group.settings.timeout_s, left), 1e-4),
+                                  stop=self.cancelled)
             return result.positions if result.success else None
 
         states, fraction = cartesian_states(q_start, targets, lambda q: self._placement_at(q, tip),
@@ -238,6 +276,7 @@ class Planner:
         """The options (defaults when None), the group they name and the start configuration, checked to be within
         the limits and, when collisions are avoided, free of them."""
         options = options or PlanOptions()
+        _check_options(options)
         group = self.group(options.group)
         unlimited = [name for name in group.joints
                      if not np.isfinite(self.limits.max_velocity[self.joint_names.index(name)])]
@@ -294,8 +333,16 @@ class Planner:
 
     def _sync_scene(self) -> None:
         if self.scene.version != self._scene_version:
-            self.collisions.set_scene(self.scene)
+            with pinned_packages(self.packages):
+                self.collisions.set_scene(self.scene)
             self._scene_version = self.scene.version
+
+    def _check_cancelled(self) -> None:
+        """Raises PREEMPTED when the request running was cancelled or its client went away."""
+        if self.cancelled():
+            raise PlanningError("the request was cancelled", what="a request its client still waits for",
+                                why="its client cancelled it or closed its connection",
+                                how="send the request again when it is wanted", code=MoveItCode.PREEMPTED)
 
     def _require_free(self, q: np.ndarray, what: str, code: MoveItCode) -> None:
         contacts = self.collisions.contacts(q)
@@ -358,7 +405,9 @@ class Planner:
         deadline = began + min(options.timeout_s / 2, budget * GOAL_SOLUTIONS)
         while True:  # one search at least, however little time is left
             result = solver.solve(target, seed, timeout_s=min(budget, max(deadline - time.perf_counter(), 1e-4)),
-                                  position_only=goal.position_only, accept=accept, rng=self._rng)
+                                  position_only=goal.position_only, accept=accept, rng=self._rng,
+                                  stop=self.cancelled)
+            self._check_cancelled()
             attempts += result.attempts
             if result.success:
                 if not any(np.abs(result.positions - q).max() < 1e-3 for q in solutions):
@@ -419,7 +468,9 @@ class Planner:
                                 why=error.why, how="report this: plans are timed within the limits",
                                 code=MoveItCode.INVALID_MOTION_PLAN) from None
         times = np.append(np.arange(0.0, motion.duration, self.cycle_time_s), motion.duration)
-        for t in times:
+        for index, t in enumerate(times):
+            if index % CANCEL_CHECK_STATES == 0:
+                self._check_cancelled()
             q = self.arm.to_model_order(motion.state_at(float(t))[0])
             if avoid_collisions and not self.collisions.is_free(q):
                 contacts = self.collisions.contacts(q)
@@ -428,6 +479,31 @@ class Planner:
                                     how="plan again; the planner retries this itself within its time",
                                     code=MoveItCode.INVALID_MOTION_PLAN)
         return motion, len(times)
+
+
+def _check_options(options: PlanOptions) -> None:
+    """Raises unless the planning time is at most the maximum and the speed scales at least the minimum."""
+    if not 0.0 < options.timeout_s <= MAX_PLANNING_TIME_S:
+        raise PlanningError("the planning time is out of range",
+                            what=f"a planning time in (0, {MAX_PLANNING_TIME_S:g}] s",
+                            why=f"the request asks for {options.timeout_s:g} s (the planner serves one request at "
+                                "a time)",
+                            how=f"ask for {MAX_PLANNING_TIME_S:g} s or less (--planning-time, allowed_planning_time "
+                                "in ROS, PlanOptions.timeout_s)", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    for name, scale in (("velocity", options.velocity_scale), ("acceleration", options.acceleration_scale)):
+        if not MIN_SPEED_SCALE <= scale <= 1.0:
+            raise PlanningError(f"the {name} scale is out of range",
+                                what=f"a {name} scale from {MIN_SPEED_SCALE:g} to 1 (a share of the limits)",
+                                why=f"the request asks for {scale:g}"
+                                    + (": slower plans would take days to run and to check"
+                                       if scale < MIN_SPEED_SCALE else ""),
+                                how=f"scale by {MIN_SPEED_SCALE:g} or more (--speed-scale, max_{name}_scaling_factor "
+                                    f"in ROS, PlanOptions.{name}_scale)", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+
+
+def _never() -> bool:
+    """The cancel check outside requests: nothing to cancel."""
+    return False
 
 
 def _always_free(values: np.ndarray) -> bool:

@@ -10,6 +10,8 @@ from typing import Any
 from plem.errors import MoveItCode, PlanningError
 
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
+#: Largest coordinate of a position (m): far beyond any arm's reach, small enough that its square stays finite.
+MAX_COORDINATE_M = 1000.0
 
 
 def _invalid(summary: str, what: str, why: str, how: str) -> PlanningError:
@@ -32,7 +34,12 @@ class Pose:
     orientation: tuple[float, float, float, float] = IDENTITY
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "position", _numbers("position", self.position, 3))
+        position = _numbers("position", self.position, 3)
+        if max(map(abs, position)) > MAX_COORDINATE_M:
+            raise _invalid("the position is out of range", what=f"coordinates within ±{MAX_COORDINATE_M:g} m",
+                           why=f"position {position} m",
+                           how="give the position in metres, in a frame near the robot (--frame, header.frame_id)")
+        object.__setattr__(self, "position", position)
         quaternion = _numbers("orientation", self.orientation, 4)
         norm = math.hypot(*quaternion)
         if norm < 1e-9:

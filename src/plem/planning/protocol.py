@@ -7,15 +7,16 @@ from typing import Any
 
 from plem.control.trajectory import JointTrajectory
 from plem.errors import MoveItCode, PlanningError
-from plem.planning.goals import Goal, JointGoal, NamedGoal, Plan, PlanOptions, PoseGoal
+from plem.planning.goals import MAX_PLANNING_TIME_S, Goal, JointGoal, NamedGoal, Plan, PlanOptions, PoseGoal
 from plem.planning.poses import Pose
 
-#: Longest planning time a request may ask for (s).
-MAX_PLANNING_TIME_S = 600.0
+__all__ = ["MAX_PLANNING_TIME_S", "flag", "goal_from_json", "goal_json", "number", "options_from_json", "options_json",
+           "plan_from_json", "plan_json", "text"]
 
 
 def _invalid(summary: str, what: str, why: str) -> PlanningError:
-    return PlanningError(summary, what=what, why=why, how="fix the request", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    return PlanningError(summary, what=what, why=why, how="send the field as WHAT says (plem's client and CLI do)",
+                         code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
 
 
 def goal_json(goal: Goal) -> dict[str, Any]:
@@ -38,7 +39,7 @@ def goal_from_json(value: Any) -> Goal:
         return NamedGoal(value["named"])
     if isinstance(value, dict) and "pose" in value:
         return PoseGoal(Pose.from_json(value["pose"]), text(value, "frame"), text(value, "link"),
-                        bool(value.get("position_only", False)))
+                        flag(value, "position_only", False))
     raise _invalid("the goal is not understood", "joints, named or pose", repr(value)[:200])
 
 
@@ -51,13 +52,17 @@ def options_json(options: PlanOptions) -> dict[str, Any]:
 
 def options_from_json(value: Any) -> PlanOptions:
     """Planning options from JSON (absent keys keep their defaults); out-of-range values raise PlanningError."""
-    value = value if isinstance(value, dict) else {}
+    if value is None:
+        value = {}
+    if not isinstance(value, dict):
+        raise _invalid("the planning options are not an object", "options as {timeout_s: s, velocity_scale: ...}",
+                       f"got {type(value).__name__}")
     defaults = PlanOptions()
     timeout = number(value, "timeout_s", defaults.timeout_s, 0.0, MAX_PLANNING_TIME_S)
     velocity = number(value, "velocity_scale", 1.0, 0.0, 1.0)
     acceleration = number(value, "acceleration_scale", 1.0, 0.0, 1.0)
     return PlanOptions(text(value, "group"), text(value, "planner_id"), timeout, velocity, acceleration,
-                       bool(value.get("avoid_collisions", True)))
+                       flag(value, "avoid_collisions", True))
 
 
 def text(value: dict[str, Any], key: str) -> str:
@@ -68,13 +73,28 @@ def text(value: dict[str, Any], key: str) -> str:
     return found
 
 
-def number(value: dict[str, Any], key: str, default: float, low: float, high: float) -> float:
-    """A number of a request in (low, high] (`default` when absent); anything else raises PlanningError."""
-    number = value.get(key, default)
-    if isinstance(number, bool) or not isinstance(number, int | float) or not low < number <= high:
-        raise PlanningError(f"{key} is out of range", what=f"{key} in ({low:g}, {high:g}]", why=f"{key} = {number!r}",
+def flag(value: dict[str, Any], key: str, default: bool) -> bool:
+    """A yes/no field of a request (`default` when absent); anything but true or false raises PlanningError."""
+    found = value.get(key, default)
+    if not isinstance(found, bool):
+        raise _invalid(f"{key} is not true or false", f"{key}: true or false", f"{key} = {str(found)[:80]}")
+    return found
+
+
+def number(value: dict[str, Any], key: str, default: float, low: float, high: float, *,
+           low_included: bool = False) -> float:
+    """A number of a request in (low, high], or [low, high] with `low_included` (`default` when absent); anything
+    else raises PlanningError."""
+    found = value.get(key, default)
+    bounds = f"{'[' if low_included else '('}{low:g}, {high:g}]"
+    if isinstance(found, bool) or not isinstance(found, int | float):
+        raise _invalid(f"{key} is not a number", f"{key}: a number in {bounds}",
+                       f"{key} = {str(found)[:80]} ({type(found).__name__})")
+    inside = low <= found <= high if low_included else low < found <= high
+    if not inside:
+        raise PlanningError(f"{key} is out of range", what=f"{key} in {bounds}", why=f"{key} = {found!r}"[:200],
                             how=f"set {key} between {low:g} and {high:g}", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
-    return float(number)
+    return float(found)
 
 
 def plan_json(plan: Plan) -> dict[str, Any]:
