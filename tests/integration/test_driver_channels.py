@@ -66,7 +66,9 @@ def test_a_motion_is_answered_and_shows_in_events_and_stats(served):
         assert EventKind.MOTION_STARTED in kinds and EventKind.MOTION_FINISHED in kinds
         client.wait_for_state(1.0, after_cycle=client.state().cycle + 150)  # the next statistics record
         stats = client.stats()
-        assert stats["commands"]["accepted"] >= 2 and stats["commands"]["rejected"] == 0
+        # the arm holds already: the command service answers the mode request itself, the motion reaches the driver
+        commands = stats["commands"]
+        assert commands["answered_here"] >= 1 and commands["accepted"] >= 1 and commands["rejected"] == 0
         assert stats["latency_interval"]["samples"] > 0 and stats["cycles"] > 0
 
 

@@ -17,8 +17,6 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, Protocol, TypeVar
 
-import numpy as np
-
 from plem.bridge.planning import PlannerLink, PlanningCalls
 from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
@@ -26,6 +24,7 @@ from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.state import JointState
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
+from plem.core import arguments
 from plem.errors import CommandRejected, PlemError
 from plem.ipc import command_socket
 from plem.ipc.channels import RobotChannels
@@ -67,6 +66,10 @@ def default_robot_id() -> str:
 
 def connect(robot_id: str | None = None, expected_dof: int | None = None) -> RobotClient:
     """A client of the running robot `robot_id`; `expected_dof` makes a DOF mismatch an error right away."""
+    if robot_id is not None:
+        arguments.text(robot_id, "robot_id")
+    if expected_dof is not None:
+        arguments.whole(expected_dof, "expected_dof", low=1)
     return RobotClient(RobotChannels.attach(robot_id or default_robot_id(), expected_dof))
 
 
@@ -80,6 +83,8 @@ class Stream(Generic[T]):
 
     def __init__(self, reader: RingReader, read: Callable[[], Any], convert: Callable[[Any], T],
                  timeout: float | None, duration: float | None, check_driver: Callable[[], object]) -> None:
+        timeout = arguments.optional_seconds(timeout, "timeout")
+        duration = arguments.optional_seconds(duration, "duration")
         self._reader = reader
         self._read = read
         self._convert = convert
@@ -133,6 +138,7 @@ class RemoteHandle:
 
     def wait_accepted(self, timeout: float | None = ACCEPT_TIMEOUT_S) -> None:
         """Block until the driver took the command; raises its rejection."""
+        timeout = arguments.optional_seconds(timeout, "timeout")
         self._client._wait(self, lambda: self.accepted or self.reply is not None, timeout, "accepted")
         if self.reply is not None and self.reply["stage"] == "rejected":
             raise error_from_json(self.reply["error"])
@@ -147,6 +153,7 @@ class RemoteHandle:
         The result has the types the in-process robot's handles return: a TrajectoryResult whose
         error_code is an ErrorCode, or the Mode reached.
         """
+        timeout = arguments.optional_seconds(timeout, "timeout")
         self._client._wait(self, lambda: self.reply is not None, timeout, "finished")
         reply = self.reply
         assert reply is not None  # _wait returned, so the condition holds; a reply is never taken back
@@ -215,7 +222,8 @@ class RobotClient(PlanningCalls):
 
     def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
         """Block until a state newer than `after_cycle` is published; None on timeout; DriverGone as state()."""
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + arguments.seconds(timeout, "timeout")
+        after_cycle = arguments.whole(after_cycle, "after_cycle")
         while True:
             state = self.state()
             if state is not None and state.cycle > after_cycle:
@@ -238,7 +246,7 @@ class RobotClient(PlanningCalls):
     def events(self, timeout: float | None = None, duration: float | None = None, *,
                from_oldest: bool = False) -> Stream[Event]:
         """Events (mode changes, faults, motions) as they happen; `timeout` and `duration` as for `stream`."""
-        reader = self.channels.rings["events"].reader(from_oldest=from_oldest)
+        reader = self.channels.rings["events"].reader(from_oldest=arguments.flag(from_oldest, "from_oldest"))
         return Stream(reader, reader.read, event_from_record, timeout, duration, self.state)
 
     def faults(self) -> list[Event]:
@@ -265,8 +273,12 @@ class RobotClient(PlanningCalls):
     # -- commands ----------------------------------------------------------------------------------
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
                     tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
-        """Time-optimal jerk-limited motion to `target` (rad); returns once the driver accepted it."""
-        return self._send("move_joints", {"target": _floats(target), "speed_scale": speed_scale,
+        """Time-optimal jerk-limited motion to `target` (rad); returns once the driver accepted it.
+
+        `speed_scale` in [MIN_SPEED_SCALE, 1] (plem.ipc.request_bounds) scales time: 0.5 takes twice as long.
+        """
+        return self._send("move_joints", {"target": list(arguments.reals(target, "target")),
+                                          "speed_scale": arguments.real(speed_scale, "speed_scale"),
                                           "tolerances": _tolerances(tolerances)}, accept_within=ACCEPT_TIMEOUT_S)
 
     def execute_trajectory(self, trajectory: JointTrajectory,
@@ -276,6 +288,7 @@ class RobotClient(PlanningCalls):
         A trajectory that would break a limit is re-timed first (about a millisecond per point), so the wait
         for acceptance grows with the number of points.
         """
+        arguments.instance(trajectory, JointTrajectory, "trajectory", "a JointTrajectory (plem.control.trajectory)")
         points = [{"positions": list(p.positions), "time_from_start": p.time_from_start,
                    **({"velocities": list(p.velocities)} if p.velocities is not None else {}),
                    **({"accelerations": list(p.accelerations)} if p.accelerations is not None else {})}
@@ -286,14 +299,17 @@ class RobotClient(PlanningCalls):
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
+        timeout = arguments.seconds(timeout, "timeout")
         return Mode(self.request_mode(mode).wait(timeout))
 
     def request_mode(self, mode: str | Mode) -> RemoteHandle:
         """Ask for a mode change without waiting; the handle's result is the mode reached."""
+        arguments.instance(mode, (str, Mode), "mode", "a mode name (idle, hold, free_drive) or a Mode")
         return self._send("set_mode", {"mode": Mode.parse(mode).name.lower()})
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
+        timeout = arguments.seconds(timeout, "timeout")
         return Mode(self.request_reset().wait(timeout))
 
     def request_reset(self) -> RemoteHandle:
@@ -306,7 +322,7 @@ class RobotClient(PlanningCalls):
 
     def wait_until_idle(self, timeout: float = 30.0) -> None:
         """Block until no motion runs (mode is not TRAJECTORY)."""
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + arguments.seconds(timeout, "timeout")
         while True:
             state = self.live_state()
             if state.mode is not Mode.TRAJECTORY:
@@ -430,16 +446,11 @@ class RobotClient(PlanningCalls):
                 time.sleep(POLL_S)
 
 
-def _floats(values: Sequence[float]) -> list[float]:
-    """Plain floats for JSON; NaN/inf stay and are refused by validation with a clear message."""
-    try:
-        return [float(v) for v in np.asarray(values, dtype=float).reshape(-1)]
-    except (TypeError, ValueError) as error:
-        raise CommandRejected("the target is not a list of numbers", what="one number per joint (rad)",
-                              why=str(error), how="pass a list of floats") from None
-
-
 def _tolerances(tolerances: TrajectoryTolerances | Mapping[str, Any] | None) -> dict[str, Any] | None:
+    """Tolerances as a request carries them (their contents are checked with the request)."""
     if tolerances is None or isinstance(tolerances, Mapping):
         return None if tolerances is None else dict(tolerances)
+    arguments.instance(tolerances, TrajectoryTolerances, "tolerances",
+                       "a TrajectoryTolerances, a dict with keys path, goal, goal_time, stopped_velocity_tolerance, "
+                       "or None")
     return tolerances_json(tolerances)

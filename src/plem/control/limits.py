@@ -71,7 +71,7 @@ class ArmLimits:
         """`values` as a float array of length dof with finite entries, else CommandRejected."""
         try:
             array = np.asarray(values, dtype=float).reshape(-1)
-        except (TypeError, ValueError) as error:
+        except (TypeError, ValueError, OverflowError) as error:   # OverflowError: an int beyond a float's range
             raise CommandRejected(f"{what} is not a list of numbers", what=f"{self.dof} numbers, one per joint",
                                   why=str(error), how=f"pass {what} as {self.dof} floats") from error
         if array.size != self.dof:

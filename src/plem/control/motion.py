@@ -11,12 +11,13 @@ import math
 from typing import Protocol
 
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Ruckig, Trajectory
 
-from plem.control import compiled
+from plem.control import compiled, ruckig_results
 from plem.control.limits import ArmLimits
 from plem.control.polynomial import ORDER, PolynomialMotion, from_ruckig
 from plem.errors import CommandRejected
+from plem.ipc.request_bounds import MIN_SPEED_SCALE
 
 #: Where a motion starts: position, velocity and acceleration per joint.
 StartState = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -87,12 +88,7 @@ def _input(limits: ArmLimits, position: np.ndarray, velocity: np.ndarray, accele
 
 def _calculate(parameters: InputParameter, dof: int, what: str) -> RuckigMotion:
     trajectory = Trajectory(dof)
-    result = Ruckig(dof).calculate(parameters, trajectory)
-    if result not in (Result.Working, Result.Finished):
-        raise CommandRejected(f"{what} could not be planned within the joint limits",
-                              what="a jerk-limited motion inside the velocity, acceleration and jerk limits",
-                              why=f"ruckig returned {result.name}",
-                              how="check the limits in config/joint_limits.yaml and the target")
+    ruckig_results.calculate(Ruckig(dof), parameters, trajectory, what)
     return RuckigMotion(trajectory)
 
 
@@ -100,15 +96,18 @@ def plan_point_to_point(limits: ArmLimits, start: StartState, target: np.ndarray
                         speed_scale: float = 1.0, minimum_duration: float = 0.0) -> RuckigMotion:
     """Time-optimal motion from `start` (position, velocity, acceleration) to rest at `target`.
 
-    `speed_scale` in (0, 1] scales time: velocity, acceleration and jerk limits by s, s² and s³, so the
-    motion follows the same path and takes 1/s as long; the motion takes at least `minimum_duration` s.
+    `speed_scale` in [MIN_SPEED_SCALE, 1] scales time: velocity, acceleration and jerk limits by s, s² and s³, so
+    the motion follows the same path and takes 1/s as long; the motion takes at least `minimum_duration` s.
     The target must lie within the position limits, and so must every position the motion passes through; a joint
     that starts outside its range may end anywhere between there and its range (`ArmLimits.reaching`).
     """
     limits = limits.reaching(start[0])
-    if not (isinstance(speed_scale, (int, float)) and math.isfinite(speed_scale) and 0 < speed_scale <= 1):
-        raise CommandRejected("speed_scale is out of range", what="0 < speed_scale <= 1",
-                              why=f"got {speed_scale!r}", how="pass e.g. speed_scale=0.5 for half speed")
+    if not (isinstance(speed_scale, (int, float)) and not isinstance(speed_scale, bool)
+            and math.isfinite(speed_scale) and MIN_SPEED_SCALE <= speed_scale <= 1):
+        raise CommandRejected("speed_scale is out of range", what=f"{MIN_SPEED_SCALE:g} <= speed_scale <= 1",
+                              why=f"got {speed_scale!r}",
+                              how=f"pass e.g. speed_scale=0.5 for half speed; {MIN_SPEED_SCALE:g} is the slowest "
+                                  f"({1 / MIN_SPEED_SCALE:g} times as long as at full speed)")
     if not np.all(np.isfinite(limits.max_velocity)):
         unlimited = [n for n, v in zip(limits.joint_names, limits.max_velocity, strict=True) if not math.isfinite(v)]
         raise CommandRejected("move_joints needs a velocity limit for every joint",

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from plem.control.spline import JointNamesRejected, Spline
+from plem.core import arguments
 from plem.errors import CommandRejected
 
 __all__ = ["DEFAULT_GOAL_TIME", "ErrorCode", "JointNamesRejected", "JointTrajectory", "Spline", "TrajectoryOutcome",
@@ -23,6 +24,9 @@ __all__ = ["DEFAULT_GOAL_TIME", "ErrorCode", "JointNamesRejected", "JointTraject
 #: Seconds allowed after the last point to settle inside the goal tolerance, when a goal gives 0.
 DEFAULT_GOAL_TIME = 1.0
 POINT_KEYS = ("positions", "time_from_start", "velocities", "accelerations")
+#: The resolution of time_from_start (builtin_interfaces/Duration counts nanoseconds): a point is at 0 or at least
+#: this late; a time between the two is no time a ROS message can carry, and no time a cycle can resolve.
+TIME_RESOLUTION_S = 1e-9
 
 
 @dataclass(frozen=True)
@@ -34,6 +38,13 @@ class TrajectoryPoint:
     velocities: tuple[float, ...] | None = None
     accelerations: tuple[float, ...] | None = None
 
+    def __post_init__(self) -> None:
+        """Numbers as floats in tuples, whatever sequence of numbers was given; anything else is an ArgumentError."""
+        object.__setattr__(self, "positions", arguments.reals(self.positions, "positions"))
+        object.__setattr__(self, "time_from_start", arguments.real(self.time_from_start, "time_from_start"))
+        for name in ("velocities", "accelerations"):
+            object.__setattr__(self, name, arguments.optional_reals(getattr(self, name), name))
+
 
 @dataclass(frozen=True)
 class JointTrajectory:
@@ -42,15 +53,38 @@ class JointTrajectory:
     joint_names: tuple[str, ...]
     points: tuple[TrajectoryPoint, ...]
 
+    def __post_init__(self) -> None:
+        """Names as strings and points as TrajectoryPoints, in tuples; anything else is an ArgumentError."""
+        names = arguments.instance(self.joint_names, (list, tuple), "joint_names", "a list of joint names")
+        object.__setattr__(self, "joint_names", tuple(arguments.text(name, "a joint name") for name in names))
+        points = arguments.instance(self.points, (list, tuple), "points", "a list of TrajectoryPoint")
+        object.__setattr__(self, "points", tuple(
+            arguments.instance(point, TrajectoryPoint, f"point {index}", "a TrajectoryPoint")
+            for index, point in enumerate(points)))
+
+    def check_times(self) -> None:
+        """Refuse a point above 0 s but earlier than TIME_RESOLUTION_S, before anything is fitted to it."""
+        for index, point in enumerate(self.points):
+            if 0.0 < point.time_from_start < TIME_RESOLUTION_S:
+                raise CommandRejected(
+                    f"point {index} is {point.time_from_start:.3g} s after the start",
+                    what=f"time_from_start 0 (where the arm is) or at least {TIME_RESOLUTION_S:g} s "
+                         "(builtin_interfaces/Duration counts nanoseconds)",
+                    why=f"point {index} has time_from_start {point.time_from_start!r} s",
+                    how="send 0 for a point where the arm already is, or the time the arm may take to get there")
+
     @classmethod
     def from_lists(cls, joint_names: Sequence[str],
                    points: Iterable[Mapping[str, Any] | TrajectoryPoint]) -> JointTrajectory:
         """From plain lists and dicts, as scripts and JSON give them; unknown keys are rejected to catch typos."""
+        if isinstance(points, (str, bytes, Mapping)) or not isinstance(points, Iterable):
+            raise arguments.refused("points", "a list of points (dicts or TrajectoryPoint)", points)
         converted = []
         for index, point in enumerate(points):
             if isinstance(point, TrajectoryPoint):
                 converted.append(point)
                 continue
+            arguments.instance(point, Mapping, f"point {index}", "a dict or a TrajectoryPoint")
             unknown = sorted(set(point) - set(POINT_KEYS))
             absent = [key for key in POINT_KEYS[:2] if key not in point]
             if unknown or absent:
@@ -61,17 +95,14 @@ class JointTrajectory:
                                                 f"missing: {', '.join(absent)}" if absent else ""])),
                     how="spell the keys as in trajectory_msgs/JointTrajectoryPoint (effort is not supported)")
             try:
-                converted.append(TrajectoryPoint(
-                    positions=tuple(map(float, point["positions"])),
-                    time_from_start=float(point["time_from_start"]),
-                    velocities=None if point.get("velocities") is None else tuple(map(float, point["velocities"])),
-                    accelerations=(None if point.get("accelerations") is None
-                                   else tuple(map(float, point["accelerations"])))))
-            except (TypeError, ValueError) as error:
-                raise CommandRejected(f"point {index} holds something other than numbers",
-                                      what="lists of numbers, and time_from_start as a number of seconds",
-                                      why=str(error), how="send plain numbers") from error
-        return cls(tuple(joint_names), tuple(converted))
+                converted.append(TrajectoryPoint(positions=point["positions"], time_from_start=point["time_from_start"],
+                                                 velocities=point.get("velocities"),
+                                                 accelerations=point.get("accelerations")))
+            except arguments.ArgumentError as error:
+                raise arguments.ArgumentError(f"point {index} holds something other than numbers: {error.summary}",
+                                              what=error.what, why=error.why, how=error.how) from None
+        names = arguments.instance(joint_names, (list, tuple), "joint_names", "a list of joint names")
+        return cls(tuple(names), tuple(converted))
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,7 +125,7 @@ class TrajectoryTolerances:
             value = getattr(self, name)
             if value is None:
                 continue
-            array = np.array(value, dtype=float).reshape(-1)
+            array = np.array(arguments.reals(value, f"the {name} tolerance"), dtype=float)
             if np.isnan(array).any():
                 raise CommandRejected(f"the {name} tolerance contains NaN", what="a number per joint (rad)",
                                       why=f"{name} tolerance = {array.tolist()}",
@@ -102,6 +133,9 @@ class TrajectoryTolerances:
             array[array <= 0.0] = math.inf
             array.flags.writeable = False
             object.__setattr__(self, name, array)
+        object.__setattr__(self, "goal_time", arguments.real(self.goal_time, "goal_time"))
+        object.__setattr__(self, "stopped_velocity_tolerance",
+                           arguments.real(self.stopped_velocity_tolerance, "stopped_velocity_tolerance"))
         if not self.goal_time >= 0.0:
             raise CommandRejected("the goal time tolerance is negative or NaN", what="seconds >= 0",
                                   why=f"goal_time = {self.goal_time}", how="send 0 for the default")

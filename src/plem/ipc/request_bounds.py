@@ -31,6 +31,10 @@ MAX_SECONDS = 86_400.0
 MAX_MAGNITUDE = 1e6
 #: Characters of each text field (summary, what, why, how) of an answer.
 MAX_TEXT_CHARS = 2000
+#: Slowest speed_scale (of move_joints, `plem move --speed-scale` and the planner's velocity and acceleration
+#: scaling): a motion then takes 1000 times as long as at full speed. Slower ones would outlast the longest
+#: motion ruckig plans (7600 s) for an ordinary arm's range, and no real use needs them.
+MIN_SPEED_SCALE = 1e-3
 
 _ID = re.compile(rf"[A-Za-z0-9_.:-]{{1,{MAX_ID_CHARS}}}")
 

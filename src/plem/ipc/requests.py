@@ -118,7 +118,9 @@ def _trajectory(args: Mapping[str, Any], limits: ArmLimits) -> JointTrajectory:
                             why=f"point {index} carries {', '.join(sorted(point)) or 'nothing'}",
                             how="send one position per joint in every point")
         checked.append(row)
-    return JointTrajectory.from_lists(names, checked)
+    trajectory = JointTrajectory.from_lists(names, checked)
+    trajectory.check_times()
+    return trajectory
 
 
 def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedRequest:
@@ -137,7 +139,8 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
     if op == "move_joints":
         target = np.array(bounds.numbers(args.get("target"), "the target", limits.dof))
         checked = {"target": target,
-                   "speed_scale": bounds.number(args.get("speed_scale", 1.0), "speed_scale", 0.0, 1.0, low_open=True),
+                   "speed_scale": bounds.number(args.get("speed_scale", 1.0), "speed_scale", bounds.MIN_SPEED_SCALE,
+                                                 1.0),
                    "tolerances": _tolerances(args.get("tolerances"), limits)}
     elif op == "execute_trajectory":
         checked = {"trajectory": _trajectory(args, limits), "tolerances": _tolerances(args.get("tolerances"), limits)}

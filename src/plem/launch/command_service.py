@@ -5,7 +5,10 @@ It listens on the robot's command socket, and everything that costs time happens
 process: reading and bounding requests, validating them, fitting trajectories and planning motions. The
 driver receives only small records on its intake ring and motions as tables in the motion slab, which
 its loop samples in place; it answers on the outcomes ring. A client that floods, stalls or sends
-garbage costs this process time, never the loop.
+garbage costs this process time, never the loop: a request whose answer is known already (the mode the arm
+is in, a stop with nothing to stop) is answered here, one that repeats the request still on its way to the
+driver shares that request's answer, and each connection has at most MAX_IN_FLIGHT mode changes and resets
+waiting for the driver.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from plem.control.commands import PLAN_ATTEMPTS, preemption_lead
+from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
 from plem.errors import CommandRejected, PlemError
@@ -58,6 +62,9 @@ MAX_CLIENTS = 64
 #: Bytes of answers waiting for a client that does not read; beyond this it is disconnected.
 MAX_PENDING_OUTPUT = 1 << 20
 POLL_S = 0.0005
+#: Mode changes and fault resets of one connection waiting for the driver at once; more are refused until it
+#: answers (a stop is never refused: it shares the answer of the stop before it, or goes to the driver).
+MAX_IN_FLIGHT = 16
 RESTART_HOW = "check the robot with `plem state`; restart it with `plem launch` if its loop stopped"
 COUNTERS_PERIOD_S = 0.1
 _log = logging.getLogger("plem.command_service")
@@ -76,6 +83,7 @@ class _Client:
     reader: FrameReader = field(default_factory=FrameReader)
     output: bytearray = field(default_factory=bytearray)
     goals: dict[str, int] = field(default_factory=dict)   # request id → token of its motions still running
+    in_flight: int = 0   # its mode changes and resets waiting for the driver
 
 
 @dataclass
@@ -85,6 +93,9 @@ class _Command:
     client: _Client | None
     request_id: str
     slot: int | None = None
+    #: Requests that repeat this one, answered with its answer: (client, request id).
+    sharing: list[tuple[_Client, str]] = field(default_factory=list)
+    counted: bool = False   # it counts toward its client's in_flight
 
 
 @dataclass
@@ -93,6 +104,7 @@ class Counters:
 
     received: int = 0
     rejected: int = 0
+    answered_here: int = 0   # answered without the driver: known already, or shared with a request on its way
 
 
 class CommandService:
@@ -117,6 +129,9 @@ class CommandService:
         self._clients: dict[int, _Client] = {}
         self._sent_counters: dict[str, int] = {}
         self._next_counters = 0.0
+        self.state = channels.state
+        self._last_token = 0   # the newest record's token on the intake ring
+        self._repeatable: tuple[tuple[str, Mode | None], int] | None = None   # the newest mode change/reset/stop
 
     # -- the socket --------------------------------------------------------------------------------
     def run(self, stop: threading.Event) -> None:
@@ -210,7 +225,7 @@ class CommandService:
             request = check_request(payload, self.limits)
             if request.op in MOTIONS:
                 self._start_motion(client, request)
-            else:
+            elif not self._answered_here(client, request):
                 self._send(client, request)
         except PlemError as error:
             self.counters.rejected += 1
@@ -222,16 +237,64 @@ class CommandService:
                 "the request could not be handled", what="a request the command service can execute",
                 why=f"{type(error).__name__}: {error}", how="check the request; report this with the robot's output")))
 
+    def _answered_here(self, client: _Client, request: CheckedRequest) -> bool:
+        """Answer a request without the driver when its answer is known, so that a flood of them never reaches it;
+        False when it must go to the driver.
+
+        Known are: a stop of a goal that no longer runs; with nothing on its way to the driver and the driver
+        running, the mode the arm is in and a stop while no motion runs (the driver's own answers to them); and a
+        repeat of the newest request sent to the driver, still unanswered and nothing sent since, which shares
+        its answer (a repeated mode change the driver would refuse as pending finishes with the first one).
+        """
+        if request.op == "stop" and "goal" in request.args:
+            return request.args["goal"] not in client.goals and self._known(client, request, None)
+        shared = self._commands.get(self._last_token)
+        if shared is not None and self._repeatable == ((request.op, request.args.get("mode")), self._last_token):
+            shared.sharing.append((client, request.id))
+            self.counters.answered_here += 1
+            return True
+        if self._commands or request.op == "reset_fault":
+            return False
+        state = self.state.block.read()
+        if state is None or self.state.driver_gone(state) is not None:
+            return False
+        if request.op == "set_mode" and state.mode is request.args["mode"]:
+            return self._known(client, request, state.mode)
+        if request.op == "stop" and state.mode is not Mode.TRAJECTORY:
+            return self._known(client, request, None)
+        return False
+
+    def _known(self, client: _Client, request: CheckedRequest, result: Mode | None) -> bool:
+        """Answer `request` as finished with `result`, as the driver would."""
+        self.counters.answered_here += 1
+        self._answer(client, reply(request.id, "finished", result=result))
+        return True
+
     def _send(self, client: _Client, request: CheckedRequest) -> int:
         """Hand a mode change, fault reset or stop to the driver; its answers reach the client later."""
+        counted = request.op != "stop"
+        if counted and client.in_flight >= MAX_IN_FLIGHT:
+            raise CommandRejected("too many requests of this connection wait for the robot",
+                                  what=f"at most {MAX_IN_FLIGHT} mode changes and resets waiting at once",
+                                  why=f"{client.in_flight} are waiting for the RT driver's answer",
+                                  how="wait for the answers (set_mode() and reset_fault() wait for theirs) before "
+                                      "sending more")
         token = next(self._tokens)
         record: dict[str, Any] = {"op": request.op, "token": token}
         if request.op == "set_mode":
             record["mode"] = request.args["mode"].name.lower()
         elif request.op == "stop" and "goal" in request.args:
-            record["goal"] = client.goals.get(request.args["goal"], 0)  # 0: that goal no longer runs
-        self._commands[token] = _Command(client, request.id)
-        self._write_intake(record)
+            record["goal"] = client.goals[request.args["goal"]]
+        self._commands[token] = _Command(client, request.id, counted=counted)
+        client.in_flight += counted
+        try:
+            self._write_intake(record)
+        except DriverSilent:
+            del self._commands[token]
+            client.in_flight -= counted
+            raise
+        if "goal" not in request.args:
+            self._repeatable = ((request.op, request.args.get("mode")), token)
         return token
 
     def _start_motion(self, client: _Client, request: CheckedRequest) -> None:
@@ -295,6 +358,7 @@ class CommandService:
         self._until(lambda: self.intake.write(data), DriverSilent(
             "the RT driver takes no commands", what="room in its intake ring",
             why=f"it stayed full for {DRIVER_TIMEOUT_S:g} s", how=RESTART_HOW))
+        self._last_token = record["token"]
 
     def _await(self, token: int) -> dict[str, Any]:
         """The driver's next answer for `token` (passing on everything else meanwhile)."""
@@ -337,9 +401,9 @@ class CommandService:
             del self._commands[token]
             if command.client is not None:
                 command.client.goals.pop(command.request_id, None)
-        if command.client is not None:
-            self._answer(command.client, reply_of_json(command.request_id, stage, outcome.get("result"),
-                                                       outcome.get("error")))
+                command.client.in_flight -= command.counted
+        for client, request_id in ([(command.client, command.request_id)] if command.client else []) + command.sharing:
+            self._answer(client, reply_of_json(request_id, stage, outcome.get("result"), outcome.get("error")))
 
     def _release(self, outcome: dict[str, Any]) -> None:
         slot = outcome.get("slot")

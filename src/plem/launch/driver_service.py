@@ -39,6 +39,8 @@ PREPARED_KEPT = 16
 OUTCOME_TEXT_CHARS = 600
 #: Longest note on how a motion was re-timed that travels with it to its result.
 NOTE_CHARACTERS = 400
+#: The command service's counters: requests received, refused, and answered without the driver.
+CLIENT_COUNTERS = ("received", "rejected", "answered_here")
 #: A motion's first sample may differ this much (rad, rad/s, rad/s²) from the state it was planned from.
 START_MATCH = 1e-6
 _log = logging.getLogger("plem.rt_driver")
@@ -80,7 +82,7 @@ class DriverService:
         self._slab = self.channels.motions
         self._pending: dict[int, _Pending] = {}
         self._prepared: OrderedDict[int, tuple[PlanBasis, int | None, np.ndarray]] = OrderedDict()
-        self._client_counters: dict[str, int] = {"received": 0, "rejected": 0}
+        self._client_counters: dict[str, int] = dict.fromkeys(CLIENT_COUNTERS, 0)
         stats = self.robot.loop.stats
         self._previous = (stats.latency.histogram.copy(), stats.compute.histogram.copy())
         self.thread = threading.Thread(target=self._run, name=f"plem-service-{self.robot.robot_id}", daemon=True)
@@ -115,7 +117,7 @@ class DriverService:
     def _dispatch(self, command: dict[str, Any], token: int) -> None:
         robot, op = self.robot, command["op"]
         if op == "counters":
-            self._client_counters = {key: int(command[key]) for key in ("received", "rejected")}
+            self._client_counters = {key: int(command.get(key, 0)) for key in CLIENT_COUNTERS}
         elif op == "prepare":
             self._prepare(token, float(command["lead_s"]))
         elif op == "start":

@@ -42,6 +42,7 @@ from plem.control.polynomial import PolynomialMotion
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
+from plem.core import arguments
 from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, MoveItCode, PlanningError, PlemError, RobotFault
 from plem.fieldbus.bus import BusSetup, IBus, SteppedBus
@@ -282,6 +283,8 @@ class Robot(PlanningCalls):
 
     def wait_for_state(self, timeout: float = 1.0, after_cycle: int = 0) -> JointState | None:
         """Block until a state newer than `after_cycle` is published."""
+        timeout = arguments.seconds(timeout, "timeout")
+        after_cycle = arguments.whole(after_cycle, "after_cycle")
         deadline = threading.Event()
         waited = 0.0
         while waited <= timeout:
@@ -302,15 +305,18 @@ class Robot(PlanningCalls):
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""
+        timeout = arguments.seconds(timeout, "timeout")
         return Mode(self.request_mode(mode).wait(timeout))
 
     def request_mode(self, mode: str | Mode) -> CommandHandle:
         """Ask for a mode change without waiting; the handle finishes with the mode reached."""
-        requested = Mode.parse(mode)
+        requested = Mode.parse(arguments.instance(mode, (str, Mode), "mode",
+                                                  "a mode name (idle, hold, free_drive) or a Mode"))
         return self._send(SetMode(requested, CommandHandle(f"set_mode({requested.name})", self._pump)))
 
     def reset_fault(self, timeout: float = 5.0) -> Mode:
         """Clear a fault: fault-reset the drives, re-enable them, hold where the arm is."""
+        timeout = arguments.seconds(timeout, "timeout")
         return Mode(self.request_reset().wait(timeout))
 
     def request_reset(self) -> CommandHandle:
@@ -322,6 +328,8 @@ class Robot(PlanningCalls):
 
         With `goal`, only that motion is canceled: if another has replaced it meanwhile, nothing stops.
         """
+        if goal is not None:
+            arguments.instance(goal, CommandHandle, "goal", "the CommandHandle of a motion, or None")
         return self._send(StopMotion(CommandHandle("stop()", self._pump), goal))
 
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
@@ -330,7 +338,8 @@ class Robot(PlanningCalls):
 
         Returns once the loop accepted the motion; wait on the handle for the result.
         """
-        goal = self.limits.check_vector(target, "the target")
+        goal = self.limits.check_vector(arguments.reals(target, "target"), "the target")
+        speed_scale = arguments.real(speed_scale, "speed_scale")
         return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(), ""),
                             tolerances, "move_joints")
 
@@ -341,7 +350,9 @@ class Robot(PlanningCalls):
         Refused up front only for what no timing can fix (see `plem.planning.fit_to_limits`); the result's
         message says when and how the motion was re-timed.
         """
+        arguments.instance(trajectory, JointTrajectory, "trajectory", "a JointTrajectory (plem.control.trajectory)")
         point_count(len(trajectory.points))
+        trajectory.check_times()
 
         def plan(start: StartState) -> tuple[PolynomialMotion, str]:
             timed = fit_to_limits(trajectory, self.limits.reaching(start[0]), start, self.runtime.dt)
@@ -352,6 +363,8 @@ class Robot(PlanningCalls):
     def _submit(self, plan: Callable[[StartState], tuple[PolynomialMotion, str]],
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
         """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
+        if tolerances is not None:
+            arguments.instance(tolerances, TrajectoryTolerances, "tolerances", "a TrajectoryTolerances or None")
         tolerances = tolerances or TrajectoryTolerances()
         planning_s = 0.0
         for attempt in range(PLAN_ATTEMPTS):
@@ -381,6 +394,7 @@ class Robot(PlanningCalls):
 
     def wait_until_idle(self, timeout: float = 30.0) -> None:
         """Block until no motion (user or internal stop) is running."""
+        timeout = arguments.seconds(timeout, "timeout")
         waited = 0.0
         pause = threading.Event()
         def moving() -> bool:
