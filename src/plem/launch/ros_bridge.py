@@ -14,14 +14,16 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from dataclasses import replace
 
 from plem.bridge.client import DriverGone, connect
 from plem.description.hardware import driven_block
 from plem.launch.component import announce, run_component
 from plem.launch.plan import plan_robot
 from plem.middleware.controller_manager import Hardware
+from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.node import Node
-from plem.middleware.robot_bridge import RobotBridge
+from plem.middleware.robot_bridge import RobotBridge, sample_bound
 
 #: The hardware plugin reported for a package whose <ros2_control> block names none.
 HARDWARE_PLUGIN = "hardware/HardwareInterface"
@@ -35,7 +37,8 @@ SHUTDOWN_GRACE_S = 5.0
 def serve(arguments: dict[str, str], stop: threading.Event) -> None:
     """Publish and serve until `stop` or until the RT driver is gone."""
     plan = plan_robot(arguments, generate=False)
-    node = Node()
+    bound = sample_bound(plan.config.dof, plan.robot_description, plan.report.srdf_xml)
+    node = Node(replace(DiscoverySettings.from_environment(), max_sample_bytes=bound))
     client = connect(plan.robot_id, plan.config.dof)
     rate = plan.joint_state_rate()
     block = driven_block(plan.report.urdf) if plan.report.urdf else None

@@ -45,6 +45,8 @@ class DiscoverySettings:
     discovery_range: str = "SUBNET"
     static_peers: tuple[str, ...] = ()
     user_config: str = ""
+    #: Cyclone drops larger samples, sent or received, before it reassembles them (None: Cyclone's 2 GiB).
+    max_sample_bytes: int | None = None
 
     @classmethod
     def from_environment(cls, environ: Mapping[str, str] | None = None) -> DiscoverySettings:
@@ -81,6 +83,8 @@ class DiscoverySettings:
                         + "<Discovery><ParticipantIndex>auto</ParticipantIndex>"
                         "<MaxAutoParticipantIndex>32</MaxAutoParticipantIndex>"
                         + (f"<Peers>{peer_xml}</Peers>" if peer_xml else "") + "</Discovery>")
+        if self.max_sample_bytes is not None:
+            fragment += f"<Internal><MaxSampleSize>{self.max_sample_bytes}B</MaxSampleSize></Internal>"
         parts = [f"<CycloneDDS><Domain>{fragment}</Domain></CycloneDDS>"] if fragment else []
         if self.user_config:
             parts.append(self.user_config)

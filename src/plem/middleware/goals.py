@@ -25,7 +25,7 @@ from plem.control.trajectory import (
     TrajectoryTolerances,
 )
 from plem.errors import CommandRejected, PlemError
-from plem.ipc.request_bounds import point_count
+from plem.ipc.request_bounds import MAX_POINTS, point_count
 from plem.ipc.requests import error_from_json, result_from_json
 from plem.middleware.action import ABORTED, CANCELED, SUCCEEDED
 from plem.middleware.types import InterfaceLibrary
@@ -33,6 +33,8 @@ from plem.middleware.types import InterfaceLibrary
 #: A trajectory stamped this close to now starts on receipt; plem does not delay starts.
 START_SLACK_NS = 50_000_000
 FJT = "control_msgs/action/FollowJointTrajectory"
+#: What a trajectory may hold besides its points: header, joint names, a goal's tolerances.
+TRAJECTORY_SLACK_BYTES = 256 * 1024
 _STATUS = {TrajectoryOutcome.SUCCEEDED: SUCCEEDED, TrajectoryOutcome.CANCELED: CANCELED,
            TrajectoryOutcome.PREEMPTED: CANCELED, TrajectoryOutcome.ABORTED: ABORTED,
            TrajectoryOutcome.REJECTED: ABORTED}
@@ -66,6 +68,14 @@ def trajectory_from_message(message: Any, now_ns: int | None = None) -> JointTra
                **({"accelerations": list(point.accelerations)} if len(point.accelerations) else {})}
               for point in message.points]
     return JointTrajectory.from_lists(list(message.joint_names), points)
+
+
+def trajectory_bytes(dof: int) -> int:
+    """The largest JointTrajectory (or FollowJointTrajectory goal) in CDR worth decoding for an arm of `dof` joints:
+    MAX_POINTS points of four full rows each, and room for names, tolerances and alignment; anything larger is
+    refused anyway, so it is dropped before it costs any work."""
+    row = 8 + 8 * dof                                # sequence length, alignment, the values
+    return MAX_POINTS * (4 * row + 8) + TRAJECTORY_SLACK_BYTES
 
 
 def tolerances_from_goal(goal: Any, joint_names: Sequence[str]) -> TrajectoryTolerances:

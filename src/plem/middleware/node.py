@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 from uuid import UUID
 
-from cyclonedds._clayer import ddspy_write
+from cyclonedds._clayer import ddspy_take, ddspy_write
 from cyclonedds.core import DDSException, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.pub import DataWriter
@@ -28,6 +28,7 @@ from plem.errors import ConfigError
 from plem.middleware import names
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.qos import SERVICES, QosProfile
+from plem.middleware.samples import SampleDrops, undecodable
 from plem.middleware.types import InterfaceLibrary, library
 
 M = TypeVar("M")
@@ -93,15 +94,38 @@ class Publisher(Generic[M]):
 class Subscription(Generic[M]):
     """Takes messages of one type from one ROS 2 topic."""
 
-    def __init__(self, reader: DataReader[Any], message: type[M], node: Node) -> None:
+    def __init__(self, reader: DataReader[Any], message: type[M], node: Node, dds_topic: str) -> None:
         self.node = node  # the participant must outlive its endpoints
         self.reader = reader
         self.message = message
         self.condition = ReadCondition(reader, _ANY_SAMPLE)
+        kind, name = names.ros_topic(dds_topic) or ("DDS topic", dds_topic)
+        self.name = f"{kind} {name}"
+        #: The largest serialized sample decoded; a larger one is dropped before it costs any Python work.
+        self.max_bytes: int | None = None
+        self._drops = SampleDrops(self.name)
 
     def take(self, limit: int = 256) -> list[M]:
-        """Every message waiting (up to `limit`), oldest first."""
-        return [sample for sample in self.reader.take(N=limit) if sample.sample_info.valid_data]
+        """Every message waiting (up to `limit`), oldest first, decoded one by one: a sample too large or that
+        does not decode is dropped with a warning, and the others are still returned."""
+        taken = ddspy_take(self.reader._ref, _ANY_SAMPLE, limit)
+        if isinstance(taken, int):
+            raise DDSException(taken, f"Occurred while taking data from the {self.name}")
+        messages: list[M] = []
+        for data, info in taken:
+            if not info.valid_data:
+                continue
+            if self.max_bytes is not None and len(data) > self.max_bytes:
+                self._drops.drop(f"its {len(data):,} bytes exceed the {self.max_bytes:,} this endpoint accepts")
+                continue
+            try:
+                message = self.message.deserialize(data)  # type: ignore[attr-defined]  # an IdlStruct class
+            except Exception as error:  # noqa: BLE001 - any malformed sample is the sender's fault, never ours
+                self._drops.drop(undecodable(error))
+                continue
+            message.sample_info = info
+            messages.append(message)
+        return messages
 
     def entities(self) -> Entities:
         """The DDS endpoints behind it, as a ROS node lists them."""
@@ -315,7 +339,7 @@ class Node:
                         user_data: bytes) -> Subscription[Any]:
         """A subscription to a DDS topic given by its wire name (for the parts of services and actions)."""
         reader = DataReader(self.participant, self._topic(dds_topic, struct), profile.qos(user_data))
-        return Subscription(reader, struct, self)
+        return Subscription(reader, struct, self, dds_topic)
 
     def type_user_data(self, ros_type: str) -> bytes:
         """The endpoint user data rmw_cyclonedds announces on Iron and later: `typehash=RIHS01_...;`."""

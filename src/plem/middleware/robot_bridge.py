@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from cyclonedds.util import duration
@@ -34,6 +35,7 @@ from plem.middleware.goals import (
     rejected_trajectory,
     start_mode_change,
     start_trajectory,
+    trajectory_bytes,
     trajectory_from_message,
 )
 from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, DESCRIPTION_TYPE, MONITOR_TOPICS, MonitorFeed, QueueCount
@@ -52,8 +54,26 @@ REFUSAL_CODES = (int(ErrorCode.INVALID_GOAL), int(ErrorCode.INVALID_JOINTS))
 #: Where a parameter is changed, said when `ros2 param set` is refused.
 PARAMETERS_HOW = "change it in the description package (controllers.yaml, the URDF) or the launch arguments and " \
                  "restart the robot with plem launch"
+#: The largest request any command endpoint but a trajectory's accepts (names of controllers, parameters, modes).
+REQUEST_BYTES = 64 * 1024
 #: Longest reason of an rt_events entry the bridge writes, as the driver's event records allow.
 EVENT_REASON_CHARACTERS = 600
+
+
+def _guarded(handle: Callable[..., None], *args: Any) -> None:
+    """Run one command handler; a bug in it is logged, and serving goes on for every other command."""
+    try:
+        handle(*args)
+    except Exception:  # noqa: BLE001 - one bad request must not end command service for everyone
+        _log.exception("a ROS command could not be handled; serving goes on")
+
+
+def sample_bound(dof: int, description: str, semantic: str | None) -> int:
+    """The largest sample the bridge's participant lets Cyclone DDS reassemble, sent or received: a trajectory of
+    the most points plem runs, or what it publishes of the description (robot_description, tf_static, the
+    parameters), whichever is larger. A larger sample is dropped before the bridge holds it in memory."""
+    published = len(description.encode()) + len((semantic or "").encode())
+    return max(trajectory_bytes(dof), 2 * published + REQUEST_BYTES)
 
 
 class _Reported:
@@ -158,6 +178,8 @@ class RobotBridge:
                                        for graph_node in graph.nodes]
             for graph_node, parameters in zip(graph.nodes, self.parameter_services, strict=True):
                 graph_node.endpoints.append(parameters)
+                for server in parameters.services:
+                    server.requests.max_bytes = REQUEST_BYTES
             for logger, graph_node in ((_manager_log, manager), (_trajectory_log, trajectory)):
                 handler = RosoutHandler(graph, graph_node)
                 logger.addHandler(handler)
@@ -188,6 +210,9 @@ class RobotBridge:
         self.follow = ActionServer(node, f"{trajectory}/follow_joint_trajectory", FJT, self._on_goal)
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
+        for server in (*self.follow.services, *self.set_mode.services, *self.manager.services):
+            server.requests.max_bytes = REQUEST_BYTES
+        self.trajectories.max_bytes = self.follow.send_goal.requests.max_bytes = trajectory_bytes(client.dof)
 
     def close(self) -> None:
         """Stop sending log records to /rosout (before the node closes)."""
@@ -256,23 +281,22 @@ class RobotBridge:
     # -- ROS commands → command service ---------------------------------------------------------------
     def serve_commands(self, stop: threading.Event, period: float = 0.01) -> None:
         """Take trajectories, action and service requests until `stop`; runs in its own thread (not when
-        read-only)."""
+        read-only), so nothing a command costs delays what the main thread publishes."""
         parameters = [server for node in self.parameter_services for server in node.services]
         waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services,
                                      *self.manager.services, *parameters])
+        handlers = [self._take_trajectories, self.follow.spin_once, self.set_mode.spin_once, self.manager.spin_once,
+                    *(node.spin_once for node in self.parameter_services)]
         timeout = duration(seconds=period)
         while not stop.is_set():
             waitset.wait(timeout)
-            try:
-                for message in self.trajectories.take():
-                    self._on_trajectory(message)
-                self.follow.spin_once()
-                self.set_mode.spin_once()
-                self.manager.spin_once()
-                for node_parameters in self.parameter_services:
-                    node_parameters.spin_once()
-            except Exception:  # noqa: BLE001 - one bad request must not end command service for everyone
-                _log.exception("a ROS command could not be handled; serving goes on")
+            for handle in handlers:   # each on its own: one failing endpoint never starves the others
+                _guarded(handle)
+
+    def _take_trajectories(self) -> None:
+        """Handle each trajectory waiting on the topic, each on its own."""
+        for message in self.trajectories.take():
+            _guarded(self._on_trajectory, message)
 
     def _on_goal(self, goal: Any) -> Execution:
         """A FollowJointTrajectory goal: run it, or end it at once when the trajectory controller is not active."""
