@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from plem.recording.retention import Segment, choose_deletions
+from plem.recording.retention import Segment, choose_deletions, deletable
 
 MIN = 60 * 10**9
 
@@ -32,7 +32,25 @@ def test_a_full_disk_removes_oldest_until_below_threshold():
     assert "disk 90.0 % full" in chosen[0].reason and "disk_threshold 70 %" in chosen[0].reason
 
 
-def test_protected_segments_survive_both_rules():
+def test_protected_segments_and_the_newest_survive_both_rules():
     chosen = choose_deletions(segments(10, protected=frozenset({1, 2})), now_ns=100 * MIN, retention_ns=MIN,
                               threshold_percent=0, disk_percent=lambda freed: 99.0)
-    assert {d.segment.path for d in chosen} == {f"s{i}" for i in range(10)} - {"s1", "s2"}
+    assert {d.segment.path for d in chosen} == {f"s{i}" for i in range(9)} - {"s1", "s2"}
+
+
+def test_room_other_files_took_is_not_made_by_deleting_segments():
+    """Deleting all 29 deletable segments (29 %) cannot bring a 99.5 % disk below 70 %: none goes."""
+    usage = lambda freed: 99.5 - freed / 100   # noqa: E731 - each 100-byte segment frees 1 %
+    assert choose_deletions(segments(30), now_ns=30 * MIN, retention_ns=60 * MIN, threshold_percent=70,
+                            disk_percent=usage) == []
+
+
+def test_retention_still_applies_when_other_files_fill_the_disk():
+    chosen = choose_deletions(segments(10), now_ns=10 * MIN, retention_ns=5 * MIN, threshold_percent=70,
+                              disk_percent=lambda freed: 99.0)
+    assert [d.segment.path for d in chosen] == ["s0", "s1", "s2", "s3"]
+    assert all("retention" in d.reason for d in chosen)
+
+
+def test_deletable_leaves_out_the_newest_and_the_protected():
+    assert [s.path for s in deletable(segments(5, protected=frozenset({1})))] == ["s0", "s2", "s3"]

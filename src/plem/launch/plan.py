@@ -31,6 +31,7 @@ from plem.planning.named_states import with_zero
 from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
 from plem.recording.problems import refuse_unusable, write_problem
+from plem.recording.robot_directory import make_directory
 from plem.recording.settings import RecordingSettings
 from plem.robot.config import ARM_SETTINGS, SerialArmConfig
 from plem.robot.models import MODELS
@@ -290,7 +291,7 @@ def prepare_bag_directory(arguments: Mapping[str, str], robot_id: str | None, gr
         existing = next(path for path in (target, *target.parents) if os.path.lexists(path))
         if not existing.is_dir():
             raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(existing))
-        FileAccess(group).make_directory(target)
+        make_directory(target, FileAccess(group))
         if not os.access(target, os.W_OK | os.X_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(target))
     except OSError as error:

@@ -72,15 +72,6 @@ class FileAccess:
         for path in directory.rglob("*"):
             self.apply(path)
 
-    def make_directory(self, directory: Path) -> None:
-        """Create `directory` and its missing parents with this access; an existing one of ours gets it too."""
-        missing = [path for path in (directory, *directory.parents) if not path.exists()]
-        for path in reversed(missing):
-            path.mkdir(mode=self.directory_mode, exist_ok=True)
-            self.apply(path)
-        if directory.stat().st_uid == os.geteuid():
-            self.apply(directory)
-
 
 #: The default access: owner only, no group.
 OWNER_ONLY = FileAccess()

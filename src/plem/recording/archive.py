@@ -5,25 +5,32 @@ Layout under `bag_dir/{robot_id}/`:
 - `{segment}.keep`: the segment holds seconds before a fault and is never deleted automatically;
 - `event_log.jsonl`: one JSON object per line for every segment opened or closed, deletion (with its
   reason), fault (with its bag position), repair, stop and resume of recording.
-The robot's directory, the keep marks and the event log get the archive's `FileAccess`.
+The robot's directory, the keep marks and the event log get the archive's `FileAccess`. The archive holds
+the robot's directory open (`RobotDirectory`) and reaches everything in it through that handle; only real
+directories of the recorder's user are taken for segments, and the event log is appended to only when it is a
+regular file of that user (anything else in there was put by someone else while the directory was open to
+them).
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
 import shutil
+import stat
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from plem.core.config.yaml_document import load_yaml
-from plem.core.files import read_regular_text, write_atomic
+from plem.core.files import file_kind, read_regular_text, user_name, write_atomic
 from plem.errors import ConfigError
 from plem.recording.access import OWNER_ONLY, FileAccess
 from plem.recording.retention import Deletion, Segment
+from plem.recording.robot_directory import RobotDirectory
 
 _log = logging.getLogger("plem.recorder")
 EVENT_LOG = "event_log.jsonl"
@@ -80,28 +87,40 @@ def bag_extent(path: Path) -> tuple[int, int] | None:
 
 
 class Archive:
-    """The bag directory of one robot."""
+    """The bag directory of one robot, held open: `directory` names it in messages, `root` reaches into it."""
 
     def __init__(self, directory: Path, robot_id: str, access: FileAccess = OWNER_ONLY) -> None:
         self.directory = directory
         self.robot_id = robot_id
         self.access = access
-        access.make_directory(directory)
+        self.handle = RobotDirectory(directory, access)
+
+    @property
+    def root(self) -> Path:
+        """The robot's directory through its handle (`/proc/self/fd/N`), for every path the recorder opens."""
+        return self.handle.root
 
     def segment_paths(self) -> list[Path]:
-        """Every segment directory, oldest first."""
-        prefix = f"{self.robot_id}_"
-        return sorted(p for p in self.directory.iterdir() if p.is_dir() and p.name.startswith(prefix))
+        """Every segment directory (a real directory of this user), oldest first."""
+        prefix, uid = f"{self.robot_id}_", os.geteuid()
+        with os.scandir(self.root) as entries:
+            return sorted(self.root / entry.name for entry in entries
+                          if entry.name.startswith(prefix) and entry.is_dir(follow_symlinks=False)
+                          and entry.stat(follow_symlinks=False).st_uid == uid)
 
     def new_segment_path(self, wall_ns: int) -> Path:
         """A fresh segment directory name for a segment starting at `wall_ns`."""
         stamp = time.strftime("%Y_%m_%d-%H_%M_%S", time.gmtime(wall_ns // 1_000_000_000))
-        path = self.directory / f"{self.robot_id}_{stamp}"
+        path = self.root / f"{self.robot_id}_{stamp}"
         number = 1
-        while path.exists():
-            path = self.directory / f"{self.robot_id}_{stamp}_{number}"
+        while os.path.lexists(path):
+            path = self.root / f"{self.robot_id}_{stamp}_{number}"
             number += 1
         return path
+
+    def shown(self, path: Path) -> Path:
+        """A path under the handle as the user knows it (`bag_dir/robot_id/name`)."""
+        return self.directory / path.name
 
     def closed_segment(self, path: Path) -> Segment | None:
         """A finished segment as retention sees it; None when it has no metadata.yaml (killed or open)."""
@@ -126,15 +145,31 @@ class Archive:
         self.log("deleted", f"deleted segment {path.name}: {deletion.reason}", segment=path.name,
                  bytes=deletion.segment.size, reason=deletion.reason)
 
+    def intact(self) -> bool:
+        """Whether the robot's directory is still where it was named (not deleted, moved or replaced)."""
+        return self.handle.intact()
+
+    def recreate(self) -> None:
+        """Create the robot's directory again, as at start; raises OSError (UnsafeDirectory) as at start."""
+        self.handle.reopen()
+
+    def close(self) -> None:
+        """Let go of the robot's directory."""
+        self.handle.close()
+
     def log(self, kind: str, message: str, level: int = logging.INFO, **fields: Any) -> None:
         """One entry in the event log, also on the recorder's log; a log the disk refuses is reported, not raised."""
         _log.log(level, "%s", message)
         now = time.time_ns()
         entry = {"time": iso_time(now), "time_ns": now, "kind": kind, "message": message, **fields}
-        flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
+        flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
         try:
-            with open(os.open(self.directory / EVENT_LOG, flags, self.access.file_mode), "a",
+            with open(os.open(EVENT_LOG, flags, self.access.file_mode, dir_fd=self.handle.fd), "a",
                       encoding="utf-8") as handle:
+                status = os.fstat(handle.fileno())
+                if not stat.S_ISREG(status.st_mode) or status.st_uid != os.geteuid():
+                    raise OSError(errno.EPERM, f"a {file_kind(status.st_mode)} of {user_name(status.st_uid)}, "
+                                               "not the recorder's own log")
                 self.access.apply_fd(handle.fileno())
                 handle.write(json.dumps(entry) + "\n")
         except OSError as error:

@@ -7,7 +7,10 @@ so a recorder that runs behind still names every segment by what it holds. Given
 records it as robot_description at the start of every segment, so a bag directory alone is enough to replay
 the arm.
 `maintain()` (about once a second) deletes closed segments past the retention window or while the disk is
-fuller than the threshold, never the open one nor one kept for a fault. On a fault it puts the open segment
+fuller than the threshold, never the open one, the newest closed one, nor one kept for a fault. When deleting
+what it may would not bring the disk below the threshold (files plem did not write fill it), it deletes nothing
+for it: it finishes the open segment and stops recording with a WHAT/WHY/HOW until the disk is below the
+threshold again. On a fault it puts the open segment
 on disk at once, keeps every segment holding the `flight_window_s` before it, and logs where in the bags the
 fault is.
 
@@ -16,10 +19,16 @@ A write the disk refuses stops recording: the open segment is finished with ever
 recorded. That segment stays out of the guard's reach while recording is stopped. Recording resumes in a
 new segment, opened by the next message, once the disk is below its threshold again (a full disk) or at the
 next guard pass (any other cause); the resume is logged with the messages not recorded meanwhile.
+
+The robot's directory is held open (`Archive`): when it is deleted, moved or replaced while recording, the
+next guard pass gives up the segment that went with it, creates the directory again as at start (and with
+the same checks: a link or another user's directory put in its place stops recording instead), and says
+what was lost; recording goes on in a new segment.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 import shutil
 import tempfile
@@ -38,9 +47,9 @@ from plem.errors import PlemError
 from plem.middleware.monitor_feed import DESCRIPTION_TOPIC, DESCRIPTION_TYPE, QueueCount
 from plem.recording.access import FileAccess
 from plem.recording.archive import Archive, directory_size, iso_time
-from plem.recording.problems import SPACE_ERRORS, write_problem
+from plem.recording.problems import SPACE_ERRORS, room_problem, write_problem
 from plem.recording.repair import repair
-from plem.recording.retention import Segment, choose_deletions
+from plem.recording.retention import Segment, choose_deletions, deletable
 from plem.recording.segment import SegmentWriter, being_written
 from plem.recording.settings import RecordingSettings
 
@@ -124,10 +133,9 @@ class Recorder:
         self._segment_ns = round(settings.segment_s * 1e9)
         self._segment_start = 0
         self._next_guard = 0
-        self._full_warned = False
         try:
             self.archive = Archive(settings.directory, robot_id, self.access)
-            with tempfile.TemporaryFile(dir=settings.directory):
+            with tempfile.TemporaryFile(dir=self.archive.root):
                 pass                               # the directory takes new files
             self._adopt_previous_segments()
         except (OSError, ValueError) as error:
@@ -220,7 +228,7 @@ class Recorder:
         self._segment_start = wall_ns
         if self._description is not None:
             self._append(self.segment, [Messages.one(DESCRIPTION_TOPIC, wall_ns, self._description)])
-        self.archive.log("segment_opened", f"recording into {path}", segment=path.name,
+        self.archive.log("segment_opened", f"recording into {self.archive.shown(path)}", segment=path.name,
                          storage=self.settings.storage)
 
     def _close(self) -> None:
@@ -250,6 +258,7 @@ class Recorder:
             now = self.clock()
             self.archive.log("recording_ended", f"recording ended while stopped ({self.stopped.cause}): "
                              f"{self.stopped.describe(now)}", logging.WARNING, **self.stopped.fields(now))
+        self.archive.close()
 
     # -- the disk --------------------------------------------------------------------------------------
     def _stop(self, error: OSError) -> None:
@@ -278,13 +287,16 @@ class Recorder:
                          errno=error.errno, segment=None if segment is None else segment.name)
 
     def maintain(self) -> None:
-        """Apply retention and the disk guard (at most once per guard period); resume a stopped recording."""
+        """Apply retention and the disk guard (at most once per guard period); recreate a deleted robot directory;
+        resume a stopped recording."""
         now = self.clock()
         if now < self._next_guard:
             return
         self._next_guard = now + round(self.settings.guard_period_s * 1e9)
+        if not self.archive.intact() and not self._recreate():
+            return
         try:
-            total, used, _ = self.disk_usage(self.settings.directory)
+            total, used, _ = self.disk_usage(self.archive.root)
         except OSError:
             return                                 # the directory is gone: writing says why
         interrupted = self.stopped.interrupted if self.stopped is not None else None
@@ -299,20 +311,64 @@ class Recorder:
             try:
                 self.archive.delete(deletion)
             except OSError as error:
-                self.archive.log("delete_failed", f"segment {deletion.segment.path} not deleted: {error}",
-                                 logging.WARNING, segment=deletion.segment.path)
+                self.archive.log("delete_failed", f"segment {Path(deletion.segment.path).name} not deleted: "
+                                 f"{error}", logging.WARNING, segment=Path(deletion.segment.path).name)
                 continue
             freed += deletion.segment.size
             self.closed.remove(deletion.segment)
-        over = percent(freed) > self.settings.disk_threshold
-        if over and not self._full_warned:
-            self.archive.log("disk_above_threshold", f"disk {percent(freed):.1f} % full, above disk_threshold "
-                             f"{self.settings.disk_threshold:g} %, and no closed segment is left to delete "
-                             "(kept fault segments stay, and the segment a full disk interrupted until recording "
-                             "resumes)", logging.WARNING, percent=round(percent(freed), 1))
-        self._full_warned = over
-        if self.stopped is not None and not (over and self.stopped.errno in SPACE_ERRORS):
+        if percent(freed) > self.settings.disk_threshold:
+            self._stop_for_room(percent(freed))
+        elif self.stopped is not None:
             self._resume_due = True                              # the next message opens a segment
+
+    def _stop_for_room(self, percent: float) -> None:
+        """The disk is above disk_threshold and nothing plem may delete brings it below: finish the open segment
+        (it is then the newest, which the guard keeps) and stop recording until the disk is below it again."""
+        if self.stopped is not None and self.stopped.errno in SPACE_ERRORS:
+            return                                               # stopped for room already: said once
+        detail = ""
+        if self.segment is not None:
+            name, count = self.segment.name, self.segment.messages
+            try:
+                self._close()
+            except OSError as error:
+                self._stop(error)
+                return
+            detail = f"segment {name} finished with its {count} messages"
+        threshold = self.settings.disk_threshold
+        problem = room_problem(self.archive.directory, percent, threshold,
+                               sum(segment.size for segment in self.closed),
+                               sum(segment.size for segment in deletable(self.closed)), detail)
+        cause = f"disk {percent:.1f} % full, above disk_threshold {threshold:g} %"
+        if self.stopped is None:
+            self.stopped = Stopped(problem, errno.ENOSPC, cause, self.clock(), None, False)
+        else:
+            self.stopped = replace(self.stopped, problem=problem, errno=errno.ENOSPC, cause=cause)
+        self.archive.log("recording_stopped", problem.render(), logging.ERROR, reason=problem.why,
+                         errno=None, percent=round(percent, 1), segment=None)
+
+    def _recreate(self) -> bool:
+        """The robot's directory was deleted, moved or replaced: give up the segment that went with it and create
+        the directory again, as at start; False (recording stopped, said why) when that is refused or fails."""
+        segment, self.segment = self.segment, None
+        went = "no segment was open"
+        if segment is not None:
+            segment.abandon()
+            went = f"segment {segment.name} went with it, {segment.messages} messages"
+        closed, self.closed = len(self.closed), []
+        try:
+            self.archive.recreate()
+        except OSError as error:
+            self._stop(error)
+            return False
+        self.archive.log("directory_recreated", f"{self.archive.directory} was deleted, moved or replaced while "
+                         f"recording ({went}; {closed} closed segments no longer under the guard): created it "
+                         "again, recording goes on in a new segment", logging.WARNING,
+                         lost_with_directory=0 if segment is None else segment.messages,
+                         segment=None if segment is None else segment.name)
+        if self.stopped is not None and self.stopped.interrupted is not None:
+            self.stopped = replace(self.stopped, interrupted=None, unfinished=False)   # gone with the directory
+        return True
 
     def _log_resume(self, stopped: Stopped) -> None:
         """A new segment opened after a stop: say so; the segment the stop interrupted is rebuilt if unfinished."""
