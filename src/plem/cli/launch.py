@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import typer
@@ -48,6 +49,14 @@ def _launch_file(positional: list[str]) -> Path:
                      why=f"got {' '.join(positional)}", how="write the other arguments as name:=value")
 
 
+def trust_warning(path: Path) -> str:
+    """The warning printed before a launch file runs: it is Python, run with the launcher's rights."""
+    user = "root's" if os.geteuid() == 0 else "your"
+    return (f"{path} is Python and runs now with {user} rights: launching a package's own launch file trusts that "
+            "package (plem validate checks a description, never its launch file); to launch a package you do not "
+            "trust, use description_package:=PACKAGE instead")
+
+
 def launch(ctx: typer.Context) -> int:
     """Start a robot and keep it running until Ctrl-C (see `plem launch --help`)."""
     tokens = list(ctx.args)
@@ -56,6 +65,7 @@ def launch(ctx: typer.Context) -> int:
 
         typer.echo(USAGE + help_text())
         return 0
+    from plem.cli.output import print_warnings
     from plem.core.config.launch_args import check_home
     from plem.launch.arguments import parse
     from plem.launch.description import COMPONENTS, load_launch_file
@@ -68,6 +78,7 @@ def launch(ctx: typer.Context) -> int:
     components = dict.fromkeys(COMPONENTS, True)
     if positional:
         path = _launch_file(positional)
+        print_warnings([trust_warning(path)])
         described = load_launch_file(path)
         components = described.components
         package = described.description_package

@@ -23,6 +23,7 @@ import yaml
 
 from plem.description.generate import BROADCASTER_TYPE, FREE_DRIVE_TYPE, TRAJECTORY_TYPE, controllers_yaml
 from plem.description.package_yaml import read_package_yaml
+from plem.description.parameter_ranges import update_rate_error
 from plem.errors import ConfigError, PlemError
 from plem.robot.config import CYCLE_TIME_RANGE_US
 
@@ -120,7 +121,9 @@ def controllers_from(document: Any, joints: Sequence[str], source: str) -> Contr
     document = document if isinstance(document, dict) else {}
     manager = _parameters(document, "controller_manager")
     rate = manager.get("update_rate")
-    update_rate = float(rate) if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0 else None
+    if rate is not None and (error := update_rate_error(rate, source)) is not None:
+        raise error
+    update_rate = None if rate is None else float(rate)
     declared: dict[str, str] = {}
     for name, body in manager.items():
         if isinstance(body, dict) and isinstance(body.get("type"), str):

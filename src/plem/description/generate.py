@@ -27,14 +27,13 @@ from typing import Any
 import yaml
 
 from plem.core.files import write_atomic
+from plem.description.parameter_ranges import SOLVER_DEFAULTS as SOLVER_DEFAULTS  # re-exported for the planner
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError
 
 log = logging.getLogger("plem.launch")
 
 DEFAULT_SOLVER = "kdl_kinematics_plugin/KDLKinematicsPlugin"
-SOLVER_DEFAULTS = {"kinematics_solver_search_resolution": 0.005, "kinematics_solver_timeout": 0.05,
-                   "kinematics_solver_attempts": 3}
 STOPPED_VELOCITY_TOLERANCE = 0.01
 GOAL_TOLERANCE = 0.01
 GENERATED_DIR_PREFIX = "wim_launch_"

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import cast
+from typing import Any, cast
 
 from lxml import etree
 
@@ -22,6 +22,13 @@ INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 #: The largest XML plem parses or lets xacro read from a package, per file and per rendered document. Real
 #: descriptions are far smaller (meshes live in their own files); a larger one would take minutes to process.
 MAX_XML_BYTES = 16 * 2**20
+#: The numeric attributes of URDF elements below a link or joint that plem, the planner and the view read, with
+#: the count of numbers each holds (the ones `<limit>`, `<axis>`, `<mass>` and `<inertia>` are read on their own).
+QUANTITIES = {"origin": {"xyz": 3, "rpy": 3}, "box": {"size": 3}, "cylinder": {"radius": 1, "length": 1},
+              "sphere": {"radius": 1}, "capsule": {"radius": 1, "length": 1}, "mesh": {"scale": 3},
+              "dynamics": {"damping": 1, "friction": 1}}
+#: The tags among QUANTITIES that give a shape's size.
+SHAPES = ("box", "cylinder", "sphere", "capsule")
 _SUBSTITUTION = re.compile(r"\$\{[^}]*\}|\$\([^)]*\)")
 _JACOBI_SWEEPS = 50
 _JACOBI_NEGLIGIBLE = 1e-20  # an off-diagonal entry of the scaled matrix this small moves no eigenvalue
@@ -83,8 +90,8 @@ def parse_xml(text: str | bytes, source: Path) -> etree._Element:
     if len(data) > MAX_XML_BYTES:
         raise too_large(source, len(data), rendered=True)
     try:
-        return etree.fromstring(data, parser=etree.XMLParser(remove_comments=True, resolve_entities=False,
-                                                              no_network=True))
+        root = etree.fromstring(data, parser=etree.XMLParser(remove_comments=True, resolve_entities=False,
+                                                              no_network=True, load_dtd=False))
     except etree.XMLSyntaxError as error:
         raise DescriptionError(
             f"Invalid XML in {source.name}",
@@ -92,6 +99,24 @@ def parse_xml(text: str | bytes, source: Path) -> etree._Element:
             why=f"{source}:{error.lineno}: {error.msg}",
             how="fix the XML at that line (unclosed or mismatched tags, bad characters)",
         ) from None
+    info = root.getroottree().docinfo
+    doctype: str = getattr(info, "doctype", "")
+    if doctype:
+        dtd = info.internalDTD
+        entities = [entity.name for entity in cast("Any", dtd).iterentities()] if dtd is not None else []
+        raise dtd_refused(source, doctype + (f" with the entities {', '.join(map(str, entities))}" if entities else ""))
+    return root
+
+
+def dtd_refused(source: Path | str, doctype: str) -> DescriptionError:
+    """The error for a description file that declares a DTD: entities could read files or expand without end
+    in whichever parser reads robot_description next, and no URDF, SRDF or xacro needs one."""
+    return DescriptionError(
+        f"{Path(source).name} declares a DTD",
+        what="description XML without <!DOCTYPE ...> or <!ENTITY ...> declarations: URDF, SRDF and xacro use none",
+        why=f"{source} declares {' '.join(doctype.split())[:200]}",
+        how=f"remove the <!DOCTYPE ...> block from {source} and write the entities' text in place (or as a "
+            "xacro:property)")
 
 
 @dataclass
@@ -163,6 +188,36 @@ def symmetric_eigenvalues(matrix: list[list[float]]) -> list[float]:
     return sorted(a[index][index] * scale for index in range(3))
 
 
+@dataclass(frozen=True)
+class Quantity:
+    """A numeric attribute of the URDF (`<origin xyz>`, `<cylinder radius>`, ...): where it is, what it holds (NaN
+    for a part that is no number) and how many numbers it should hold."""
+
+    owner: str
+    tag: str
+    attribute: str
+    values: tuple[float, ...]
+    expected: int
+    line: int | None
+
+    @property
+    def place(self) -> str:
+        """How messages name it: 'link base_link: <cylinder radius="-1">'."""
+        return f'{self.owner}: <{self.tag} {self.attribute}="{" ".join(f"{v:g}" for v in self.values)}">'
+
+
+def _quantities(owner: str, element: etree._Element) -> list[Quantity]:
+    """Every QUANTITIES attribute in `element` and below it, as written."""
+    found = []
+    for tag, attributes in QUANTITIES.items():
+        for child in element.iter(tag):
+            for attribute, count in attributes.items():
+                values = _floats(child.get(attribute))
+                if values is not None:
+                    found.append(Quantity(owner, tag, attribute, values, count, source_line(child)))
+    return found
+
+
 @dataclass
 class HardwareJoint:
     """A `<joint>` of a `<ros2_control>` block; `params` are its `<param name>` texts (stripped), the last of a
@@ -200,20 +255,29 @@ class UrdfModel:
     meshes: list[tuple[str, int | None]] = field(default_factory=list)
     inertials: dict[str, Inertial] = field(default_factory=dict)
     collision_meshes: list[tuple[str, str]] = field(default_factory=list)
+    quantities: list[Quantity] = field(default_factory=list)
 
     @property
     def actuated_joints(self) -> list[Joint]:
         """Joints that count toward DOF: revolute, prismatic, continuous (fixed and mimic excluded)."""
         return [j for j in self.joints.values() if j.actuated]
 
+    @cached_property
+    def _parent_joints(self) -> dict[str, Joint]:
+        """Each link that is a joint's child, with that joint (the first in document order)."""
+        parents: dict[str, Joint] = {}
+        for joint in self.joints.values():
+            if joint.child is not None:
+                parents.setdefault(joint.child, joint)
+        return parents
+
     def roots(self) -> list[str]:
         """Links that are no joint's child."""
-        children = {j.child for j in self.joints.values()}
-        return [link for link in self.links if link not in children]
+        return [link for link in self.links if link not in self._parent_joints]
 
     def parent_of(self, link: str) -> Joint | None:
         """The joint whose child is `link`, or None for a root."""
-        return next((j for j in self.joints.values() if j.child == link), None)
+        return self._parent_joints.get(link)
 
     def chain(self, base: str, tip: str) -> list[Joint] | None:
         """Joints from `base` down to `tip`, or None when `tip` does not hang below `base`."""
@@ -264,8 +328,10 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
     meshes = [(mesh.get("filename") or "", source_line(mesh)) for mesh in root.iter("mesh")]
     collision_meshes = [(link.get("name") or "", mesh.get("filename") or "") for link in root.findall("link")
                         for mesh in link.findall("collision/geometry/mesh")]
+    quantities = [quantity for kind in ("link", "joint") for element in root.findall(kind)
+                  for quantity in _quantities(f"{kind} {element.get('name') or ''}", element)]
     return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes,
-                     inertials=inertials, collision_meshes=collision_meshes)
+                     inertials=inertials, collision_meshes=collision_meshes, quantities=quantities)
 
 
 def _inertial(element: etree._Element) -> Inertial:

@@ -34,7 +34,7 @@ from plem.core.paths import (
     package_name,
     pinned_packages,
 )
-from plem.description.model import MAX_XML_BYTES, too_large
+from plem.description.model import MAX_XML_BYTES, dtd_refused, too_large
 from plem.description.problems import DescriptionError
 from plem.description.sandbox import run_sandboxed
 from plem.errors import PlemError
@@ -59,6 +59,7 @@ EVAL_BUILTINS = {name: getattr(builtins, name) for name in
                  ("list", "dict", "map", "str", "float", "int", "bool", "len", "min", "max", "abs", "round")}
 
 _reader: ContextVar[PackageReader | None] = ContextVar("package_reader", default=None)
+_xacro_parse = xacro.parse
 
 
 def render_xacro(path: Path, mappings: dict[str, str] | None = None) -> str:
@@ -171,6 +172,17 @@ def _open(file: str | os.PathLike[str], mode: str = "r") -> IO[Any]:
     return handle
 
 
+def _parse(inp: Any, filename: str | None = None) -> Any:
+    """xacro's parse of a file it renders or includes, refused when the file declares a DTD: its entities would
+    reach robot_description, where another parser may read files or expand them without end."""
+    document = _xacro_parse(inp, filename)
+    if isinstance(document, Document) and document.doctype is not None:
+        doctype = document.doctype
+        raise dtd_refused(filename or _current_file(Path("the xacro file")),
+                          f"<!DOCTYPE {doctype.name} [{doctype.internalSubset or ''}]>")
+    return document
+
+
 @lru_cache(maxsize=4096)
 def _compiled(expression: str) -> CodeType:
     """The compiled expression, or a DescriptionError when it names a way into Python internals (macros repeat
@@ -240,6 +252,7 @@ def _install_hooks() -> None:
     substitution_args._eval_dict.update(find=_find_share, env=_refuse_env, optenv=_optenv_default)
     xacro.safe_eval = _safe_eval
     xacro.open = _open
+    xacro.parse = _parse
     for name in REMOVED_SYMBOLS:
         xacro._global_symbols["python"].pop(name, None)
 

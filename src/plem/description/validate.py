@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+from bisect import bisect_left
 from dataclasses import dataclass, field
 from enum import IntEnum
 from functools import cached_property
@@ -18,6 +19,7 @@ from pathlib import Path
 from lxml import etree
 
 from plem.core.config.yaml_document import YamlDocument
+from plem.core.files import size_text
 from plem.core.paths import pinned_packages, resolve_package_uri
 from plem.description.compat import check_compat_version
 from plem.description.discover import ROS2_CONTROL_SUFFIX, DescriptionFiles, discover
@@ -40,6 +42,7 @@ from plem.description.limits import UNITS, HardLimit, JointLimit, derivation, lo
 from plem.description.model import (
     ACTUATED_TYPES,
     LESS_TESTED_TYPES,
+    SHAPES,
     Inertial,
     Joint,
     SrdfModel,
@@ -52,10 +55,17 @@ from plem.description.model import (
     rendered_line_note,
 )
 from plem.description.package_yaml import read_package_yaml
+from plem.description.parameter_ranges import (
+    KINEMATICS_RANGES,
+    SOLVER_DEFAULTS,
+    kinematics_value_problem,
+    update_rate_error,
+)
 from plem.description.problems import DescriptionError, Findings
 from plem.description.render import XacroArgumentsError, render_xacro
 from plem.errors import ConfigError, PlemError
-from plem.robot.config import SUPPORTED_DOF
+from plem.ipc.request_bounds import MAX_NAME_CHARS, truncated
+from plem.robot.config import SUPPORTED_DOF, ros_token_problem
 
 KNOWN_INTERFACES = ("position", "velocity", "acceleration", "effort")
 KNOWN_SOLVERS = ("kdl_kinematics_plugin/KDLKinematicsPlugin", "trac_ik_kinematics_plugin/TRAC_IKKinematicsPlugin",
@@ -71,6 +81,13 @@ TOTAL_MASS_WARNING = 1000.0
 GYRATION_WARNING = 2.0
 #: Least length of a joint axis before it counts as zero.
 MIN_AXIS_NORM = 1e-9
+#: Most links and joints a description may have: a 7-axis arm with its tool and sensor frames has a few dozen.
+MAX_LINKS = 1000
+MAX_JOINTS = 1000
+#: Largest size of a shape and largest offset of an <origin> (m): an arm's parts and frames are within metres.
+MAX_LENGTH_M = 100.0
+#: Largest mesh file (a detailed CAD export of an arm's link is a few MiB; the view and the planner read each whole).
+MAX_MESH_BYTES = 64 * 2**20
 #: How messages name the limits the URDF's <limit> sets.
 LIMIT_NAMES = {"min_position": "lower position", "max_position": "upper position", "max_velocity": "velocity",
                "max_effort": "effort"}
@@ -139,13 +156,18 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
     _render_urdf(report)
     _check_limits_file(report)
     _check_srdf(report)
+    if stage >= Stage.STARTUP:  # values that would stop a running component, whatever the URDF holds
+        _check_controller_values(report)
+        _check_kinematics_values(report)
     urdf, source = report.urdf, files.urdf
     if urdf is None or source is None:
         return report  # no URDF, or it did not render: already reported, and every later check reads it
     if stage >= Stage.STARTUP:
+        _check_names(urdf, source, found)
         _check_tree(urdf, source, found)
         _check_joint_types(urdf, source, found)
         _check_urdf_values(report, urdf, source)
+        _check_quantities(urdf, source, found)
         _check_ros2_control(report, urdf, source)
         _check_limits_against_urdf(report, urdf)   # a file that loosens the URDF's limits never starts a robot
         _check_meshes(report, urdf, source)        # a missing collision mesh disables planning at launch
@@ -175,10 +197,29 @@ def _render_urdf(report: ValidationReport) -> None:
             report.urdf_xml = render_xacro(files.urdf)
             report.prefixed = parse_urdf(probed, files.urdf)
         report.urdf = parse_urdf(report.urdf_xml, files.urdf)
+        _check_counts(report)
     except XacroArgumentsError as error:
         found.add("urdf.xacro_args", error, files.urdf)
     except PlemError as error:
         found.add("urdf.xml" if error.summary.startswith("Invalid XML") else "urdf.render", error, files.urdf)
+
+
+def _check_counts(report: ValidationReport) -> None:
+    """At most MAX_LINKS links and MAX_JOINTS joints; a URDF with more is refused before any check walks it."""
+    urdf, source = report.urdf, report.files.urdf
+    if urdf is None or source is None:
+        return
+    over = [f"{len(items)} {kind}s (at most {limit})" for kind, items, limit in
+            (("link", urdf.links, MAX_LINKS), ("joint", urdf.joints, MAX_JOINTS)) if len(items) > limit]
+    if over:
+        report.findings.error(
+            "urdf.too_large", f"{source.name} has too many links or joints",
+            what=f"a description of at most {MAX_LINKS} links and {MAX_JOINTS} joints (plem's limits): an arm with "
+                 "its tool and sensor frames has a few dozen",
+            why=f"the rendered URDF has {' and '.join(over)}",
+            how=f"describe the arm alone in {source.name} (put the work cell's objects in the planning scene: "
+                "`plem scene add`), or look for a macro that repeats links", file=source)
+        report.urdf = report.prefixed = None
 
 
 def _declared_prefix_default(urdf: Path) -> str | None:
@@ -260,16 +301,63 @@ def _check_tree(urdf: UrdfModel, source: Path, found: Findings) -> None:
                     what="exactly one root link (a single kinematic tree)",
                     why=f"root links: {', '.join(roots) or 'none (the joints form a cycle)'}",
                     how="connect every part to the base with a joint", file=source)
+    cycle = _cycle(urdf)
+    if cycle is not None:
+        found.error("urdf.tree.cycle", "The URDF joints form a cycle",
+                    what="a tree with no closed loops", why=f"following parents from {cycle[0]} returns to {cycle[1]}",
+                    how="break the loop (URDF cannot describe closed chains)", file=source)
+
+
+def _cycle(urdf: UrdfModel) -> tuple[str, str] | None:
+    """(a link, the link its parents lead back to) for the first link in document order whose parents loop, or
+    None; each link is walked once, so a URDF of any size takes time in proportion to it."""
+    finished: set[str] = set()
     for link in urdf.links:
-        walked, current = set(), link
-        while (up := urdf.parent_of(current)) is not None and current not in walked:
-            walked.add(current)
-            current = up.parent or ""
-        if current in walked:
-            found.error("urdf.tree.cycle", "The URDF joints form a cycle",
-                        what="a tree with no closed loops", why=f"following parents from {link} returns to {current}",
-                        how="break the loop (URDF cannot describe closed chains)", file=source)
-            return
+        walk: dict[str, None] = {}
+        current: str | None = link
+        while current is not None and current not in finished and current not in walk:
+            walk[current] = None
+            up = urdf.parent_of(current)
+            current = up.parent if up is not None else None
+        finished.update(walk)
+        if current is not None and current in walk:
+            return link, current
+    return None
+
+
+def _name_problem(name: str) -> str | None:
+    """Why a link or joint name cannot be used as a tf frame or in a message, or None: 1 to MAX_NAME_CHARS
+    printable characters without spaces (no control, format or bidirectional-override characters)."""
+    if not 0 < len(name) <= MAX_NAME_CHARS:
+        return f"it has {len(name)} characters; at most {MAX_NAME_CHARS} are allowed" if name else None
+    if not name.isprintable() or any(character.isspace() for character in name):
+        return "it holds spaces or invisible characters (control, format or bidirectional ones)"
+    return None
+
+
+def _check_names(urdf: UrdfModel, source: Path, found: Findings) -> None:
+    """Link and joint names fit tf frames and messages; the names of actuated joints, which every trajectory,
+    controller and ros2_control interface carries, are ROS 2 name tokens."""
+    actuated = {joint.name for joint in urdf.actuated_joints}
+    actuated |= {hw.name for block in urdf.ros2_control for hw in block.joints}
+    for kind, names in (("link", urdf.links), ("joint", urdf.joints)):
+        for name in names:
+            if not name:
+                continue  # urdf.name_missing
+            if kind == "joint" and name in actuated:
+                problem = ros_token_problem(name, MAX_NAME_CHARS)
+                rule = (f"actuated joint names as ROS 2 name tokens of at most {MAX_NAME_CHARS} characters: "
+                        "letters, digits and single underscores, not starting with a digit")
+            else:
+                problem, rule = _name_problem(name), (f"{kind} names of 1 to {MAX_NAME_CHARS} printable characters "
+                                                      "without spaces")
+            if problem is not None:
+                shown = truncated(ascii(name), 80)
+                found.error("urdf.name", f"The URDF has an unusable {kind} name",
+                            what=rule + " (trajectories, tf and ROS 2 tools carry them)",
+                            why=f"{kind} {shown}: {problem}",
+                            how=f"rename the {kind} in {source.name} (and wherever the package names it)",
+                            file=source)
 
 
 def _check_joint_types(urdf: UrdfModel, source: Path, found: Findings) -> None:
@@ -351,6 +439,31 @@ def _check_urdf_values(report: ValidationReport, urdf: UrdfModel, source: Path) 
     _check_masses_plausible(report, urdf, source)
 
 
+def _check_quantities(urdf: UrdfModel, source: Path, found: Findings) -> None:
+    """Every <origin>, shape, mesh scale and <dynamics> number finite and of the count its attribute takes; shape
+    sizes above 0 and offsets and sizes at most MAX_LENGTH_M (the planner and the view build geometry from them)."""
+    for quantity in urdf.quantities:
+        values = quantity.values
+        if len(values) != quantity.expected or not all(map(math.isfinite, values)):
+            problem = (f"it holds {len(values)} numbers, not {quantity.expected}" if len(values) != quantity.expected
+                       else "it is not finite (nan, inf or beyond ±1.8e308)")
+        elif quantity.tag in SHAPES and not all(0.0 < value <= MAX_LENGTH_M for value in values):
+            problem = f"a size must be above 0 and at most {MAX_LENGTH_M:g} m"
+        elif quantity.attribute == "xyz" and not all(abs(value) <= MAX_LENGTH_M for value in values):
+            problem = f"an offset must be at most {MAX_LENGTH_M:g} m in each direction"
+        elif quantity.tag == "mesh" and not all(0.0 < abs(value) <= MAX_LENGTH_M for value in values):
+            problem = f"a scale must be non-zero and at most {MAX_LENGTH_M:g} in size"
+        else:
+            continue
+        found.error("urdf.value", f"The URDF has an unusable <{quantity.tag} {quantity.attribute}>",
+                    what=f"<{quantity.tag} {quantity.attribute}> with {quantity.expected} finite number"
+                         f"{'s' if quantity.expected > 1 else ''}; shape sizes above 0 and sizes and offsets at most "
+                         f"{MAX_LENGTH_M:g} m",
+                    why=f"{truncated(quantity.place, 200)}: {problem}"
+                        + rendered_line_note(None, quantity.line),
+                    how=f"write the real value (metres, radians) in {source.name}", file=source)
+
+
 def _bad_limit_values(joint: Joint) -> list[str]:
     """What is wrong with the numbers of a joint's `<limit>` (position bounds are ignored on continuous joints)."""
     names = ("velocity", "effort") if joint.type == "continuous" else ("lower", "upper", "velocity", "effort")
@@ -394,11 +507,16 @@ def _bad_inertial(urdf: UrdfModel, link: str, inertial: Inertial) -> list[str]:
     return bad
 
 
-def _median(values: list[float]) -> float:
-    """statistics.median of a non-empty list, without importing statistics (and fractions, decimal) for it."""
-    ordered = sorted(values)
-    middle = len(ordered) // 2
-    return ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2
+def _median_without(ordered: list[float], value: float) -> float:
+    """The median of sorted `ordered` with one `value` (which it holds) left out, in constant time."""
+    skip = bisect_left(ordered, value)
+
+    def other(index: int) -> float:
+        return ordered[index if index < skip else index + 1]
+
+    count = len(ordered) - 1
+    middle = count // 2
+    return other(middle) if count % 2 else (other(middle - 1) + other(middle)) / 2
 
 
 def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
@@ -415,9 +533,9 @@ def _check_masses_plausible(report: ValidationReport, urdf: UrdfModel, source: P
                       why=f"the masses add up to {total:g} kg; heaviest: "
                           + ", ".join(f"{link} {masses[link]:g} kg" for link in heaviest),
                       how="check the values and their unit (kg)", file=source)
+    ordered = sorted(masses.values())
     for link, mass in masses.items():
-        others = [other for name, other in masses.items() if name != link]
-        typical = _median(others) if len(others) >= 2 else None
+        typical = _median_without(ordered, mass) if len(ordered) >= 3 else None
         if typical is not None and mass > MASS_RATIO_WARNING * typical:
             path, line, note = _urdf_place(report, "link", link, "inertial", urdf.inertials[link].line)
             found.warning("urdf.inertial_implausible", f"Link {link} weighs {mass:g} kg",
@@ -657,9 +775,18 @@ def _check_meshes(report: ValidationReport, urdf: UrdfModel, source: Path) -> No
     found, missing = report.findings, {}
     for uri in dict.fromkeys(uri for uri, _ in urdf.meshes):
         try:
-            resolve_package_uri(uri, base=source.parent)
+            path = resolve_package_uri(uri, base=source.parent)
         except PlemError as error:
             missing[uri] = error
+            continue
+        size = _file_size(path)
+        if size > MAX_MESH_BYTES:
+            found.error("urdf.mesh_too_large", f"Mesh {path.name} is too large",
+                        what=f"mesh files of at most {size_text(MAX_MESH_BYTES)} (plem's limit): the view and the "
+                             "planner read each one whole",
+                        why=f"{uri} ({path}) holds {size_text(size)}",
+                        how="export the mesh with fewer triangles (a decimated copy for <collision> is usual)",
+                        file=source)
     colliding = [(link, uri) for link, uri in urdf.collision_meshes if uri in missing]
     for uri, problem in missing.items():
         if all(uri != used for _, used in colliding):
@@ -674,6 +801,14 @@ def _check_meshes(report: ValidationReport, urdf: UrdfModel, source: Path) -> No
                 "until then the arm runs without the planner (as without an SRDF)")
         found.warning("urdf.collision_mesh_missing", disabled.summary, what=disabled.what, why=disabled.why,
                       how=disabled.how, file=source)
+
+
+def _file_size(path: Path) -> int:
+    """The size of a file in bytes; 0 when it cannot be read (a missing mesh is reported as missing)."""
+    try:
+        return path.stat().st_size
+    except (OSError, ValueError):
+        return 0
 
 
 def _read_mapping(path: Path | None, area: str, found: Findings) -> YamlDocument | None:
@@ -709,6 +844,49 @@ def _check_controllers(report: ValidationReport, urdf: UrdfModel) -> None:
                             what="controller joints that exist in the URDF", why=f"{joint!r} is not a URDF joint",
                             how="fix the name or remove it", file=path,
                             line=document.line(controller, "ros__parameters", "joints", index))
+
+
+def _check_controller_values(report: ValidationReport) -> None:
+    """controllers.yaml's controller names are ROS 2 node names and its update_rate a rate the loop can run."""
+    path, found = report.files.controllers, report.findings
+    document = _read_mapping(path, "controllers", Findings())  # _check_controllers reports a file that cannot be read
+    if document is None or path is None:
+        return
+    for name, body in document.root.items():
+        params = body.get("ros__parameters") if isinstance(body, dict) else None
+        declared = [str(name)]
+        if name == "controller_manager" and isinstance(params, dict):
+            declared += [str(key) for key, value in params.items() if isinstance(value, dict) and "type" in value]
+            rate = update_rate_error(params["update_rate"], path.name) if "update_rate" in params else None
+            if rate is not None:
+                found.error("controllers.update_rate", rate.summary, what=rate.what, why=rate.why, how=rate.how,
+                            file=path, line=document.line(name, "ros__parameters", "update_rate"))
+        for controller in declared:
+            problem = ros_token_problem(controller, MAX_NAME_CHARS)
+            if problem is not None:
+                found.error("controllers.name", "controllers.yaml has an unusable controller name",
+                            what=f"controller names as ROS 2 node names of at most {MAX_NAME_CHARS} characters: "
+                                 "letters, digits and single underscores, not starting with a digit",
+                            why=f"{truncated(ascii(controller), 80)}: {problem}",
+                            how="rename it, e.g. arm_controller", file=path, line=document.line(name))
+
+
+def _check_kinematics_values(report: ValidationReport) -> None:
+    """kinematics.yaml's solver timeout, search resolution and attempts are numbers within KINEMATICS_RANGES."""
+    path, found = report.files.kinematics, report.findings
+    document = _read_mapping(path, "kinematics", Findings())  # _check_kinematics reports a file that cannot be read
+    if document is None or path is None:
+        return
+    for group, body in document.root.items():
+        if not isinstance(body, dict):
+            continue
+        for key in KINEMATICS_RANGES:
+            expected = kinematics_value_problem(key, body[key]) if key in body else None
+            if expected is not None:
+                found.error("kinematics.value", f"kinematics.yaml: {key} of {group} is out of range",
+                            what=f"{key}: {expected}", why=f"{key} is {truncated(repr(body[key]), 80)}",
+                            how=f"set {group}.{key} within that range, or remove it (plem uses "
+                                f"{SOLVER_DEFAULTS[key]} then)", file=path, line=document.line(group, key))
 
 
 def _check_srdf_against_urdf(report: ValidationReport, urdf: UrdfModel, srdf: SrdfModel, path: Path) -> None:

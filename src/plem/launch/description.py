@@ -1,7 +1,8 @@
 """Launch descriptions: which components of a robot to start, as written in a bring-up file.
 
 A bring-up file (e.g. the scaffold's `launch/bringup.launch.py`) defines `generate_launch_description()`
-returning a `LaunchDescription`; `plem launch FILE` loads it with `load_launch_file`.
+returning a `LaunchDescription`; `plem launch FILE` loads it with `load_launch_file`. A bring-up file is Python:
+loading it runs it with the rights of whoever launches, so launching a package's own file trusts that package.
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -71,9 +73,11 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
     except PlemError:
         raise
     except Exception as error:  # noqa: BLE001 - user code may raise anything: report it as the user's problem
+        where = _raised_at(path, error)
         raise LaunchFileError(f"Launch file {path.name} failed", what="generate_launch_description() to return "
-                              "plem.launch.bringup(...)", why=f"{type(error).__name__}: {error}",
-                              how=f"fix {path}") from None
+                              "plem.launch.bringup(...)",
+                              why=f"{where}: {type(error).__name__}: {' '.join(str(error).split())[:500]}",
+                              how=f"fix {where}") from None
     finally:
         sys.dont_write_bytecode = writes_bytecode
     if not isinstance(description, LaunchDescription):
@@ -81,3 +85,14 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
                               what="generate_launch_description() returning plem.launch.bringup(...)",
                               why=f"it returned {description!r}", how="return bringup(\"my_robot_description\", ...)")
     return description
+
+
+def _raised_at(path: Path, error: BaseException) -> str:
+    """`file:line` of the launch file where `error` arose (the last of its frames in that file; a syntax error's
+    own line), or the file alone when no frame of it is known."""
+    if isinstance(error, SyntaxError) and error.lineno:
+        return f"{error.filename or path}:{error.lineno}"
+    target = os.path.realpath(path)
+    lines = [frame.lineno for frame in traceback.extract_tb(error.__traceback__)
+             if os.path.realpath(frame.filename) == target and frame.lineno]
+    return f"{path}:{lines[-1]}" if lines else str(path)

@@ -24,6 +24,9 @@ INT32_RANGE = (-(2**31), 2**31 - 1)
 IFNAMSIZ = 16
 RT_KERNEL_FLAG = Path("/sys/kernel/realtime")
 _ROS_NAME_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: Characters of a robot_id. Its longest use is the socket of its command service, /dev/shm/{robot_id}_commands,
+#: whose path a Unix socket holds in 107 bytes: 64 leaves room, and is plenty for a name.
+MAX_ROBOT_ID_CHARS = 64
 
 
 def _parse_robot_id(text: str) -> str:
@@ -212,17 +215,24 @@ def _check_joint_offsets(cfg: SerialArmConfig, sources: Mapping[str, Any]) -> Pl
     )
 
 
-def robot_id_problem(robot_id: Any) -> str | None:
-    """Why `robot_id` cannot be a ROS 2 namespace token, or None when it can (empty means no namespace)."""
-    if not isinstance(robot_id, str):
-        return f"it is {type(robot_id).__name__}, not text"
-    if robot_id == "":
-        return None
-    if not _ROS_NAME_TOKEN.fullmatch(robot_id):
+def ros_token_problem(name: Any, max_chars: int) -> str | None:
+    """Why `name` is not a ROS 2 name token (letters, digits and single underscores, not starting with a digit) of
+    1 to `max_chars` characters, or None when it is one."""
+    if not isinstance(name, str):
+        return f"it is {type(name).__name__}, not text"
+    if not 0 < len(name) <= max_chars:
+        return f"it has {len(name)} characters; at most {max_chars} are allowed" if name else "it is empty"
+    if not _ROS_NAME_TOKEN.fullmatch(name):
         return "only letters, digits and '_' are allowed, and it must not start with a digit"
-    if "__" in robot_id:
+    if "__" in name:
         return "repeated underscores are not allowed in ROS 2 names"
     return None
+
+
+def robot_id_problem(robot_id: Any) -> str | None:
+    """Why `robot_id` cannot be a ROS 2 namespace token of at most MAX_ROBOT_ID_CHARS characters, or None when it
+    can (empty means no namespace)."""
+    return None if robot_id == "" else ros_token_problem(robot_id, MAX_ROBOT_ID_CHARS)
 
 
 def _check_robot_id(cfg: SerialArmConfig, sources: Mapping[str, Any]) -> PlemError | None:
@@ -231,7 +241,8 @@ def _check_robot_id(cfg: SerialArmConfig, sources: Mapping[str, Any]) -> PlemErr
         return None
     return ConfigError(
         "robot_id is not a valid ROS 2 namespace",
-        what="a ROS 2 name token: letters, digits and single underscores, not starting with a digit",
+        what=f"a ROS 2 name token of at most {MAX_ROBOT_ID_CHARS} characters: letters, digits and single "
+             "underscores, not starting with a digit",
         why=f"robot_id {cfg.robot_id!r}{_origin('robot_id', sources)}: {problem}",
         how="choose an id such as robot_id:=arm_left",
     )
