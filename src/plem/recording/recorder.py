@@ -211,7 +211,10 @@ class Recorder:
         if self.stopped is not None and not self._resume_due:
             return None
         if self.segment is not None and wall_ns - self._segment_start >= self._segment_ns:
-            self._close()
+            if not self.archive.intact() and not self._recreate():   # checked once a segment too
+                return None
+            if self.segment is not None:
+                self._close()
         if self.segment is None:
             self._resume_due = False
             self._open(wall_ns)
@@ -348,13 +351,17 @@ class Recorder:
                          errno=None, percent=round(percent, 1), segment=None)
 
     def _recreate(self) -> bool:
-        """The robot's directory was deleted, moved or replaced: give up the segment that went with it and create
-        the directory again, as at start; False (recording stopped, said why) when that is refused or fails."""
+        """The robot's directory was deleted, moved or replaced: finish the open segment where it is (or give it up
+        with a deleted directory) and create the directory again, as at start; False (recording stopped, said why)
+        when that is refused or fails."""
         segment, self.segment = self.segment, None
-        went = "no segment was open"
+        went, lost = "no segment was open", 0
         if segment is not None:
-            segment.abandon()
-            went = f"segment {segment.name} went with it, {segment.messages} messages"
+            try:
+                segment.close()                                  # moved: it is finished where it went
+                went = f"segment {segment.name} finished where the directory went, {segment.messages} messages"
+            except OSError:                                      # deleted: it went with the directory
+                went, lost = f"segment {segment.name} went with it, {segment.messages} messages", segment.messages
         closed, self.closed = len(self.closed), []
         try:
             self.archive.recreate()
@@ -364,7 +371,7 @@ class Recorder:
         self.archive.log("directory_recreated", f"{self.archive.directory} was deleted, moved or replaced while "
                          f"recording ({went}; {closed} closed segments no longer under the guard): created it "
                          "again, recording goes on in a new segment", logging.WARNING,
-                         lost_with_directory=0 if segment is None else segment.messages,
+                         lost_with_directory=lost,
                          segment=None if segment is None else segment.name)
         if self.stopped is not None and self.stopped.interrupted is not None:
             self.stopped = replace(self.stopped, interrupted=None, unfinished=False)   # gone with the directory
