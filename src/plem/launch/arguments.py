@@ -36,7 +36,8 @@ class LaunchArgument:
 LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("bus", "ethercat", "fieldbus: ethercat, ethercat_sim (the virtual EtherCAT network), or mock "
                                       "for the simulated arm"),
-    LaunchArgument("robot_id", "indy", "instance id: prefix of shared memory, namespace of topics"),
+    LaunchArgument("robot_id", "indy", "instance id (a ROS 2 name token, at most 64 characters): prefix of shared "
+                   "memory, namespace of topics"),
     LaunchArgument("robot_type", DEFAULT_ROBOT_TYPE, "built-in arm (used when description_package is "
                                                       "wim_description)"),
     LaunchArgument("description_package", "wim_description", "description package name or directory"),
