@@ -3,8 +3,9 @@
 `plem launch` writes `/dev/shm/plem_description_{robot_id}.json` (atomically, owner-only or readable by
 the group of `shm_group:=`) before it starts the driver, and removes it when it stops: the URDF as
 robot_description carries it, the directories of the packages its `package://` URIs name, and the tool
-link. A reader takes it only when it is a regular file of its own user or root, small, of the expected
-shape, and written by a launch that still runs.
+link. Both steps also remove what killed launches and recorders left (`remove_stale_files`). A reader
+takes it only when it is a regular file of its own user or root, small, of the expected shape, and
+written by a launch that still runs.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 
 from plem.core.files import UntrustedFile, read_trusted, remove_own, write_shared
 from plem.errors import PlemError
+from plem.ipc.leftovers import remove_stale_files
 from plem.ipc.segment import SHM_DIRECTORY
 from plem.ipc.state_segment import process_alive
 
@@ -41,13 +43,15 @@ def description_path(robot_id: str) -> Path:
 
 
 def share_description(robot_id: str, description: SharedDescription, group: int | None = None) -> None:
-    """Replace the robot's description file (owner-only, or 0640 with `group`)."""
+    """Replace the robot's description file (owner-only, or 0640 with `group`); remove stale ones first."""
+    remove_stale_files()
     write_shared(description_path(robot_id), json.dumps(asdict(description)), group)
 
 
 def remove_description(robot_id: str) -> None:
-    """Remove the description file if it is this user's."""
+    """Remove the description file if it is this user's, and the files killed launches and recorders left."""
     remove_own(description_path(robot_id))
+    remove_stale_files()
 
 
 def _unavailable(robot_id: str, why: str) -> DescriptionUnavailable:

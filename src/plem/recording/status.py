@@ -5,7 +5,8 @@ removes it when it ends (the name stays out of the driver's `{robot_id}_*` set).
 readable by the group of `shm_group:=` as the robot's shared memory is. /dev/shm is open to every local
 user, so a reader takes the file only when it is a regular file of its own user or root, small, and of
 the expected shape; anything else, and a file left by a killed recorder (its pid no longer runs), is
-ignored: the counters are a report, never a reason for the bridge to stop.
+ignored: the counters are a report, never a reason for the bridge to stop. The next launch, or the stop of
+any launch, removes a file a killed recorder left (`plem.ipc.leftovers`).
 """
 
 from __future__ import annotations
