@@ -22,6 +22,7 @@ import pytest
 from cyclonedds.util import duration
 
 from plem.bridge import connect
+from plem.launch.supervisor import RESTART_WINDOW_S, RESTARTS
 from plem.middleware.node import Node
 from plem.middleware.qos import DEFAULT
 from tests.e2e.launched import Launch, launched_robot, process_gone, wait_until
@@ -151,10 +152,34 @@ def test_a_killed_bridge_is_restarted_and_the_arm_runs_on(launch: Launch, peer: 
     with connect(launch.robot_id) as client:
         before = client.wait_for_state()
         os.kill(pid, signal.SIGKILL)
-        assert wait_until(lambda: "bridge restarted" in launch.output, 120), launch.describe()
+        assert wait_until(lambda: "/bridge] restarted" in launch.output, 120), launch.describe()
         after = client.wait_for_state()
         assert after.cycle > before.cycle and not after.faulted and after.mode == before.mode
         assert abs(after.position - before.position).max() < 1e-6, "the arm moved"
     assert "killed by SIGKILL" in launch.output, launch.output
     assert peer.wait_for_servers(60), "the restarted bridge serves no commands\n" + launch.describe()
     assert peer.joint_state(10.0) is not None
+
+
+def bridge_pid(launch: Launch) -> int:
+    """The running bridge's pid: the newest restart's, else the summary's."""
+    restarted = re.findall(r"/bridge\] restarted, pid (\d+)", launch.output)
+    return int(restarted[-1]) if restarted else launch.component_pid("bridge")
+
+
+def test_a_bridge_that_keeps_dying_is_given_up_with_how_to_see_why(launch: Launch):
+    """Runs last in this module: it leaves the launch without a bridge."""
+    ended = re.compile(r"/bridge\] (restarted|gave up)")
+    for _ in range(2 * RESTARTS):   # restarts slower than the window allows would never add up to a give-up
+        if "gave up restarting" in launch.output:
+            break
+        seen = len(ended.findall(launch.output))
+        os.kill(bridge_pid(launch), signal.SIGKILL)
+        assert wait_until(lambda seen=seen: len(ended.findall(launch.output)) > seen, 120), launch.describe()
+    (line,) = [line for line in launch.output.splitlines() if "gave up restarting" in line]
+    assert f"within {RESTART_WINDOW_S:.0f} s" in line and "killed by SIGKILL" in line and "prefixed" in line, line
+    with connect(launch.robot_id) as client:
+        before = client.wait_for_state()
+        assert wait_until(lambda: client.wait_for_state().cycle > before.cycle + 100, 10), "the loop stalled"
+        assert not client.wait_for_state().faulted
+    assert launch.process.poll() is None, "the launch ended with its bridge"

@@ -3,7 +3,10 @@
 Children start in order with a readiness check (the RT driver announces itself once its loop runs),
 in their own session so that Ctrl-C reaches only the supervisor, which then stops them in order: the
 driver stops the arm smoothly, disables the drives and removes its shared memory. A child that dies
-is reported; when an RT driver dies, everything stops.
+is reported with its last error line; when an RT driver dies, everything stops. A bridge that dies is started
+again (ROS tools would lose the robot without it), at most RESTARTS times in RESTART_WINDOW_S; then the launch
+says it gave up and goes on without it. No component but the driver can move or stall the arm: they only read
+shared memory and send commands through the driver's command service.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 from plem.control.loop import OVERRUN_WINDOW_S
 from plem.errors import PlemError
 from plem.ipc.robot_description import SharedDescription, remove_description, share_description
+from plem.launch.child_errors import ErrorTail
 from plem.launch.description import COMPONENTS
 from plem.launch.plan import RobotPlan, child_environment
 from plem.launch.startup import exit_description, first_line
@@ -34,6 +38,11 @@ if TYPE_CHECKING:
 STOP_TIMEOUT_S = 20.0
 STATUS_PERIOD_S = 0.5
 PIPE_STATUS_PERIOD_S = 10.0
+#: A component that dies is restarted, unless it already was this many times within RESTART_WINDOW_S.
+RESTARTS = 3
+RESTART_WINDOW_S = 60.0
+#: The components restarted when they die (the others are reported, and the robot runs on without them).
+RESTARTED = frozenset({"bridge"})
 MODULES = {"ethercat_sim": "plem.launch.ethercat_sim", "rt_driver": "plem.launch.rt_driver",
            "bridge": "plem.launch.ros_bridge", "recorder": "plem.launch.recorder", "planner": "plem.launch.planner"}
 
@@ -51,6 +60,7 @@ class Child:
     process: subprocess.Popen[str]
     critical: bool
     ready: dict[str, Any] = field(default_factory=dict)
+    errors: ErrorTail | None = None
 
     @property
     def label(self) -> str:
@@ -60,6 +70,11 @@ class Child:
     def exit_description(self) -> str:
         """How the child ended: its exit code, or the signal that killed it."""
         return exit_description(self.process.returncode if self.process.returncode is not None else 0)
+
+    def death(self) -> str:
+        """How the child ended and, when it said one, its last error line."""
+        said = self.errors.last_error() if self.errors is not None else ""
+        return f"{self.exit_description()}: {said}" if said else self.exit_description()
 
 
 class Supervisor:
@@ -73,6 +88,7 @@ class Supervisor:
         self.children: list[Child] = []
         self.stop_requested = threading.Event()
         self._clients: dict[str, RobotClient] = {}
+        self._restarts: dict[tuple[str, str], list[float]] = {}
         self._event_streams: dict[str, Stream[Event]] = {}
 
     def say(self, line: str) -> None:
@@ -141,9 +157,13 @@ class Supervisor:
         arguments = plan.arguments
         if component == "planner" and not self.components.get("bridge", True):
             arguments = {**arguments, "bridge": "false"}  # no DDS when the launch file leaves the bridge out
+        # The other components' stderr passes through the launch, which remembers their last error line; a
+        # driver's goes straight to the terminal, so that nothing the launch does can stand in its way.
         process = subprocess.Popen([sys.executable, "-m", MODULES[component], json.dumps(arguments)],
-                                   stdout=subprocess.PIPE, text=True, env=env, start_new_session=True)
-        child = Child(plan.robot_id, component, process, critical=critical)
+                                   stdout=subprocess.PIPE, stderr=None if critical else subprocess.PIPE, text=True,
+                                   env=env, start_new_session=True, errors="replace")
+        errors = ErrorTail(process.stderr) if process.stderr is not None else None
+        child = Child(plan.robot_id, component, process, critical=critical, errors=errors)
         self.children.append(child)
         child.ready = self._await_ready(child)
 
@@ -253,16 +273,48 @@ class Supervisor:
             if dead:
                 for child in dead:
                     self._clear_status(interactive)
-                    self.say(f"{child.label} {child.exit_description()}")
+                    self.say(f"{child.label} {child.death()}")
                 if any(child.critical for child in dead):
                     self.say("an RT driver stopped: stopping everything")
                     return 1
                 self.children = [child for child in self.children if child not in dead]
+                for child in dead:
+                    if child.component in RESTARTED:
+                        self._restart(child)
             if time.monotonic() >= next_status:
                 self._print_status(interactive)
                 next_status = time.monotonic() + period
         self._clear_status(interactive)
         return 0
+
+    def _restart(self, child: Child) -> None:
+        """Start a component that died again, unless it died RESTARTS times within RESTART_WINDOW_S already; a
+        start that fails counts as one of them."""
+        key = (child.robot_id, child.component)
+        plan = next(plan for plan in self.plans if plan.robot_id == child.robot_id)
+        while not self.stop_requested.is_set():
+            now = time.monotonic()
+            recent = [at for at in self._restarts.get(key, []) if now - at < RESTART_WINDOW_S]
+            if len(recent) >= RESTARTS:
+                self.say(f"{child.label} gave up restarting it: it died {len(recent) + 1} times within "
+                         f"{RESTART_WINDOW_S:.0f} s, the last time {child.death()}. The robot runs on without it; "
+                         f"its lines above, prefixed {child.label}, say why; fix that and restart plem launch")
+                return
+            self._restarts[key] = [*recent, now]
+            self.say(f"{child.label} restarting it ({len(recent) + 1} of {RESTARTS} restarts allowed within "
+                     f"{RESTART_WINDOW_S:.0f} s)")
+            try:
+                self._start(plan, child.component, critical=False)
+            except LaunchFailed as error:
+                child = self.children.pop()   # the one just started
+                if child.process.poll() is None:
+                    child.process.kill()
+                    child.process.wait()
+                self.say(f"{child.label} could not be restarted: {error.summary}: {error.why}")
+                continue
+            if not self.stop_requested.is_set():
+                self.say(f"{child.label} restarted, pid {self.children[-1].process.pid}")
+            return
 
     def _print_events(self, interactive: bool) -> None:
         for robot_id, stream in self._event_streams.items():
