@@ -47,6 +47,12 @@ def message_from_yaml(library: InterfaceLibrary, ros_type: str, text: str, argum
         raise UsageError(f"{argument} is not valid YAML", what=f"{argument} as a YAML mapping, e.g. "
                          f"\"{_prototype(library, ros_type)}\"", why=f"{problem}{where} of {text!r}",
                          how=f"quote {argument} for the shell and close every bracket and quote") from None
+    except RecursionError:   # the YAML parser recurses once per level of nesting
+        raise UsageError(f"{argument} is nested too deeply", what=f"{argument} as a YAML mapping nested as deeply "
+                         f"as {ros_type}'s fields are, e.g. \"{_prototype(library, ros_type)}\"",
+                         why=f"its mappings and lists nest deeper than the YAML parser follows ({len(text)} "
+                             "characters); no ROS message nests that deep",
+                         how=f"give {argument} one mapping per nested message, as in the example") from None
     return _Filler(library, ros_type, argument).message(ros_type, values, "")
 
 
