@@ -301,11 +301,11 @@ def test_cli_reports_a_limit_without_traceback(tmp_path: Path):
     assert "memory limit" in done.stderr and "Traceback" not in done.stderr + done.stdout
 
 
-# -- the same rules without the sandbox: a user other than root renders in its own process ------------------------
+# -- a user other than root renders under the same rules and limits ----------------------------------------------
 
 @pytest.mark.skipif(os.geteuid() != 0 or system_python() is None,
                     reason="acting as another user needs root and a system Python of the tests' version")
-def test_a_user_other_than_root_renders_in_process_under_the_same_rules(shared_dir: Path):
+def test_a_user_other_than_root_renders_under_the_same_rules(shared_dir: Path):
     marker = shared_dir / "pwned"
     escape = xacro_file(shared_dir, ESCAPE + f"""<link name="${{os['system']('touch {marker}')}}"/>""",
                         "escape_description")
@@ -331,6 +331,31 @@ def test_a_user_other_than_root_renders_in_process_under_the_same_rules(shared_d
     assert "not allowed" in lines[1]
     assert not marker.exists()
 
+
+
+@pytest.mark.skipif(os.geteuid() != 0 or system_python() is None,
+                    reason="acting as another user needs root and a system Python of the tests' version")
+def test_a_user_other_than_root_renders_within_the_time_limit(shared_dir: Path):
+    path = xacro_file(shared_dir, """<link name="${python.sum(python.range(10**15))}"/>""", "slow_description")
+    for folder in (path.parents[1], path.parent):
+        folder.chmod(0o755)
+    path.chmod(0o644)
+    checker = as_nobody("""
+        import os, sys
+        os.environ["PLEM_RENDER_TIMEOUT_SECONDS"] = "1"
+        from plem.description.render import render_xacro
+        from plem.errors import PlemError
+        try:
+            render_xacro(sys.argv[1])
+            print("rendered")
+        except PlemError as error:
+            print(error.summary, "|", error.how)
+    """, str(path))
+    try:
+        out, err = checker.communicate(timeout=120)
+    finally:
+        checker.kill()  # a render without a time limit would run on
+    assert "took too long" in out and "PLEM_RENDER_TIMEOUT_SECONDS" in out, out + err
 
 def _policy() -> str:
     return str(os.sched_getscheduler(0))

@@ -1,6 +1,6 @@
 """Rendering xacro files of description packages, which are untrusted input, without ROS installed.
 
-`render_xacro` is the one entry point: xacro runs in a limited child process without root
+`render_xacro` is the one entry point: xacro runs in a limited child process, without root when plem has it
 (plem.description.sandbox) and reads files only through a PackageReader. xacro's hooks are replaced so that
 `$(find pkg)` uses plem's package search path, `${...}` and `$(eval ...)` cannot reach Python internals,
 `$(eval ...)` has a handful of builtins, `$(env VAR)` is refused and `$(optenv VAR DEFAULT)` gives DEFAULT.
@@ -65,17 +65,14 @@ _xacro_parse = xacro.parse
 def render_xacro(path: Path, mappings: dict[str, str] | None = None) -> str:
     """The XML that `xacro PATH [name:=value ...]` prints; failures are DescriptionErrors with the fix.
 
-    Run as root, rendering happens in the sandbox: a child process without root, within limits. Run as
-    any other user it happens in this process, which has no privilege to give away, under the same rules
-    for expressions and files.
+    Rendering happens in the sandbox, a child process within memory, CPU-time and wall-clock limits, whoever
+    runs plem; run as root, the child also gives up root.
     """
     path = Path(path)
     owner = _owning_package(path)
     package = next(iter(owner.values()), path.resolve().parent)
     with pinned_packages(owner), PackageReader([package]) as reader:
         work = partial(_render, path, dict(mappings or {}), reader)
-        if os.geteuid() != 0:
-            return work()
         return run_sandboxed(work, task=f"rendering {path.name}", owner=package, keep_fds=reader.handles,
                              error_types=(DescriptionError, XacroArgumentsError, PackageAccessError))
 

@@ -1,9 +1,10 @@
 """Running untrusted work (rendering a description package) in a forked child with less privilege and limits.
 
-The child gives up root (to the owner of the package folder, or to nobody when that is root), cannot regain
-privileges, start processes or write files, and has memory, CPU-time and output limits; the parent waits
-with a wall-clock timeout. The result comes back as JSON over a pipe (never pickled: the child may have run
-hostile code), and every way the child can fail becomes a SandboxError with the limit or cause named.
+When plem runs as root, the child gives up root (to the owner of the package folder, or to nobody when that is
+root). Whoever runs it, the child cannot regain privileges, start processes or write files, and has memory,
+CPU-time and output limits; the parent waits with a wall-clock timeout. The result comes back as JSON over a
+pipe (never pickled: the child may have run hostile code), and every way the child can fail becomes a
+SandboxError with the limit or cause named.
 """
 
 from __future__ import annotations
