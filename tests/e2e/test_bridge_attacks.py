@@ -147,6 +147,24 @@ def test_a_bad_sample_never_costs_the_good_one_beside_it(launch: Launch, peer: R
     assert f"/{launch.robot_id}/{TRAJECTORY}/joint_trajectory" in line and "UTF-8" in line, line
 
 
+def test_an_oversized_service_request_is_dropped_before_it_is_decoded(launch: Launch, peer: RosPeer):
+    """Before: a get_parameters request naming robot_description 10 000 times (240 kB) was answered with the
+    description 10 000 times over."""
+    robot_id = launch.robot_id
+    get_parameters = peer.node.client(f"/{robot_id}/robot_state_publisher/get_parameters",
+                                      "rcl_interfaces/srv/GetParameters")
+    list_controllers = peer.node.client(f"/{robot_id}/controller_manager/list_controllers", LIST_CONTROLLERS)
+    assert wait_until(lambda: get_parameters.ready and list_controllers.ready, 30)
+    assert len(get_parameters.call(10.0, names=["robot_description"]).values[0].string_value) > 1000
+    errors_before = len(launch.errors)
+    with pytest.raises(TimeoutError):
+        get_parameters.call(1.0, names=["robot_description"] * 10_000)
+    assert wait_until(lambda: "dropped a sample" in launch.errors[errors_before:], 10), launch.describe()
+    (line,) = [line for line in launch.errors[errors_before:].splitlines() if "dropped a sample" in line]
+    assert f"/{robot_id}/robot_state_publisher/get_parameters" in line and "bytes exceed the 65,536" in line, line
+    assert list_controllers.call(10.0).controller, "the controller manager stopped answering"
+
+
 def test_a_killed_bridge_is_restarted_and_the_arm_runs_on(launch: Launch, peer: RosPeer):
     pid = launch.component_pid("bridge")
     with connect(launch.robot_id) as client:
