@@ -257,6 +257,18 @@ def test_an_unreadable_urdf_file_is_a_problem_not_an_internal_error(arm: Path):
     assert "Input/output error" in error.value.why
 
 
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_an_override_that_is_no_regular_file_is_named_as_such(arm: Path, kind: str):
+    target = arm / "urdf" / "pipe.urdf.xacro"
+    if kind == "fifo":
+        os.mkfifo(target)
+    report = run_validation(arm, urdf_file=target if kind == "fifo" else "/dev/zero")
+    problem, = refused(report, "urdf.override_missing", "pipe.urdf.xacro" if kind == "fifo" else "zero")
+    assert "not a regular file" in problem.summary
+    assert ("is a FIFO" if kind == "fifo" else "is a character device") in problem.why
+
+
 # -- robot_id ----------------------------------------------------------------------------------------------------
 
 def test_robot_id_length_is_bounded():

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from plem.core.config.launch_args import check_home
+from plem.core.files import file_kind
 from plem.core.paths import PACKAGE_MARKER, find_package, is_dir, is_file, package_name
 from plem.description.problems import Findings
 from plem.errors import PackageNotFoundError
@@ -98,9 +99,13 @@ def _override(files: DescriptionFiles, kind: str, given: str | os.PathLike[str])
     path = path if path.is_absolute() else files.root / path
     if is_file(path):
         return path
-    files.findings.error(f"{kind}.override_missing", f"{kind.upper()} override not found: {given}",
+    try:
+        summary, found = "is not a regular file", f"{path} is a {file_kind(path.stat().st_mode)}, not a regular file"
+    except (OSError, ValueError):
+        summary, found = "not found", f"{path} does not exist"
+    files.findings.error(f"{kind}.override_missing", f"{kind.upper()} override {summary}: {given}",
                          what=f"{kind}_file:= naming an existing file (absolute, or relative to the package)",
-                         why=f"{path} does not exist", how=f"fix the {kind}_file:= path, or drop it to use discovery")
+                         why=found, how=f"fix the {kind}_file:= path, or drop it to use discovery", file=path)
     return None
 
 
