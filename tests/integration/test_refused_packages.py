@@ -138,6 +138,14 @@ def test_update_rate_is_a_rate_the_loop_can_run(arm: Path, rate: str):
     assert problem.line == 6 and f"{MAX_UPDATE_RATE:,}" in problem.what
 
 
+def test_launch_refuses_update_rate_zero_before_starting(arm: Path):
+    replace(CONTROLLERS, "update_rate: 1000", "update_rate: 0")(arm)
+    done = subprocess.run([plem_executable(), "launch", f"description_package:={arm}", "bus:=mock",
+                           "robot_id:=refused_rate"], check=False, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1 and "unusable update_rate" in done.stderr, done.stdout + done.stderr
+    assert f"{arm / CONTROLLERS}:6: update_rate is 0" in done.stderr
+
+
 @pytest.mark.parametrize("rate", [0, -1, 1e12, float("inf"), "fast"])
 def test_the_controllers_of_a_package_never_carry_an_unusable_rate(rate: object):
     document = {"controller_manager": {"ros__parameters": {"update_rate": rate}}}

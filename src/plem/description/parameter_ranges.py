@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 from plem.errors import ConfigError
+from plem.ipc.request_bounds import truncated
 from plem.robot.config import CYCLE_TIME_RANGE_US
 
 #: kinematics.yaml's per-group settings when a package gives none (MoveIt's KDL defaults, attempts as in MoveIt 1).
@@ -21,21 +22,21 @@ KINEMATICS_RANGES = {"kinematics_solver_timeout": (0.0, 10.0, "s"),
 MAX_UPDATE_RATE = 1_000_000
 
 
-def update_rate_error(value: Any, source: str) -> ConfigError | None:
-    """Why controller_manager's `update_rate` (as read from `source`) is unusable, or None: a number of at least 1
-    and at most MAX_UPDATE_RATE Hz."""
-    if not isinstance(value, bool) and isinstance(value, int | float) and 1 <= value <= MAX_UPDATE_RATE:
+def update_rate_error(value: Any, source: str | None = None) -> ConfigError | None:
+    """Why controller_manager's `update_rate` (as read from `source`, when the message is to name it) is unusable,
+    or None: a number of at least 1 and at most MAX_UPDATE_RATE Hz."""
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if number and 1 <= value <= MAX_UPDATE_RATE:
         return None
-    shown = repr(value) if len(repr(value)) <= 80 else repr(value)[:77] + "..."
-    finite = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    where = f"{source}: " if source else ""
+    note = " (not a finite number)" if number and not math.isfinite(value) else ""
     return ConfigError(
         "controllers.yaml has an unusable update_rate",
         what=f"controller_manager.ros__parameters.update_rate: a number of Hz from 1 to {MAX_UPDATE_RATE:,} (the "
              f"loop runs at most at {1_000_000 // CYCLE_TIME_RANGE_US[0]} Hz, cycle_time {CYCLE_TIME_RANGE_US[0]} µs)",
-        why=f"{source}: update_rate is {shown}" + ("" if finite or not isinstance(value, int | float)
-                                                    else " (not a finite number)"),
-        how=f"set update_rate to the loop's rate (1000 for cycle_time 1000 µs) in {source}, or remove it to use the "
-            "loop's rate")
+        why=f"{where}update_rate is {truncated(repr(value), 80)}{note}",
+        how=f"set update_rate to the loop's rate (1000 for cycle_time 1000 µs) in {source or 'controllers.yaml'}, "
+            "or remove it to use the loop's rate")
 
 
 def kinematics_value_problem(key: str, value: Any) -> str | None:

@@ -857,7 +857,7 @@ def _check_controller_values(report: ValidationReport) -> None:
         declared = [str(name)]
         if name == "controller_manager" and isinstance(params, dict):
             declared += [str(key) for key, value in params.items() if isinstance(value, dict) and "type" in value]
-            rate = update_rate_error(params["update_rate"], path.name) if "update_rate" in params else None
+            rate = update_rate_error(params["update_rate"]) if "update_rate" in params else None
             if rate is not None:
                 found.error("controllers.update_rate", rate.summary, what=rate.what, why=rate.why, how=rate.how,
                             file=path, line=document.line(name, "ros__parameters", "update_rate"))
