@@ -261,7 +261,11 @@ def _shape_entry(shape: Shape) -> dict[str, Any]:
 
 
 class PlanningScene:
-    """The objects a motion must not hit, by name; `version` increases on every change so users can tell."""
+    """The objects a motion must not hit, by name; `version` increases on every change so users can tell.
+
+    A change replaces the table of objects rather than editing it, so that a reader in another thread (the
+    planner's answers to views while it plans) always sees a whole table.
+    """
 
     def __init__(self, objects: Iterable[SceneObject] = (), version: int = 0) -> None:
         self._objects: dict[str, SceneObject] = {obj.name: obj for obj in objects}
@@ -288,7 +292,7 @@ class PlanningScene:
         return found
 
     def _set(self, obj: SceneObject) -> None:
-        self._objects[obj.name] = obj
+        self._objects = {**self._objects, obj.name: obj}
         self._version += 1
 
     def add(self, obj: SceneObject) -> None:
@@ -302,7 +306,7 @@ class PlanningScene:
     def remove(self, name: str) -> None:
         """Remove object `name`, world or attached."""
         self.get(name)
-        del self._objects[name]
+        self._objects = {key: obj for key, obj in self._objects.items() if key != name}
         self._version += 1
 
     def attach(self, name: str, link: str, pose_in_link: Pose, touch_links: Iterable[str] = ()) -> None:
@@ -323,7 +327,8 @@ class PlanningScene:
 
     def to_json(self) -> dict[str, Any]:
         """The scene as plain dicts and lists: its version and every object as a scene file's entry."""
-        return {"version": self._version, "objects": [obj.to_json() for obj in self._objects.values()]}
+        version = self._version  # before the objects: a reader never pairs an old table with a new version
+        return {"version": version, "objects": [obj.to_json() for obj in self._objects.values()]}
 
     @classmethod
     def from_json(cls, data: Any) -> PlanningScene:

@@ -68,12 +68,16 @@ class Running:
             self._gone = self.gone()
         return self._gone
 
+    def name(self) -> str:
+        """'a plan request from plem (pid 42, uid 0)'."""
+        return f"a{'n' if self.op[:1] in 'aeiou' else ''} {self.op} request from {self.client}"
+
     def state(self) -> str:
         """'a plan request from ..., 12 s left of its 60 s'."""
         elapsed = time.monotonic() - self.started
         timing = (f"{max(self.budget_s - elapsed, 0.0):.0f} s left of its {self.budget_s:g} s"
                   if self.budget_s is not None else f"running for {elapsed:.0f} s")
-        return f"a{'n' if self.op[:1] in 'aeiou' else ''} {self.op} request from {self.client}, {timing}"
+        return f"{self.name()}, {timing}"
 
 
 class ArmState(Protocol):
@@ -91,8 +95,6 @@ class PlannerService:
         self.planner = planner
         self.robot = robot
         self._lock = threading.Lock()
-        #: Held while the scene changes or is read, so that a reader never sees it half-changed.
-        self._scene_lock = threading.Lock()
         self._running: Running | None = None
         #: (op, error type) of internal errors whose traceback was logged: each is logged once.
         self._logged: set[tuple[str, str]] = set()
@@ -103,17 +105,21 @@ class PlannerService:
         }
 
     def call(self, work: Callable[[Planner], T], op: str = "ROS", client: str = "MoveIt's ROS services",
-             budget_s: float | None = None) -> T:
+             budget_s: float | None = None, gone: Callable[[], bool] = lambda: False) -> T:
         """Run `work` on the planner, one request at a time (as socket requests run); PlanningError at once when
-        another request runs."""
-        running = Running(op, client, budget_s)
+        another request runs. `gone()` tells whether the client went away (which cancels the work)."""
+        running = Running(op, client, budget_s, gone)
         if not self._lock.acquire(blocking=False):
             raise self._busy()
         try:
             self._running = running
             self.planner.cancelled = running.cancelled
-            with self._scene_lock:
-                return work(self.planner)
+            return work(self.planner)
+        except PlanningError as error:
+            if error.code == MoveItCode.PREEMPTED:
+                _log.warning("%s ended early: %s", running.name(),
+                             "a client cancelled it" if running.cancel.is_set() else "its client closed its connection")
+            raise
         finally:
             self.planner.cancelled = _not_cancelled
             self._running = None
@@ -143,9 +149,8 @@ class PlannerService:
                                     why="the op is not one of them",
                                     how="use plem's client (plem.bridge.connect) or the CLI", code=MoveItCode.FAILURE)
             if op in READING or (op == "scene" and request.get("action", "get") == "get"):
-                with self._scene_lock:
-                    return {"id": request_id, "result": operation(request)}
-            result = self.call(lambda _: operation(request), op, client, self._time_asked(op, request))
+                return {"id": request_id, "result": operation(request)}  # reads only: never waits
+            result = self.call(lambda _: operation(request), op, client, self._time_asked(op, request), gone)
             return {"id": request_id, "result": result}
         except PlemError as error:
             return {"id": request_id, "error": _error_payload(error)}
