@@ -8,6 +8,7 @@ need root; the deleted-directory test runs as any user, the full-disk test needs
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
@@ -46,16 +47,25 @@ def refusal(directory: Path) -> RecordingError:
     return raised.value
 
 
-@pytest.fixture
-def shared() -> Iterator[Path]:
+@contextlib.contextmanager
+def shared_folder() -> Iterator[Path]:
     """A directory as /tmp is (every user may create in it, sticky bit), holding nobody's own directory `loot`."""
     if os.geteuid() != 0:
         pytest.skip("acting as user nobody needs root (setuid in a forked child)")
     folder = Path(tempfile.mkdtemp(prefix="plem_shared_"))
     folder.chmod(0o1777)
     as_user(lambda: str((folder / "loot").mkdir(mode=0o777)))
-    yield folder
-    shutil.rmtree(folder)
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder)
+
+
+@pytest.fixture
+def shared() -> Iterator[Path]:
+    """`shared_folder` for one test."""
+    with shared_folder() as folder:
+        yield folder
 
 
 def loot(shared: Path) -> list[str]:
