@@ -16,7 +16,8 @@ from plem.bridge.planning import PlannerLink
 from plem.errors import MoveItCode, PlanningError
 from plem.ipc import command_socket
 from plem.ipc.command_socket import FrameReader, frame
-from plem.planning.goals import MAX_IK_TIMEOUT_S, MAX_PLANNING_TIME_S, MIN_SPEED_SCALE
+from plem.ipc.request_bounds import MIN_SPEED_SCALE
+from plem.planning.goals import MAX_IK_TIMEOUT_S, MAX_PLANNING_TIME_S
 from plem.planning.poses import MAX_COORDINATE_M
 from tests.e2e.cli import run_plem
 from tests.e2e.launched import Launch, launched_robot, wait_for

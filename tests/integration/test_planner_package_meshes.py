@@ -53,7 +53,7 @@ def test_meshes_of_a_package_given_by_path_are_found(tmp_path: Path, monkeypatch
     assert report.urdf is not None
     joint_names = tuple(joint.name for joint in report.urdf.actuated_joints)
     planner = Planner.for_package(report, joint_names, ArmLimits.from_joint_limits(report.limits, joint_names), 0.001)
-    home = planner.named_states["home"]
+    home = planner.named_states["home"].tolist()
     assert planner.contacts(home) == []
     # a solid box around the cube: a mesh is its surface, so a box inside it would touch nothing
     planner.scene.add(SceneObject("probe", Box((0.15, 0.15, 0.15)), Pose(BLOCK_AT)))

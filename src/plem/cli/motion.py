@@ -31,7 +31,7 @@ LinkOption = Annotated[str, typer.Option("--link", help="Link to bring to --to-p
 GroupOption = Annotated[str, typer.Option("--group", help="Planning group of the SRDF (default: its first).")]
 PlannerOption = Annotated[str, typer.Option("--planner", help="OMPL planner, e.g. RRTConnect (the default), RRTstar.")]
 CartesianOption = Annotated[bool, typer.Option("--cartesian", help="Move the tool along a straight line to --to-pose.")]
-SpeedOption = Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, from 0.01 to 1.")]
+SpeedOption = Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, from 0.001 to 1.")]
 PlanningTimeOption = Annotated[float, typer.Option("--planning-time", help="Seconds the planner may take, at most 60.")]
 TimeoutOption = Annotated[float, typer.Option("--timeout", help="Seconds to wait for the motion.")]
 
@@ -78,12 +78,14 @@ def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
 
 
 def _options(group: str, planner: str, speed_scale: float, planning_time: float) -> PlanOptions:
-    from plem.planning.goals import MAX_PLANNING_TIME_S, MIN_SPEED_SCALE, PlanOptions
+    from plem.ipc.request_bounds import MIN_SPEED_SCALE
+    from plem.planning.goals import MAX_PLANNING_TIME_S, PlanOptions
 
     if not MIN_SPEED_SCALE <= speed_scale <= 1.0:
         raise UsageError(f"--speed-scale must be from {MIN_SPEED_SCALE:g} to 1",
-                         what=f"a fraction of full speed, at least {MIN_SPEED_SCALE:g} (slower motions would take "
-                              "days), at most 1", why=f"--speed-scale {speed_scale:g}", how="e.g. --speed-scale 0.5")
+                         what=f"a fraction of full speed, at least {MIN_SPEED_SCALE:g} (a motion then takes "
+                              f"{1 / MIN_SPEED_SCALE:g} times as long), at most 1",
+                         why=f"--speed-scale {speed_scale:g}", how="e.g. --speed-scale 0.5")
     if not 0.0 < planning_time <= MAX_PLANNING_TIME_S:
         raise UsageError(f"--planning-time must be in (0, {MAX_PLANNING_TIME_S:g}] s",
                          what=f"seconds the planner may take, at most {MAX_PLANNING_TIME_S:g}",

@@ -13,8 +13,6 @@ PLANNING_TIME_S = 5.0
 MAX_PLANNING_TIME_S = 60.0
 #: Longest time one IK request may ask for (s), and the most a kinematics.yaml timeout gives one.
 MAX_IK_TIMEOUT_S = 10.0
-#: Smallest velocity or acceleration scale a plan may ask for: slower plans would take days to run and to check.
-MIN_SPEED_SCALE = 0.01
 
 
 @dataclass(frozen=True)

@@ -22,12 +22,12 @@ from plem.core.paths import pinned_packages
 from plem.description.model import SrdfModel, UrdfModel
 from plem.description.validate import ValidationReport
 from plem.errors import CommandRejected, MoveItCode, PlanningError
+from plem.ipc.request_bounds import MIN_SPEED_SCALE
 from plem.planning.cartesian import cartesian_states
 from plem.planning.collision import CollisionChecker
 from plem.planning.goals import (
     MAX_IK_TIMEOUT_S,
     MAX_PLANNING_TIME_S,
-    MIN_SPEED_SCALE,
     Goal,
     NamedGoal,
     Plan,
@@ -53,6 +53,9 @@ POSE_TOLERANCE = 1e-5
 START_SLACK = 1e-6
 #: Commanded states re-checked between two looks at whether the request was cancelled.
 CANCEL_CHECK_STATES = 1000
+#: Most a joint moves (rad or m) between two states the dense re-check checks: every cycle's state at full speed,
+#: fewer of a slow plan's (at a speed scale of 0.001 one in several hundred), whose cycles barely move.
+RECHECK_STEP = 1e-3
 
 
 class Planner:
@@ -449,17 +452,18 @@ class Planner:
         limits = planning_limits(self.limits.reaching(arm_states[0]), options.velocity_scale,
                                  options.acceleration_scale)
         trajectory = to_trajectory(parameterise(arm_states, limits, self.cycle_time_s, straight=straight))
-        motion, checked = self._recheck(trajectory, arm_states[0], options.avoid_collisions)
+        motion, checked = self._recheck(trajectory, arm_states[0], options)
         length = float(np.linalg.norm(np.diff(arm_states, axis=0), axis=1).sum())
         plan = Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
         self.plans_made += 1
         self.latest_plan = plan
         return plan
 
-    def _recheck(self, trajectory: JointTrajectory, start: np.ndarray, avoid_collisions: bool) -> tuple[Spline, int]:
+    def _recheck(self, trajectory: JointTrajectory, start: np.ndarray, options: PlanOptions) -> tuple[Spline, int]:
         """The motion the RT driver makes of the trajectory, read back as its command path reads it: checked to keep
-        every limit the core enforces as sent (so it runs unchanged, never re-timed), and every state it commands
-        (one per control cycle) checked against the robot and the scene. Returns it and the states checked."""
+        every limit the core enforces as sent (so it runs unchanged, never re-timed), and the states it commands
+        (one per control cycle, or as many cycles apart as keep every joint within RECHECK_STEP of a checked
+        state) checked against the robot and the scene. Returns it and the states checked."""
         rest = np.zeros(len(start))
         try:
             motion = as_sent(trajectory, self.limits.reaching(start), (start, rest, rest), self.cycle_time_s)
@@ -467,12 +471,15 @@ class Planner:
             raise PlanningError("the timed plan breaks a limit", what="a plan within every limit the driver enforces",
                                 why=error.why, how="report this: plans are timed within the limits",
                                 code=MoveItCode.INVALID_MOTION_PLAN) from None
-        times = np.append(np.arange(0.0, motion.duration, self.cycle_time_s), motion.duration)
+        speeds = self.limits.max_velocity[np.isfinite(self.limits.max_velocity)] * options.velocity_scale
+        fastest = float(speeds.max()) if speeds.size else 0.0  # no joint moves faster (plans use 99 % of it)
+        cycles = max(int(RECHECK_STEP / (fastest * self.cycle_time_s)), 1) if fastest > 0 else 1
+        times = np.append(np.arange(0.0, motion.duration, self.cycle_time_s * cycles), motion.duration)
         for index, t in enumerate(times):
             if index % CANCEL_CHECK_STATES == 0:
                 self._check_cancelled()
             q = self.arm.to_model_order(motion.state_at(float(t))[0])
-            if avoid_collisions and not self.collisions.is_free(q):
+            if options.avoid_collisions and not self.collisions.is_free(q):
                 contacts = self.collisions.contacts(q)
                 raise PlanningError("the timed plan touches an obstacle", what="a collision-free motion",
                                     why=f"at {t:.3f} s: " + ", ".join(f"{a} with {b}" for a, b in contacts),
@@ -495,8 +502,8 @@ def _check_options(options: PlanOptions) -> None:
             raise PlanningError(f"the {name} scale is out of range",
                                 what=f"a {name} scale from {MIN_SPEED_SCALE:g} to 1 (a share of the limits)",
                                 why=f"the request asks for {scale:g}"
-                                    + (": slower plans would take days to run and to check"
-                                       if scale < MIN_SPEED_SCALE else ""),
+                                    + (f": a plan then takes over {1 / MIN_SPEED_SCALE:g} times as long as at full "
+                                       "speed" if scale < MIN_SPEED_SCALE else ""),
                                 how=f"scale by {MIN_SPEED_SCALE:g} or more (--speed-scale, max_{name}_scaling_factor "
                                     f"in ROS, PlanOptions.{name}_scale)", code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
 
