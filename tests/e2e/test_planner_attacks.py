@@ -179,3 +179,6 @@ def test_the_cli_refuses_extreme_numbers_with_the_bounds(launch: Launch) -> None
     assert long.returncode == 2 and f"at most {MAX_PLANNING_TIME_S:g}" in long.stderr, long.stderr
     for result in (slow, far, long):
         assert "did not answer" not in result.stderr and "Traceback" not in result.stderr
+    slowest = run_plem("plan", "--to", "home", "--speed-scale", f"{MIN_SPEED_SCALE:g}", "--dry-run", *robot,
+                       env=launch.env)
+    assert slowest.returncode == 0 and "every limit kept" in slowest.stdout, slowest.stderr
