@@ -55,9 +55,9 @@ class JointTrajectory:
 
     def __post_init__(self) -> None:
         """Names as strings and points as TrajectoryPoints, in tuples; anything else is an ArgumentError."""
-        names = arguments.instance(self.joint_names, (list, tuple), "joint_names", "a list of joint names")
+        names = arguments.items(self.joint_names, "joint_names", "a list of joint names")
         object.__setattr__(self, "joint_names", tuple(arguments.text(name, "a joint name") for name in names))
-        points = arguments.instance(self.points, (list, tuple), "points", "a list of TrajectoryPoint")
+        points = arguments.items(self.points, "points", "a list of TrajectoryPoint")
         object.__setattr__(self, "points", tuple(
             arguments.instance(point, TrajectoryPoint, f"point {index}", "a TrajectoryPoint")
             for index, point in enumerate(points)))
@@ -101,8 +101,7 @@ class JointTrajectory:
             except arguments.ArgumentError as error:
                 raise arguments.ArgumentError(f"point {index} holds something other than numbers: {error.summary}",
                                               what=error.what, why=error.why, how=error.how) from None
-        names = arguments.instance(joint_names, (list, tuple), "joint_names", "a list of joint names")
-        return cls(tuple(names), tuple(converted))
+        return cls(arguments.items(joint_names, "joint_names", "a list of joint names"), tuple(converted))
 
 
 @dataclass(frozen=True, eq=False)

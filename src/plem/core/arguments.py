@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Mapping
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -86,11 +86,18 @@ def instance(value: Any, kind: type | tuple[type, ...], name: str, expected: str
     return value
 
 
+def items(value: Any, name: str, expected: str) -> tuple[Any, ...]:
+    """The items of a sequence (list, tuple, ...; not a string) as a tuple."""
+    if isinstance(value, (str, bytes, bytearray)) or not isinstance(value, Sequence):
+        raise refused(name, expected, value)
+    return tuple(value)
+
+
 def reals(value: Any, name: str, count: int | None = None) -> tuple[float, ...]:
-    """A sequence (list, tuple or 1-D array) of numbers as floats, `count` of them when given."""
+    """A sequence (list, tuple, range, 1-D array, ...) of numbers as floats, `count` of them when given."""
     if isinstance(value, np.ndarray):
         value = value.tolist() if value.ndim == 1 else value
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (list, tuple)):
+    if isinstance(value, (str, bytes, bytearray)) or not isinstance(value, Sequence):
         raise refused(name, "a list of numbers", value)
     if count is not None and len(value) != count:
         raise ArgumentError(f"{name} has {len(value)} values", what=f"{name} as {count} numbers",
