@@ -322,4 +322,5 @@ def test_launching_a_package_file_warns_that_it_is_trusted(arm: Path):
     done = subprocess.run([plem_executable(), "launch", str(path)], check=False, capture_output=True, text=True,
                           timeout=120, env={**os.environ, "PLEM_PACKAGE_PATH": str(arm.parent)})
     assert "WARNING:" in done.stderr and "trusts that package" in done.stderr, done.stderr
+    assert done.returncode == 1 and f"WHY: {path}:1: SystemExit: stop here" in done.stderr, done.stderr
 

@@ -72,7 +72,7 @@ def load_launch_file(path: str | os.PathLike[str]) -> LaunchDescription:
         description = generate()
     except PlemError:
         raise
-    except Exception as error:  # noqa: BLE001 - user code may raise anything: report it as the user's problem
+    except (Exception, SystemExit) as error:  # noqa: BLE001 - user code may raise anything: the user's problem
         where = _raised_at(path, error)
         raise LaunchFileError(f"Launch file {path.name} failed", what="generate_launch_description() to return "
                               "plem.launch.bringup(...)",
