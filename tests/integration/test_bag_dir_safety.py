@@ -106,6 +106,18 @@ def test_a_robot_directory_of_another_user_is_refused(shared: Path):
     assert list((shared / "arm").iterdir()) == [], "nothing was written into it"
 
 
+def test_without_a_robot_id_the_launch_checks_bag_dir_only_as_a_directory_on_the_way(shared: Path):
+    """A launch whose robot_id is itself the problem checks bag_dir alone: another user's bag_dir is no problem of
+    its own (only a robot's directory must be the recorder's), a world-writable one without the sticky bit is."""
+    assert prepare_bag_directory({"bag_dir": str(shared / "loot")}, None, None) is None
+    assert prepare_bag_directory({"bag_dir": str(shared / "loot")}, "arm", None) is None      # created by root
+    (shared / "open").mkdir()
+    (shared / "open").chmod(0o777)
+    problem = prepare_bag_directory({"bag_dir": str(shared / "open")}, None, None)
+    assert problem is not None and problem.summary == f"{shared / 'open'} is writable by every user and has no " \
+                                                      "sticky bit"
+
+
 def test_a_world_writable_bag_dir_without_the_sticky_bit_is_refused(shared: Path):
     bags = shared / "bags"
     bags.mkdir()

@@ -291,7 +291,7 @@ def prepare_bag_directory(arguments: Mapping[str, str], robot_id: str | None, gr
         existing = next(path for path in (target, *target.parents) if os.path.lexists(path))
         if not existing.is_dir():
             raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(existing))
-        make_directory(target, FileAccess(group))
+        make_directory(target, FileAccess(group), robot=robot_id is not None)
         if not os.access(target, os.W_OK | os.X_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(target))
     except OSError as error:

@@ -33,8 +33,10 @@ MAX_LINKS = 40
 _OPEN_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 
 
-def open_directory(directory: Path, access: FileAccess) -> int:
+def open_directory(directory: Path, access: FileAccess, robot: bool = True) -> int:
     """A handle (fd) on `directory`, created with its missing parents under `access`, checked as the module says.
+
+    `robot` False checks `directory` itself as a directory on the way (bag_dir when no robot_id is known).
 
     Raises UnsafeDirectory (an OSError carrying the WHAT/WHY/HOW) for a link, owner or mode that would let
     another user steer the recordings, and OSError naming the full path for anything else.
@@ -47,7 +49,7 @@ def open_directory(directory: Path, access: FileAccess) -> int:
     try:
         while parts:
             name = parts.pop(0)
-            last = not parts
+            last = robot and not parts
             if name == "..":
                 fd, shown = _replace(fd, os.open("..", _OPEN_DIRECTORY, dir_fd=fd)), shown.parent
                 continue
@@ -71,9 +73,9 @@ def open_directory(directory: Path, access: FileAccess) -> int:
     return fd
 
 
-def make_directory(directory: Path, access: FileAccess) -> None:
+def make_directory(directory: Path, access: FileAccess, robot: bool = True) -> None:
     """Create (or check) `directory` as the recorder will, without keeping a handle: `open_directory`'s checks."""
-    os.close(open_directory(directory, access))
+    os.close(open_directory(directory, access, robot))
 
 
 def _replace(old: int, new: int) -> int:
