@@ -16,6 +16,7 @@ from plem.bridge.client import RobotClient, connect
 from plem.control.modes import Mode
 from plem.errors import MoveItCode, PlanningError
 from plem.planning import Box, Pose, SceneObject
+from plem.planning.goals import MAX_IK_TIMEOUT_S
 from tests.e2e.cli import run_plem
 from tests.e2e.launched import Launch, launched_robot, process_gone, wait_for
 
@@ -102,7 +103,7 @@ def test_killing_the_planner_mid_request_leaves_the_arm_holding(launch: Launch, 
 
     def ask() -> None:
         try:
-            client.compute_ik(Pose((5.0, 0.0, 0.0)), timeout=30.0)
+            client.compute_ik(Pose((5.0, 0.0, 0.0)), timeout=MAX_IK_TIMEOUT_S)
         except PlanningError as error:
             failures.append(error)
 
