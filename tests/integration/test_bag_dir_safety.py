@@ -142,6 +142,22 @@ def test_links_on_the_way_are_followed_only_when_root_or_the_user_owns_them(shar
     assert (shared / "real" / "arm").is_dir()
 
 
+def test_a_directory_on_the_way_that_may_only_be_passed_through_is_enough(shared: Path):
+    """A home of mode 0711: the recorder's user may pass through it without reading it, and records below it."""
+    home = shared / "home"
+    home.mkdir()
+    home.chmod(0o711)
+    (home / "bags").mkdir()
+    os.chown(home / "bags", NOBODY, NOBODY)
+
+    def record_there() -> str:
+        Recorder(RecordingSettings(home / "bags" / "arm"), "arm", MONITOR_TOPICS, STORE).close()
+        return "recorded"
+
+    assert as_user(record_there) == "recorded"
+    assert (home / "bags" / "arm").stat().st_uid == NOBODY and mode_of(home / "bags" / "arm") == 0o700
+
+
 def test_a_robot_directory_swapped_while_recording_redirects_nothing(shared: Path):
     """nobody owns bag_dir, so it may rename root's robot directory and put a link in its place: the segments
     still go into root's directory (held open), and recreating it refuses the link and stops recording."""

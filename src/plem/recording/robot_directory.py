@@ -31,6 +31,8 @@ from plem.recording.problems import MOVE_BAG_DIR, UnsafeDirectory
 #: Symbolic links followed on the way before the walk gives up, as the kernel does (ELOOP).
 MAX_LINKS = 40
 _OPEN_DIRECTORY = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+#: A directory on the way is only passed through: its handle needs no read permission (a home of mode 0711).
+_PASS_THROUGH = os.O_PATH | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 
 
 def open_directory(directory: Path, access: FileAccess, robot: bool = True) -> int:
@@ -44,14 +46,14 @@ def open_directory(directory: Path, access: FileAccess, robot: bool = True) -> i
     path = Path(os.path.abspath(directory))
     parts = list(path.parts[1:])
     shown = Path("/")
-    fd = os.open("/", _OPEN_DIRECTORY)
+    fd = os.open("/", _PASS_THROUGH)
     links = 0
     try:
         while parts:
             name = parts.pop(0)
             last = robot and not parts
             if name == "..":
-                fd, shown = _replace(fd, os.open("..", _OPEN_DIRECTORY, dir_fd=fd)), shown.parent
+                fd, shown = _replace(fd, os.open("..", _PASS_THROUGH, dir_fd=fd)), shown.parent
                 continue
             here = shown / name
             child, created = _open_or_create(fd, name, here, access, last)
@@ -62,7 +64,7 @@ def open_directory(directory: Path, access: FileAccess, robot: bool = True) -> i
                 target = Path(os.readlink(name, dir_fd=fd))
                 parts = [*target.parts[1:], *parts] if target.is_absolute() else [*target.parts, *parts]
                 if target.is_absolute():
-                    fd, shown = _replace(fd, os.open("/", _OPEN_DIRECTORY)), Path("/")
+                    fd, shown = _replace(fd, os.open("/", _PASS_THROUGH)), Path("/")
                 continue
             fd = _replace(fd, child)
             shown = here
@@ -84,10 +86,13 @@ def _replace(old: int, new: int) -> int:
 
 
 def _open_or_create(parent: int, name: str, here: Path, access: FileAccess, last: bool) -> tuple[int | None, bool]:
-    """(fd of `name` in `parent`, whether this call created it); (None, False) for a link root or we own."""
+    """(fd of `name` in `parent`, whether this call created it); (None, False) for a link root or we own.
+
+    The robot's directory, and one created here, are opened for reading (their access is set through the
+    handle); a directory on the way only to pass through."""
     for _ in range(2):                                    # a directory created by another process meanwhile
         try:
-            return os.open(name, _OPEN_DIRECTORY, dir_fd=parent), False
+            return os.open(name, _OPEN_DIRECTORY if last else _PASS_THROUGH, dir_fd=parent), False
         except FileNotFoundError:
             try:
                 os.mkdir(name, access.directory_mode, dir_fd=parent)
