@@ -21,7 +21,7 @@ from plem.launch import LaunchFileError, load_launch_file
 from plem.robot.config import MAX_ROBOT_ID_CHARS, robot_id_problem
 from tests.e2e.cli import plem_executable
 from tests.integration.arm_shapes import generated
-from tests.integration.test_broken_packages import describe, replace, run_validation
+from tests.integration.test_broken_packages import describe, line_of, replace, run_validation
 
 NAME = "hostile"
 URDF = f"urdf/{NAME}.urdf.xacro"
@@ -107,9 +107,9 @@ def test_link_names_hold_no_invisible_characters(arm: Path):
     '<sphere radius="1e400"/>',
 ], ids=["negative_cylinder", "huge_cylinder", "nan_cylinder", "flat_box", "two_number_box", "infinite_sphere"])
 def test_shapes_have_a_real_size(arm: Path, shape: str):
-    replace(URDF, FIRST_CYLINDER, shape)(arm)
-    problems = refused(startup(arm), "urdf.value", URDF)
-    assert "base_link" in problems[0].why
+    replace(URDF, FIRST_CYLINDER, shape)(arm)  # in the macro every link's visual uses
+    problem, = refused(startup(arm), "urdf.value", URDF)  # one problem for the value, naming each link
+    assert "link 'base_link'" in problem.why and "link 'link6'" in problem.why
 
 
 @pytest.mark.parametrize("origin", [
@@ -119,14 +119,15 @@ def test_shapes_have_a_real_size(arm: Path, shape: str):
 def test_origins_are_finite_and_near(arm: Path, origin: str):
     replace(URDF, BASE_ORIGIN, origin)(arm)
     problems = refused(startup(arm), "urdf.value", URDF)
-    assert "joint joint1" in problems[0].why and "<origin" in problems[0].why
+    assert "joint 'joint1'" in problems[0].why and "<origin" in problems[0].why
+    assert problems[0].line == line_of(arm / URDF, origin)
 
 
 def test_every_number_of_a_parsed_urdf_is_kept_for_the_checks():
     urdf = parse_urdf('<robot name="r"><link name="a"><visual><origin xyz="1 2 3"/><geometry><mesh filename="m.stl" '
                       'scale="1 1 1"/></geometry></visual></link></robot>', Path("r.urdf"))
-    assert urdf.quantities == [Quantity("link a", "origin", "xyz", (1.0, 2.0, 3.0), 3, 1),
-                               Quantity("link a", "mesh", "scale", (1.0, 1.0, 1.0), 3, 1)]
+    assert urdf.quantities == [Quantity("link", "a", "origin", "xyz", (1.0, 2.0, 3.0), 3, 1),
+                               Quantity("link", "a", "mesh", "scale", (1.0, 1.0, 1.0), 3, 1)]
 
 
 # -- controllers.yaml and kinematics.yaml ------------------------------------------------------------------------

@@ -190,10 +190,12 @@ def symmetric_eigenvalues(matrix: list[list[float]]) -> list[float]:
 
 @dataclass(frozen=True)
 class Quantity:
-    """A numeric attribute of the URDF (`<origin xyz>`, `<cylinder radius>`, ...): where it is, what it holds (NaN
-    for a part that is no number) and how many numbers it should hold."""
+    """A numeric attribute of the URDF (`<origin xyz>`, `<cylinder radius>`, ...): the link or joint it is in
+    (`kind` "link" or "joint", and its name), what it holds (NaN for a part that is no number) and how many numbers
+    it should hold."""
 
-    owner: str
+    kind: str
+    name: str
     tag: str
     attribute: str
     values: tuple[float, ...]
@@ -201,12 +203,12 @@ class Quantity:
     line: int | None
 
     @property
-    def place(self) -> str:
-        """How messages name it: 'link base_link: <cylinder radius="-1">'."""
-        return f'{self.owner}: <{self.tag} {self.attribute}="{" ".join(f"{v:g}" for v in self.values)}">'
+    def written(self) -> str:
+        """How messages show it: '<cylinder radius="-1">'."""
+        return f'<{self.tag} {self.attribute}="{" ".join(f"{v:g}" for v in self.values)}">'
 
 
-def _quantities(owner: str, element: etree._Element) -> list[Quantity]:
+def _quantities(kind: str, element: etree._Element) -> list[Quantity]:
     """Every QUANTITIES attribute in `element` and below it, as written."""
     found = []
     for tag, attributes in QUANTITIES.items():
@@ -214,7 +216,8 @@ def _quantities(owner: str, element: etree._Element) -> list[Quantity]:
             for attribute, count in attributes.items():
                 values = _floats(child.get(attribute))
                 if values is not None:
-                    found.append(Quantity(owner, tag, attribute, values, count, source_line(child)))
+                    found.append(Quantity(kind, element.get("name") or "", tag, attribute, values, count,
+                                          source_line(child)))
     return found
 
 
@@ -329,7 +332,7 @@ def parse_urdf(text: str, source: Path) -> UrdfModel:
     collision_meshes = [(link.get("name") or "", mesh.get("filename") or "") for link in root.findall("link")
                         for mesh in link.findall("collision/geometry/mesh")]
     quantities = [quantity for kind in ("link", "joint") for element in root.findall(kind)
-                  for quantity in _quantities(f"{kind} {element.get('name') or ''}", element)]
+                  for quantity in _quantities(kind, element)]
     return UrdfModel(name=root.get("name") or "", links=links, joints=joints, ros2_control=blocks, meshes=meshes,
                      inertials=inertials, collision_meshes=collision_meshes, quantities=quantities)
 

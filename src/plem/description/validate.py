@@ -45,6 +45,7 @@ from plem.description.model import (
     SHAPES,
     Inertial,
     Joint,
+    Quantity,
     SrdfModel,
     UrdfModel,
     XacroSources,
@@ -167,7 +168,7 @@ def _validate(files: DescriptionFiles, stage: Stage) -> ValidationReport:
         _check_tree(urdf, source, found)
         _check_joint_types(urdf, source, found)
         _check_urdf_values(report, urdf, source)
-        _check_quantities(urdf, source, found)
+        _check_quantities(report, urdf, source)
         _check_ros2_control(report, urdf, source)
         _check_limits_against_urdf(report, urdf)   # a file that loosens the URDF's limits never starts a robot
         _check_meshes(report, urdf, source)        # a missing collision mesh disables planning at launch
@@ -439,29 +440,42 @@ def _check_urdf_values(report: ValidationReport, urdf: UrdfModel, source: Path) 
     _check_masses_plausible(report, urdf, source)
 
 
-def _check_quantities(urdf: UrdfModel, source: Path, found: Findings) -> None:
+def _check_quantities(report: ValidationReport, urdf: UrdfModel, source: Path) -> None:
     """Every <origin>, shape, mesh scale and <dynamics> number finite and of the count its attribute takes; shape
-    sizes above 0 and offsets and sizes at most MAX_LENGTH_M (the planner and the view build geometry from them)."""
+    sizes above 0 and offsets and sizes at most MAX_LENGTH_M (the planner and the view build geometry from them).
+    One problem per value, naming every link or joint holding it (a macro repeats a value in many)."""
+    bad: dict[tuple[str, str, str], list[Quantity]] = {}
     for quantity in urdf.quantities:
-        values = quantity.values
-        if len(values) != quantity.expected or not all(map(math.isfinite, values)):
-            problem = (f"it holds {len(values)} numbers, not {quantity.expected}" if len(values) != quantity.expected
-                       else "it is not finite (nan, inf or beyond ±1.8e308)")
-        elif quantity.tag in SHAPES and not all(0.0 < value <= MAX_LENGTH_M for value in values):
-            problem = f"a size must be above 0 and at most {MAX_LENGTH_M:g} m"
-        elif quantity.attribute == "xyz" and not all(abs(value) <= MAX_LENGTH_M for value in values):
-            problem = f"an offset must be at most {MAX_LENGTH_M:g} m in each direction"
-        elif quantity.tag == "mesh" and not all(0.0 < abs(value) <= MAX_LENGTH_M for value in values):
-            problem = f"a scale must be non-zero and at most {MAX_LENGTH_M:g} in size"
-        else:
-            continue
-        found.error("urdf.value", f"The URDF has an unusable <{quantity.tag} {quantity.attribute}>",
-                    what=f"<{quantity.tag} {quantity.attribute}> with {quantity.expected} finite number"
-                         f"{'s' if quantity.expected > 1 else ''}; shape sizes above 0 and sizes and offsets at most "
-                         f"{MAX_LENGTH_M:g} m",
-                    why=f"{truncated(quantity.place, 200)}: {problem}"
-                        + rendered_line_note(None, quantity.line),
-                    how=f"write the real value (metres, radians) in {source.name}", file=source)
+        problem = _quantity_problem(quantity)
+        if problem is not None:
+            bad.setdefault((quantity.written, quantity.attribute, problem), []).append(quantity)
+    for (written, attribute, problem), quantities in bad.items():
+        first = quantities[0]
+        path, line, _ = _urdf_place(report, first.kind, first.name, first.tag, None)
+        owners = ", ".join(f"{q.kind} {truncated(ascii(q.name), 60)}" for q in quantities[:10])
+        more = f" and {len(quantities) - 10} more" if len(quantities) > 10 else ""
+        report.findings.error(
+            "urdf.value", f"The URDF has an unusable <{first.tag} {attribute}>",
+            what=f"<{first.tag} {attribute}> with {first.expected} finite number{'s' if first.expected > 1 else ''}; "
+                 f"shape sizes above 0 and sizes and offsets at most {MAX_LENGTH_M:g} m",
+            why=f"{truncated(written, 200)} in {owners}{more}: {problem}",
+            how=f"write the real value (metres, radians) in {(path or source).name}", file=path or source, line=line)
+
+
+def _quantity_problem(quantity: Quantity) -> str | None:
+    """What is wrong with one URDF number, or None."""
+    values = quantity.values
+    if len(values) != quantity.expected:
+        return f"it holds {len(values)} numbers, not {quantity.expected}"
+    if not all(map(math.isfinite, values)):
+        return "it is not finite (nan, inf or beyond ±1.8e308)"
+    if quantity.tag in SHAPES and not all(0.0 < value <= MAX_LENGTH_M for value in values):
+        return f"a size must be above 0 and at most {MAX_LENGTH_M:g} m"
+    if quantity.attribute == "xyz" and not all(abs(value) <= MAX_LENGTH_M for value in values):
+        return f"an offset must be at most {MAX_LENGTH_M:g} m in each direction"
+    if quantity.tag == "mesh" and not all(0.0 < abs(value) <= MAX_LENGTH_M for value in values):
+        return f"a scale must be non-zero and at most {MAX_LENGTH_M:g} in size"
+    return None
 
 
 def _bad_limit_values(joint: Joint) -> list[str]:
