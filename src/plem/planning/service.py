@@ -177,15 +177,16 @@ class PlannerService:
         if op in ("plan", "cartesian"):
             options = request.get("options")
             asked = options.get("timeout_s") if isinstance(options, dict) else None
-            valid = isinstance(asked, int | float) and not isinstance(asked, bool) and math.isfinite(asked)
-            return float(asked) if valid else PLANNING_TIME_S  # type: ignore[arg-type]
+            if isinstance(asked, int | float) and not isinstance(asked, bool) and math.isfinite(asked):
+                return float(asked)
+            return PLANNING_TIME_S
         return None
 
     def _log_internal(self, op: str, error: Exception) -> None:
-        """A request's internal error in the log: the traceback the first time, one line after that."""
+        """A request's internal error in the log, with its traceback, once per request kind and error type (a client
+        repeating a request that trips over a bug never floods the launch's output)."""
         key = (op, type(error).__name__)
         if key in self._logged:
-            _log.warning("planner request %r failed again: %s: %s", op, type(error).__name__, str(error)[:200])
             return
         self._logged.add(key)
         _log.error("planner request %r failed (logged once; the planner serves on)", op, exc_info=error)
