@@ -863,7 +863,7 @@ def _check_controllers(report: ValidationReport, urdf: UrdfModel) -> None:
 def _check_controller_values(report: ValidationReport) -> None:
     """controllers.yaml's controller names are ROS 2 node names and its update_rate a rate the loop can run."""
     path, found = report.files.controllers, report.findings
-    document = _read_mapping(path, "controllers", Findings())  # _check_controllers reports a file that cannot be read
+    document = _read_mapping(path, "controllers", Findings())  # unreadable: _check_controllers or the launch says
     if document is None or path is None:
         return
     for name, body in document.root.items():
@@ -888,7 +888,7 @@ def _check_controller_values(report: ValidationReport) -> None:
 def _check_kinematics_values(report: ValidationReport) -> None:
     """kinematics.yaml's solver timeout, search resolution and attempts are numbers within KINEMATICS_RANGES."""
     path, found = report.files.kinematics, report.findings
-    document = _read_mapping(path, "kinematics", Findings())  # _check_kinematics reports a file that cannot be read
+    document = _read_mapping(path, "kinematics", Findings())  # unreadable: _check_kinematics or the planner says
     if document is None or path is None:
         return
     for group, body in document.root.items():
