@@ -160,8 +160,11 @@ def test_nested_json_is_answered_and_the_connection_serves_on(launch: Launch) ->
 
         def answer(payload: bytes) -> dict[str, Any]:
             connection.sendall(frame(payload))
-            while not (frames := reader.feed(connection.recv(1 << 16))):
-                pass
+            frames: list[bytes] = []
+            while not frames:
+                data = connection.recv(1 << 16)
+                assert data, "the planner closed the connection"
+                frames = reader.feed(data)
             found: dict[str, Any] = json.loads(frames[0])
             return found
 
