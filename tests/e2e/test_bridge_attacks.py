@@ -15,6 +15,7 @@ import signal
 import struct
 import threading
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -24,10 +25,11 @@ from cyclonedds.util import duration
 
 from plem.bridge import connect
 from plem.launch.supervisor import RESTART_WINDOW_S, RESTARTS
+from plem.middleware.action import SUCCEEDED, goal_uuid
 from plem.middleware.node import Node
 from plem.middleware.qos import QosProfile
 from tests.e2e.launched import Launch, launched_robot, process_gone, wait_until
-from tests.e2e.ros_peer import JOINT_NAMES, TRAJECTORY, RosPeer, shifted
+from tests.e2e.ros_peer import FJT, JOINT_NAMES, TRAJECTORY, RosPeer, shifted
 
 TRAJECTORY_TYPE = "trajectory_msgs/msg/JointTrajectory"
 LIST_CONTROLLERS = "controller_manager_msgs/srv/ListControllers"
@@ -149,6 +151,23 @@ def test_a_bad_sample_never_costs_the_good_one_beside_it(launch: Launch, peer: R
     assert "Traceback" not in said and "UnicodeDecodeError" not in said, said
     (line,) = [line for line in said.splitlines() if "dropped a sample" in line]
     assert f"/{launch.robot_id}/{TRAJECTORY}/joint_trajectory" in line and "UTF-8" in line, line
+
+
+def test_a_goal_with_a_bad_string_is_dropped_and_the_next_goal_runs(launch: Launch, peer: RosPeer):
+    with connect(launch.robot_id) as client:
+        start = client.wait_for_state().position.tolist()
+    target = shifted(start, 1, 0.05)
+    requests = peer.follow._send_goal._requests   # the action's send_goal request writer, for raw CDR
+    bad_names = ["joint\u00e91", *JOINT_NAMES[1:]]
+    bad = requests.message(goal_id=goal_uuid(peer.node, uuid.uuid4().bytes), rmw_guid=1, rmw_seq=1,
+                           goal=peer.library.new(f"{FJT}_Goal", trajectory=peer.trajectory([(target, 0.5)], bad_names)))
+    errors_before = len(launch.errors)
+    requests.publish_cdr(bad.serialize().replace("joint\u00e91".encode(), b"joint\xff\xfe1"))
+    status, result, _ = peer.follow_goal(peer.send_trajectory(peer.trajectory([(target, 0.5)])), 30)
+    assert status == SUCCEEDED, result.error_string
+    assert wait_until(lambda: "dropped a sample" in launch.errors[errors_before:], 5), launch.describe()
+    (line,) = [line for line in launch.errors[errors_before:].splitlines() if "dropped a sample" in line]
+    assert "follow_joint_trajectory/_action/send_goal" in line and "not valid UTF-8" in line, line
 
 
 def test_an_oversized_service_request_is_dropped_before_it_is_decoded(launch: Launch, peer: RosPeer):
