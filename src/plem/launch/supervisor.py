@@ -298,7 +298,8 @@ class Supervisor:
             if len(recent) >= RESTARTS:
                 self.say(f"{child.label} gave up restarting it: it died {len(recent) + 1} times within "
                          f"{RESTART_WINDOW_S:.0f} s, the last time {child.death()}. The robot runs on without it; "
-                         f"its lines above, prefixed {child.label}, say why; fix that and restart plem launch")
+                         f"its log lines above, which start with [{child.component}], say why; fix that and "
+                         "restart plem launch")
                 return
             self._restarts[key] = [*recent, now]
             self.say(f"{child.label} restarting it ({len(recent) + 1} of {RESTARTS} restarts allowed within "
