@@ -20,6 +20,7 @@ import numpy as np
 from ruckig import InputParameter, Ruckig, Trajectory
 
 from plem.control.limits import ArmLimits
+from plem.control.ruckig_results import calculate
 from plem.control.spline import Spline
 from plem.control.trajectory import JointTrajectory, TrajectoryPoint
 from plem.planning.retiming import along_straight_lines, fit_to_limits
@@ -75,6 +76,6 @@ def duration_bound(states: np.ndarray, limits: ArmLimits) -> float:
         parameters.max_velocity, parameters.max_acceleration = [float(velocity)], [float(acceleration)]
         parameters.max_jerk = [float(jerk)]
         profile = Trajectory(1)
-        Ruckig(1).calculate(parameters, profile)
+        calculate(Ruckig(1), parameters, profile, "the bound on the path's duration")
         bound = max(bound, float(profile.duration))
     return bound

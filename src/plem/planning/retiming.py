@@ -36,6 +36,7 @@ from plem.control.polynomial import (
     hermite_coefficients,
     segment_ranges,
 )
+from plem.control.ruckig_results import calculate
 from plem.control.spline import AT_REST, Spline, Waypoints, beyond, read_waypoints
 from plem.control.trajectory import JointTrajectory
 from plem.errors import CommandRejected
@@ -390,7 +391,7 @@ def _line(limits: ArmLimits, begin: np.ndarray, end: np.ndarray, minimum_duratio
     parameters.max_velocity, parameters.max_acceleration, parameters.max_jerk = ([b] for b in bounds)
     parameters.minimum_duration = minimum_duration
     profile = Trajectory(1)
-    Ruckig(1).calculate(parameters, profile)
+    calculate(Ruckig(1), parameters, profile, "a straight segment of the path")
     along = from_ruckig(profile, 1)
     coefficients = along.coefficients * delta
     coefficients[:, 0] += begin
