@@ -7,9 +7,12 @@ import threading
 
 import numpy as np
 
+from plem.control.commands import CommandHandle
+from plem.control.compiled import CONSTANTS as C
 from plem.control.core_thread import CoreThread
 from plem.control.events import EventKind
 from plem.control.modes import Mode
+from plem.control.runtime import MAX_UNANSWERED
 from plem.control.trajectory import TrajectoryOutcome
 from tests.integration.robot_fixtures import simulated_robot
 
@@ -65,3 +68,28 @@ def test_the_thread_stops_on_shutdown_and_the_arm_ends_disabled():
     robot.shutdown()
     assert not robot.running and not robot.runtime.thread_running
     assert robot.mode is Mode.IDLE
+
+
+def test_every_request_is_answered_when_answers_are_read_late():
+    """The core drops answers that find its outcome ring full: while the answers wait unread (a busy machine
+    delays the thread that reads them), requests beyond what the ring holds wait to be sent instead of losing
+    their answers."""
+    robot = simulated_robot()
+    requests = C["PLEM_OUTCOME_SLOTS"] + 2 * C["PLEM_COMMAND_SLOTS"]
+    with robot:
+        robot.set_mode(Mode.HOLD)
+        runtime = robot.runtime
+        reading, drain = threading.Event(), runtime.drain
+        runtime.drain = lambda: reading.wait() and drain()   # type: ignore[method-assign]  # answers held unread
+        handles: list[CommandHandle] = []
+        sender = threading.Thread(target=lambda: handles.extend(robot.request_mode(Mode.HOLD)
+                                                                for _ in range(requests)))
+        sender.start()
+        commands, _ = runtime._rings["commands"]
+        while not (len(handles) == requests or runtime._pending and len(runtime._pending) >= MAX_UNANSWERED):
+            reading.wait(0.001)
+        while int(commands["tail"]) != int(commands["head"]):   # the core has taken every request sent so far
+            reading.wait(0.001)
+        reading.set()
+        sender.join()
+        assert [handle.wait(10) for handle in handles] == [Mode.HOLD] * requests

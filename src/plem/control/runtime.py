@@ -45,8 +45,11 @@ from plem.fieldbus.bus import BusSetup, DriveState, IBus, SteppedBus
 from plem.ipc.motion_slab import MotionSlab, MotionSlabError
 from plem.ipc.ring import SlotRing
 
-#: Longest a request waits for room in the core's command ring.
+#: Longest a request waits for room in the core's command ring, or for answers to make room for its own.
 QUEUE_WAIT_S = 2.0
+#: Requests other than stops the core may hold unanswered. Each gets at most two answers (accepted, finished) on
+#: the outcome ring, which drops what finds it full: this bound keeps room for them, and for a ring of stops.
+MAX_UNANSWERED = (C["PLEM_OUTCOME_SLOTS"] - C["PLEM_COMMAND_SLOTS"]) // 2
 #: Tokens that never name a request: a stop aimed at a goal that already ended stops nothing.
 NO_TOKEN = (1 << 64) - 1
 #: Refusals the event log records (the others are a stale plan, retried, or are reported by the core itself).
@@ -293,11 +296,15 @@ class ArmRuntime:
             head = int(index["head"])
             waited = threading.Event()
             deadline = time.monotonic() + QUEUE_WAIT_S
-            while head - int(index["tail"]) >= len(records):   # the loop takes a few each cycle
+            # the loop takes a few each cycle; a stop never waits for answers to other requests
+            while (head - int(index["tail"]) >= len(records)
+                   or (not isinstance(command, StopMotion) and len(self._pending) >= MAX_UNANSWERED)):
                 if time.monotonic() > deadline:
                     raise CommandRejected("the robot's request queue is full",
-                                          what=f"at most {len(records)} requests waiting for the loop",
-                                          why=f"no request was taken for {QUEUE_WAIT_S:g} s: the loop is not running",
+                                          what=f"at most {len(records)} requests waiting for the loop and "
+                                               f"{MAX_UNANSWERED} waiting for its answer",
+                                          why=f"no request was taken or answered for {QUEUE_WAIT_S:g} s: the loop "
+                                              "is not running",
                                           how="start the robot (robot.start()), or step it, and send fewer requests")
                 waited.wait(0.0005)
             record = records[head % len(records)]
