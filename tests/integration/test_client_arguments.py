@@ -8,6 +8,7 @@ import json
 import math
 import socket
 import struct
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -23,7 +24,7 @@ from plem.core.arguments import ArgumentError
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.command_socket import frame, socket_path
 from plem.ipc.request_bounds import MIN_SPEED_SCALE
-from plem.launch.command_service import MAX_IN_FLIGHT
+from plem.launch.command_service import COUNTERS_PERIOD_S, MAX_IN_FLIGHT
 from plem.launch.plan import plan_robot
 from plem.launch.rt_driver import Driver, driving
 from tests.e2e.launched import wait_until
@@ -154,8 +155,18 @@ def driver_counts(client: RobotClient, until: Callable[[dict[str, int]], bool] =
     return client.stats()["commands"]
 
 
+def settled_counts(client: RobotClient) -> dict[str, int]:
+    """The driver's command counters once two records three counter periods apart agree: nothing of an earlier
+    request is still on its way to them."""
+    previous: dict[str, int] = {}
+    while (counts := driver_counts(client)) != previous:
+        previous = counts
+        time.sleep(3 * COUNTERS_PERIOD_S)   # the period of the condition: counts still arriving change within it
+    return counts
+
+
 def test_repeated_mode_requests_and_stops_are_answered_without_the_driver(client):
-    before = driver_counts(client)
+    before = settled_counts(client)
     requests = [{"id": f"f{i}", "op": "set_mode" if i % 2 else "stop", **({"mode": "hold"} if i % 2 else {})}
                 for i in range(2000)]
     answers = flood(client.robot_id, requests)
@@ -170,7 +181,7 @@ def test_repeated_mode_requests_and_stops_are_answered_without_the_driver(client
 def test_a_repeated_mode_change_shares_the_answer_of_the_one_on_its_way(client):
     client.set_mode("idle")
     try:
-        before = driver_counts(client)
+        before = settled_counts(client)
         answers = flood(client.robot_id, [{"id": f"h{i}", "op": "set_mode", "mode": "hold"} for i in range(200)])
         assert [answer["stage"] for answer in answers] == ["finished"] * 200, answers[:3]
         assert {answer["result"] for answer in answers} == {"hold"}
