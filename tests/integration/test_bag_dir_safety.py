@@ -17,7 +17,6 @@ import stat
 import subprocess
 import sys
 import tempfile
-import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -31,7 +30,7 @@ from plem.recording.problems import RecordingError
 from plem.recording.recorder import Recorder
 from plem.recording.settings import RecordingSettings
 from tests.integration.test_local_users import NOBODY, as_user
-from tests.integration.test_recorder import STORE, Clock, Samples, fault, recorded
+from tests.integration.test_recorder import STORE, Clock, Samples, fault, recorded, tmpfs
 
 OWNER = f"nobody (uid {NOBODY})"
 
@@ -246,15 +245,9 @@ def test_a_deleted_robot_directory_is_created_again_and_recording_goes_on(tmp_pa
 # -- a disk other files fill -------------------------------------------------------------------------------
 @pytest.fixture
 def disk(tmp_path: Path) -> Iterator[Path]:
-    """A 16 MiB tmpfs (needs root and mount), unmounted afterwards."""
-    mount = tmp_path / f"disk_{uuid.uuid4().hex[:6]}"
-    mount.mkdir()
-    result = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=16m", "tmpfs", str(mount)], capture_output=True,
-                            text=True)
-    if result.returncode != 0:
-        pytest.skip(f"cannot mount a small tmpfs here: {result.stderr.strip()}")
-    yield mount
-    subprocess.run(["umount", "--lazy", str(mount)], check=True)
+    """A 16 MiB tmpfs."""
+    with tmpfs(tmp_path, "16m") as mount:
+        yield mount
 
 
 def test_a_disk_other_files_fill_keeps_every_segment_stops_and_resumes(disk: Path, caplog):

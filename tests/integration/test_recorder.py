@@ -170,17 +170,26 @@ def test_the_fault_offset_counts_from_the_segments_earliest_message(tmp_path: Pa
         assert reader.start_time + round(entry["offset_s"] * 1e9) == entry["fault_time_ns"]
 
 
-@pytest.fixture
-def small_disk(tmp_path: Path) -> Iterator[Path]:
-    """A 2 MiB tmpfs (needs root and mount), unmounted after the test."""
-    mount = tmp_path / f"disk_{uuid.uuid4().hex[:6]}"
+@contextlib.contextmanager
+def tmpfs(parent: Path, size: str) -> Iterator[Path]:
+    """A tmpfs of `size` (mount's notation, e.g. 2m) under `parent` (needs root and mount), unmounted afterwards."""
+    mount = parent / f"disk_{uuid.uuid4().hex[:6]}"
     mount.mkdir()
-    result = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mount)], capture_output=True,
+    result = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)], capture_output=True,
                             text=True)
     if result.returncode != 0:
         pytest.skip(f"cannot mount a small tmpfs here: {result.stderr.strip()}")
-    yield mount
-    subprocess.run(["umount", str(mount)], check=True)
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "--lazy", str(mount)], check=True)
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 2 MiB tmpfs."""
+    with tmpfs(tmp_path, "2m") as mount:
+        yield mount
 
 
 def open_files_under(directory: Path) -> list[str]:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from plem.errors import CommandRejected
+from plem.ipc.request_bounds import shown
 
 
 class ArgumentError(CommandRejected, TypeError):
@@ -23,10 +24,9 @@ class ArgumentError(CommandRejected, TypeError):
 
 def refused(name: str, expected: str, value: Any, how: str | None = None) -> ArgumentError:
     """The error for `value` given as `name` where `expected` was expected."""
-    shown = repr(value)
-    shown = shown if len(shown) <= 80 else shown[:77] + "..."
     return ArgumentError(f"{name} is not {expected}", what=f"{name} as {expected}",
-                         why=f"got {shown} ({type(value).__name__})", how=how or f"pass {name} as {expected}")
+                         why=f"got {shown(repr(value), 80)} ({type(value).__name__})",
+                         how=how or f"pass {name} as {expected}")
 
 
 def is_real(value: Any) -> bool:
