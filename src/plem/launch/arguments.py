@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from plem.control.limits import ArmLimits
+from plem.control.payload import PAYLOAD_RULES, Payload
 from plem.core.config.launch_args import number_list, parse_launch_arguments, shown
 from plem.core.config.settings import Setting
 from plem.errors import ConfigError
@@ -56,6 +57,9 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
                    "comma-separated rad (m for "
                    "a prismatic joint), one per joint in drive order, each inside its range; default: zero, else the "
                    "SRDF's home, else the middle of each range"),
+    LaunchArgument("payload", "", "what the flange carries: mass,x,y,z (kg; centre of mass in m in the flange "
+                   "frame) or mass,x,y,z,ixx,ixy,ixz,iyy,iyz,izz (and its inertia in kg·m², URDF order); default: "
+                   "the robot profile's, else none"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
     LaunchArgument("planner", "true", "start the motion planner when the package has an SRDF (IK, collision "
@@ -120,6 +124,26 @@ def initial_positions(text: str, bus: str, limits: ArmLimits) -> tuple[float, ..
                       "config/joint_limits.yaml), or leave initial_positions out to start at zero, the SRDF's home "
                       "or the middle of each range")
     return tuple(values)
+
+
+def payload(text: str) -> Payload | None:
+    """The payload of `payload:=` (None when empty): 4 or 10 comma-separated numbers meeting the payload rules;
+    else a ConfigError saying what to give."""
+    if not text.strip():
+        return None
+    values = number_list(text)
+    try:
+        if values is None:
+            raise Payload.refused(f"'{shown(text)}' is not a list of plain numbers (digits 0-9, an optional sign "
+                                  "and point)")
+        return Payload.from_numbers(values)
+    except ConfigError as error:
+        raise ConfigError(f"invalid launch argument payload:={shown(text)}",
+                          what=f"4 comma-separated numbers (mass, x, y, z) or 10 (and ixx, ixy, ixz, iyy, iyz, izz): "
+                               f"{PAYLOAD_RULES}",
+                          why=error.why,
+                          how="e.g. payload:=1.5,0,0,0.05 for 1.5 kg 5 cm past the flange, or leave payload out "
+                              "for none") from None
 
 
 def help_text() -> str:

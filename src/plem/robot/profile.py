@@ -1,4 +1,5 @@
-"""RobotProfile: per-unit calibration (encoder offsets) stored as JSON in ~/.plem/profiles/<serial>.json."""
+"""RobotProfile: per-unit calibration (encoder offsets) and the payload it carries, stored as JSON in
+~/.plem/profiles/<serial>.json."""
 
 from __future__ import annotations
 
@@ -8,15 +9,18 @@ import sys
 from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pydantic import BaseModel, ConfigDict, Field, StrictInt, StrictStr, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictFloat, StrictInt, StrictStr, ValidationError, model_validator
 
 from plem.core.config.environment import plem_home
 from plem.core.files import read_regular_text, write_atomic, write_new
 from plem.errors import ConfigError, ProfileError
 from plem.robot.config import SUPPORTED_DOF, offsets_problem
 from plem.robot.serial import serial_problem
+
+if TYPE_CHECKING:
+    from plem.control.payload import Payload
 
 PROFILE_SUFFIX = ".json"
 PROFILE_MODE = 0o600
@@ -61,14 +65,41 @@ def _parse_json(text: str, path: Path, serial_hint: str) -> Any:
     )
 
 
+class ProfilePayload(BaseModel):
+    """The payload a unit carries: mass (kg), centre of mass (m, flange frame), and optionally its inertia about
+    that centre as six numbers in the URDF's order (ixx, ixy, ixz, iyy, iyz, izz; kg·m²)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    mass: StrictFloat
+    center_of_mass: list[StrictFloat] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    inertia: list[StrictFloat] | None = None
+
+    def problems(self) -> list[str]:
+        """Every reason this is not a payload plem accepts (plem.control.payload's rules), empty when it is."""
+        from plem.control.payload import inertia_matrix, payload_problems  # numpy only for profiles with one
+        if self.inertia is not None and len(self.inertia) != 6:
+            return [f"payload inertia has {len(self.inertia)} values, not 6 (ixx, ixy, ixz, iyy, iyz, izz)"]
+        inertia = None if self.inertia is None else inertia_matrix(*self.inertia)
+        return [f"payload: {problem}" for problem in payload_problems(self.mass, self.center_of_mass, inertia)]
+
+    def to_payload(self) -> Payload:
+        """The checked Payload (a ConfigError when `problems` is not empty)."""
+        from plem.control.payload import Payload
+        return Payload.from_numbers([self.mass, *self.center_of_mass, *(self.inertia or [])])
+
+
 class RobotProfile(BaseModel):
-    """Calibration of one robot unit: its serial, one encoder offset per joint, and when it was made."""
+    """Calibration of one robot unit: its serial, one encoder offset per joint, when it was made, and optionally
+    the payload it carries (used by gravity compensation and the external-torque estimate when no `payload:=`
+    launch argument or `robot.set_payload` says otherwise)."""
 
     model_config = ConfigDict(extra="ignore")
 
     robot_serial: StrictStr = ""
     joint_offsets: list[StrictInt] = Field(default_factory=list)
     profile_date: StrictStr | None = None
+    payload: ProfilePayload | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -98,6 +129,8 @@ class RobotProfile(BaseModel):
                 datetime.fromisoformat(self.profile_date)
             except (TypeError, ValueError):
                 found.append(f"profile_date {self.profile_date!r} is not an ISO 8601 time such as 2026-01-22T10:30:00Z")
+        if self.payload is not None:
+            found.extend(self.payload.problems())
         return found
 
     def is_valid(self, dof: int | None = None) -> bool:
@@ -113,7 +146,8 @@ class RobotProfile(BaseModel):
         if problems:
             raise ProfileError(
                 "Refusing to save an invalid profile",
-                what="a profile with a safe robot_serial, 6 or 7 int32 joint_offsets and an optional ISO 8601 date",
+                what="a profile with a safe robot_serial, 6 or 7 int32 joint_offsets, an optional ISO 8601 date and an "
+                     "optional payload the arm can carry",
                 why="; ".join(problems),
                 how="fix the listed fields and save again",
             )
@@ -186,7 +220,9 @@ class RobotProfile(BaseModel):
             )
             raise ProfileError(
                 f"Invalid profile file: {path}",
-                what="robot_serial as text, joint_offsets as a list of whole numbers, profile_date as text",
+                what="robot_serial as text, joint_offsets as a list of whole numbers, profile_date as text, payload as "
+                     '{"mass": kg, "center_of_mass": [x, y, z], "inertia": [ixx, ixy, ixz, iyy, iyz, izz]} '
+                     "(inertia optional)",
                 why=f"{path}: {details}",
                 how="correct those fields in the file",
             ) from None
@@ -195,7 +231,8 @@ class RobotProfile(BaseModel):
         if problems:
             raise ProfileError(
                 f"Invalid profile file: {path}",
-                what="a safe robot_serial, 6 or 7 int32 joint_offsets, optional ISO 8601 profile_date",
+                what="a safe robot_serial, 6 or 7 int32 joint_offsets, optional ISO 8601 profile_date, optional "
+                     "payload the arm can carry",
                 why=f"{path}: " + "; ".join(problems),
                 how="correct those fields in the file, or recreate it with `plem profile create`",
             )
