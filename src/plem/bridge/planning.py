@@ -21,7 +21,7 @@ from plem.errors import MoveItCode, PlanningError
 from plem.ipc import command_socket
 from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
 from plem.ipc.requests import new_request_id
-from plem.planning.goals import Goal, JointGoal, NamedGoal, Plan, PlanOptions, PoseGoal
+from plem.planning.goals import Goal, Plan, PlanOptions, goal_of
 from plem.planning.poses import Pose
 from plem.planning.protocol import goal_json, options_json, plan_from_json
 from plem.planning.scene import PlanningScene, SceneObject
@@ -155,27 +155,6 @@ def _error(value: Mapping[str, Any]) -> PlanningError:
         code = MoveItCode.FAILURE
     return PlanningError(str(value.get("summary", "planning failed")), what=str(value.get("what", "")),
                          why=str(value.get("why", "")), how=str(value.get("how", "")), code=code)
-
-
-def goal_of(target: Goal | Pose | str | Sequence[float] | Mapping[str, float], joint_names: Sequence[str],
-            frame: str = "") -> Goal:
-    """What a user passes as a target, as a goal: a pose (in `frame`), a named state, positions in joint order or
-    by name."""
-    if isinstance(target, JointGoal | NamedGoal | PoseGoal):
-        return target
-    if isinstance(target, Pose):
-        return PoseGoal(target, frame)
-    if isinstance(target, str):
-        return NamedGoal(target)
-    if isinstance(target, Mapping):
-        return JointGoal({str(name): float(value) for name, value in target.items()})
-    values = [float(value) for value in target]
-    if len(values) != len(joint_names):
-        raise PlanningError(f"{len(values)} positions for {len(joint_names)} joints",
-                            what=f"one position per joint ({', '.join(joint_names)})", why=f"got {len(values)}",
-                            how="give every joint's position, or a dict of the joints to move",
-                            code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
-    return JointGoal(dict(zip(joint_names, values, strict=True)))
 
 
 class PlanningCalls:

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from plem.control.trajectory import JointTrajectory
+from plem.errors import MoveItCode, PlanningError
 from plem.planning.poses import Pose
 
 #: Default planning time (s), as MoveIt's allowed_planning_time.
@@ -74,3 +76,24 @@ class Plan:
         return (f"{self.planner}: {self.duration_s:.3f} s motion through {self.path_states} states "
                 f"({self.path_length:.3f} rad in joint space{share}), planned in {self.planning_time_s * 1e3:.0f} ms; "
                 f"{self.checked_states} states re-checked: no collision, every limit kept")
+
+
+def goal_of(target: Goal | Pose | str | Sequence[float] | Mapping[str, float], joint_names: Sequence[str],
+            frame: str = "") -> Goal:
+    """What a user passes as a target, as a goal: a pose (in `frame`), a named state, positions in joint order or
+    by name."""
+    if isinstance(target, JointGoal | NamedGoal | PoseGoal):
+        return target
+    if isinstance(target, Pose):
+        return PoseGoal(target, frame)
+    if isinstance(target, str):
+        return NamedGoal(target)
+    if isinstance(target, Mapping):
+        return JointGoal({str(name): float(value) for name, value in target.items()})
+    values = [float(value) for value in target]
+    if len(values) != len(joint_names):
+        raise PlanningError(f"{len(values)} positions for {len(joint_names)} joints",
+                            what=f"one position per joint ({', '.join(joint_names)})", why=f"got {len(values)}",
+                            how="give every joint's position, or a dict of the joints to move",
+                            code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+    return JointGoal(dict(zip(joint_names, values, strict=True)))

@@ -33,16 +33,22 @@ from plem.planning.goals import (
     Plan,
     PlanOptions,
     PoseGoal,
+    goal_of,
 )
 from plem.planning.groups import PlanningGroup, read_groups
 from plem.planning.inverse_kinematics import IkResult, IkSolver
 from plem.planning.named_states import resolve_state, with_zero
 from plem.planning.parameterisation import parameterise, planning_limits, to_trajectory
+from plem.planning.path_timing import time_path
 from plem.planning.paths import plan_path
 from plem.planning.poses import Pose
 from plem.planning.retiming import as_sent
 from plem.planning.scene import PlanningScene
+from plem.planning.sequence import Circular, Item, Joint, Linear, ToolLimits
+from plem.planning.tool_paths import Kinematics, Sample, build_path
 
+#: Pilz's planner id of a sequence of one item of each kind.
+PILZ_IDS = {Joint: "PTP", Linear: "LIN", Circular: "CIRC"}
 #: Planning attempts when the dense re-check finds a contact the planner's coarser checks missed.
 ATTEMPTS = 3
 #: Distinct collision-free IK solutions gathered as the goal set of a pose goal.
@@ -211,23 +217,8 @@ class Planner:
         began = time.perf_counter()
         options, group, q_start = self._prepare(start, options)
         tip = self._frame_id(self.link_name(link or group.tip_link))
-        solver = self._solver(group, link)
         targets = [self._in_root(pose, frame, q_start) for pose in waypoints]
-
-        def step(target: pin.SE3, seed: np.ndarray) -> np.ndarray | None:
-            self._check_cancelled()
-            if time.perf_counter() - began >= options.timeout_s:
-                raise PlanningError("the Cartesian path took longer than its planning time",
-                                    what=f"a Cartesian path within {options.timeout_s:g} s",
-                                    why=f"solving its steps took longer than {options.timeout_s:g} s",
-                                    how="use a larger max_step (fewer steps) or allow more planning time "
-                                        f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
-                                    code=MoveItCode.TIMED_OUT)
-            left = began + options.timeout_s - time.perf_counter()
-            result = solver.solve(target, seed, timeout_s=max(min(group.settings.timeout_s, left), 1e-4),
-                                  stop=self.cancelled)
-            return result.positions if result.success else None
-
+        step = self._stepper(group, link, options, began, "use a larger max_step (fewer steps)")
         states, fraction = cartesian_states(q_start, targets, lambda q: self._placement_at(q, tip),
                                             step, max_step, jump_threshold,
                                             self.collisions.is_free if options.avoid_collisions else _always_free)
@@ -239,6 +230,53 @@ class Planner:
         plan = self._timed(states, options, began, "cartesian", straight=False)
         return Plan(plan.trajectory, plan.duration_s, plan.planning_time_s, plan.planner, plan.path_states,
                     plan.path_length, plan.checked_states, fraction)
+
+    def sequence(self, start: Sequence[float], items: Sequence[Item], *, link: str = "",
+                 tool_limits: ToolLimits | None = None, options: PlanOptions | None = None) -> Plan:
+        """A motion through joint (PTP), straight (LIN) and circular (CIRC) items, passing the corners that have a
+        blend radius without stopping, timed within the joint limits and, on its Cartesian parts, the tool limits
+        (see plem.planning.tool_paths and plem.planning.path_timing); refused, naming the item and pose, where it
+        cannot be followed."""
+        began = time.perf_counter()
+        options, group, q_start = self._prepare(start, options)
+        tip = self._frame_id(self.link_name(link or group.tip_link))
+        indices = self._indices(group)
+        data = self.arm.model.createData()
+
+        def sigma(q: np.ndarray) -> float:
+            jacobian = pin.computeFrameJacobian(self.arm.model, data, q, tip, pin.LOCAL_WORLD_ALIGNED)[:, indices]
+            return float(np.linalg.svd(jacobian, compute_uv=False)[-1])
+
+        def joint_target(item: Joint, q: np.ndarray) -> np.ndarray:
+            goal = goal_of(item.target, self.joint_names, item.frame)
+            if isinstance(goal, PoseGoal) and goal.link == "" and link:
+                goal = PoseGoal(goal.pose, goal.frame, link)
+            return self._goal_states(goal, q, group, options, began)[0]
+
+        kinematics = Kinematics(
+            placement=lambda q: self._placement_at(q, tip),
+            solve=self._stepper(group, link, options, began, "use fewer or shorter moves"),
+            joint_target=joint_target, in_root=lambda pose, frame, q: self._in_root(pose, frame, q),
+            sigma=sigma, describe=lambda placement: f"{describe(placement)} in {self.root_link}")
+        samples = build_path(q_start, items, kinematics)
+        if self._entry is not None:  # from outside a position range: back into it first (see `_start`)
+            samples.insert(0, Sample(self._entry, kinematics.placement(self._entry), -1, stop=True))
+        if options.avoid_collisions:
+            for sample in samples:
+                if not self.collisions.is_free(sample.q):
+                    self._require_free(sample.q, f"the path at item {sample.item} (tool pose "
+                                                 f"{kinematics.describe(sample.tool)})", MoveItCode.INVALID_MOTION_PLAN)
+        arm_states = np.array([self.arm.to_arm_order(sample.q) for sample in samples])
+        limits = planning_limits(self.limits.reaching(arm_states[0]), options.velocity_scale,
+                                 options.acceleration_scale)
+        tool = (tool_limits or ToolLimits()).scaled(options.velocity_scale, options.acceleration_scale)
+        motion = time_path(arm_states, np.array([sample.tool.translation for sample in samples]),
+                           np.array([sample.tool.rotation for sample in samples]),
+                           np.array([sample.stop for sample in samples]),
+                           np.array([sample.cartesian for sample in samples]), limits, tool, self.cycle_time_s)
+        kinds = {type(item) for item in items}
+        name = PILZ_IDS[kinds.pop()] if len(items) == 1 else "sequence"
+        return self._checked(to_trajectory(motion), arm_states, options, began, name)
 
     # -- the scene ----------------------------------------------------------------------------------------
     def contacts(self, positions: Sequence[float]) -> list[tuple[str, str]]:
@@ -333,6 +371,28 @@ class Planner:
             self._solvers[key] = IkSolver(self.arm.model, self._indices(group).tolist(), tip, self._lower,
                                           self._upper)
         return self._solvers[key]
+
+    def _stepper(self, group: PlanningGroup, link: str, options: PlanOptions, began: float, fewer: str
+                 ) -> Callable[[pin.SE3, np.ndarray], np.ndarray | None]:
+        """IK for the steps of a Cartesian path, from the previous state (None where it fails), within the request's
+        planning time (else TIMED_OUT, whose HOW starts with `fewer`: how to ask for fewer steps) and cancellable."""
+        solver = self._solver(group, link)
+
+        def step(target: pin.SE3, seed: np.ndarray) -> np.ndarray | None:
+            self._check_cancelled()
+            if time.perf_counter() - began >= options.timeout_s:
+                raise PlanningError("the Cartesian path took longer than its planning time",
+                                    what=f"a Cartesian path within {options.timeout_s:g} s",
+                                    why=f"solving its steps took longer than {options.timeout_s:g} s",
+                                    how=f"{fewer} or allow more planning time "
+                                        f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
+                                    code=MoveItCode.TIMED_OUT)
+            left = began + options.timeout_s - time.perf_counter()
+            result = solver.solve(target, seed, timeout_s=max(min(group.settings.timeout_s, left), 1e-4),
+                                  stop=self.cancelled)
+            return result.positions if result.success else None
+
+        return step
 
     def _sync_scene(self) -> None:
         if self.scene.version != self._scene_version:
@@ -452,9 +512,15 @@ class Planner:
         limits = planning_limits(self.limits.reaching(arm_states[0]), options.velocity_scale,
                                  options.acceleration_scale)
         trajectory = to_trajectory(parameterise(arm_states, limits, self.cycle_time_s, straight=straight))
+        return self._checked(trajectory, arm_states, options, began, planner)
+
+    def _checked(self, trajectory: JointTrajectory, arm_states: np.ndarray, options: PlanOptions, began: float,
+                 planner: str) -> Plan:
+        """The plan of a timed path through `arm_states` (the arm's order), once re-checked densely (`_recheck`)."""
         motion, checked = self._recheck(trajectory, arm_states[0], options)
         length = float(np.linalg.norm(np.diff(arm_states, axis=0), axis=1).sum())
-        plan = Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(states), length, checked)
+        plan = Plan(trajectory, motion.duration, time.perf_counter() - began, planner, len(arm_states), length,
+                    checked)
         self.plans_made += 1
         self.latest_plan = plan
         return plan
@@ -522,6 +588,13 @@ def placement_of(pose: Pose) -> pin.SE3:
     """A pose as a pinocchio placement."""
     x, y, z, w = pose.orientation
     return pin.SE3(pin.Quaternion(w, x, y, z).toRotationMatrix(), np.array(pose.position))
+
+
+def describe(placement: pin.SE3) -> str:
+    """A placement for a message: position (m) and quaternion x y z w."""
+    pose = pose_of(placement)
+    return (f"position ({', '.join(f'{v:.3f}' for v in pose.position)}) m, orientation "
+            f"({', '.join(f'{v:.3f}' for v in pose.orientation)})")
 
 
 def pose_of(placement: pin.SE3) -> Pose:
