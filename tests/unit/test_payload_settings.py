@@ -10,6 +10,7 @@ import pytest
 from plem.control.payload import Payload
 from plem.errors import ConfigError, ProfileError
 from plem.launch.arguments import DEFAULTS, help_text, parse, payload
+from plem.launch.plan import plan_robot
 from plem.robot import RobotProfile
 
 
@@ -70,3 +71,11 @@ def test_a_profile_with_a_payload_no_arm_can_carry_is_refused(tmp_path: Path, pa
     with pytest.raises((ProfileError, ValueError)):
         RobotProfile.model_validate({"robot_serial": "A1", "joint_offsets": [0] * 6,
                                      "payload": payload_field}).save(tmp_path / "B.json")
+
+
+def test_a_launch_refuses_a_bad_payload_before_starting_and_gives_a_good_one():
+    with pytest.raises(ConfigError) as error:
+        plan_robot({"bus": "mock", "payload": "1,0,0,3"}, generate=False)
+    assert "payload:=1,0,0,3" in error.value.render() and "3 m from the flange" in error.value.render()
+    assert plan_robot({"bus": "mock", "payload": "1.5,0,0,0.05"}, generate=False).payload == Payload(1.5, (0, 0, 0.05))
+    assert plan_robot({"bus": "mock"}, generate=False).payload is None

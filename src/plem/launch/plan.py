@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from plem.control.limits import ArmLimits
+from plem.control.payload import Payload
 from plem.core.config.launch_args import check_home, decimal_number, shown, whole_number
 from plem.core.config.settings import parse_int
 from plem.core.paths import BUILTIN_PACKAGES_DIR
@@ -26,7 +27,7 @@ from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.limits import derived_limits_note
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
-from plem.launch.arguments import DEFAULTS, initial_positions, model_default
+from plem.launch.arguments import DEFAULTS, initial_positions, model_default, payload
 from plem.planning.named_states import with_zero
 from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
@@ -128,6 +129,11 @@ class RobotPlan:
         """Where the simulated arm starts (initial_positions:=); None for its own start (zero, home or mid-range)."""
         text = self.arguments.get("initial_positions")
         return None if text is None else initial_positions(text, self.bus, self.limits())
+
+    @property
+    def payload(self) -> Payload | None:
+        """What the flange carries by payload:= (mass, centre of mass in the flange frame); None when not given."""
+        return payload(self.arguments.get("payload", ""))
 
     def limits(self) -> ArmLimits:
         """The limits the driver enforces, in drive order."""
@@ -365,6 +371,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
             _collected(errors, lambda: initial_positions(arguments["initial_positions"], bus,
                                                          ArmLimits.from_joint_limits(report.limits, arm_joint_names(
                                                              resolved.config, startup_urdf(report)[0]))))
+    _collected(errors, lambda: payload(arguments.get("payload", "")))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error
 
