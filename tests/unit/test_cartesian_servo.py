@@ -153,3 +153,21 @@ def test_the_singular_value_derivative_matches_finite_differences(servo: Cartesi
         numeric = [(smallest_singular_value(dynamics, q + 1e-6 * e) - smallest_singular_value(dynamics, q - 1e-6 * e))
                    / 2e-6 for e in np.eye(6)]
         np.testing.assert_allclose(gradient, numeric, atol=1e-7)
+
+
+def test_a_seven_joint_arm_is_servoed_too():
+    """The Indy RP2 (7 joints): the step's Jacobian is 6×7, its least squares the minimum-norm joint motion."""
+    report = validate_package("indyrp2_v2_description")
+    assert report.urdf_xml is not None
+    joints = [f"joint{i}" for i in range(7)]
+    dynamics = ArmDynamics(report.urdf_xml, joints, "tcp")
+    servo = CartesianServo(dynamics, ArmLimits.from_joint_limits(report.limits, joints))
+    q = np.array([0.2, -0.4, 0.3, -1.4, 0.2, -1.0, 0.3])
+    step = servo.twist_step(q, np.array([0.1, 0, 0, 0, 0, 0]), DT)
+    moved = dynamics.forward_kinematics(step.q).translation - dynamics.forward_kinematics(q).translation
+    np.testing.assert_allclose(moved, [0.1 * DT, 0, 0], atol=1e-6)
+    target = servo.tool_pose(q + 0.2)
+    for _ in range(3000):
+        q = servo.pose_step(q, target, DT).q
+    offset = servo.tool_pose(q).actInv(target)
+    assert np.linalg.norm(offset.translation) < 1e-9 and np.linalg.norm(pin.log3(offset.rotation)) < 1e-9
