@@ -171,3 +171,21 @@ def test_a_seven_joint_arm_is_servoed_too():
         q = servo.pose_step(q, target, DT).q
     offset = servo.tool_pose(q).actInv(target)
     assert np.linalg.norm(offset.translation) < 1e-9 and np.linalg.norm(pin.log3(offset.rotation)) < 1e-9
+
+
+def test_an_arm_whose_joints_are_listed_in_another_order_gets_its_targets_in_that_order(
+        servo: CartesianServo, indy7: tuple[ArmDynamics, ArmLimits]):
+    """Positions, limits and targets are in the arm's joint order even where it is not the URDF's chain order."""
+    report = validate_package("indy7_v2_description")
+    assert report.urdf_xml is not None
+    order = [1, 2, 3, 4, 5, 0]
+    names = [JOINTS[i] for i in order]
+    listed = CartesianServo(ArmDynamics(report.urdf_xml, names, "tcp"), ArmLimits.from_joint_limits(report.limits,
+                                                                                                      names))
+    q = START.copy()
+    q[5] = indy7[1].max_position[5] - 0.05           # near a limit, so the limits' order matters too
+    twist = np.array([0.05, 0.02, -0.03, 0.1, -0.2, 0.5])
+    expected = servo.twist_step(q, twist, DT, frame="tool")
+    got = listed.twist_step(q[order], twist, DT, frame="tool")
+    np.testing.assert_allclose(got.q, expected.q[order], atol=1e-15)
+    assert (got.scale, got.reason) == (expected.scale, expected.reason) and expected.reason == "joint limit"

@@ -96,13 +96,13 @@ class CartesianServo:
         self.data = self.model.createData()
         self.space = dynamics.space
         self.frame = link_frame(self.model, tool_link or dynamics.tip_frame)
-        #: For each of pinocchio's degrees of freedom (chain order, parents first), its index in the arm's order.
-        self._arm_index = np.argsort(dynamics.model_indices)
-        self._lower = limits.min_position[self._arm_index].tolist()
-        self._upper = limits.max_position[self._arm_index].tolist()
-        self._max_velocity = limits.max_velocity[self._arm_index].tolist()
-        self._max_acceleration = limits.max_acceleration[self._arm_index].tolist()
-        self._order = dynamics.model_indices
+        #: Indices that gather arm-order values into pinocchio's order (chain order, parents first), and back.
+        self._to_model = np.argsort(dynamics.model_indices)
+        self._to_arm = dynamics.model_indices
+        self._lower = limits.min_position[self._to_model].tolist()
+        self._upper = limits.max_position[self._to_model].tolist()
+        self._max_velocity = limits.max_velocity[self._to_model].tolist()
+        self._max_acceleration = limits.max_acceleration[self._to_model].tolist()
         #: 1 where joint k comes after joint i in the chain (k > i), for the derivative of the Jacobian.
         self._later = np.triu(np.ones((dynamics.dof, dynamics.dof)), 1)
 
@@ -149,7 +149,7 @@ class CartesianServo:
 
     def _model_order(self, q: np.ndarray) -> np.ndarray:
         """Positions `q` (arm order) in pinocchio's order, a new array."""
-        positions: np.ndarray = np.asarray(q, dtype=float)[self._order]
+        positions: np.ndarray = np.asarray(q, dtype=float)[self._to_model]
         return positions
 
     def _jacobian(self, positions: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
@@ -177,7 +177,7 @@ class CartesianServo:
         scales.append(self._limit_scale(positions.tolist(), rates.tolist(), dt))
         scale, reason = min(scales, key=lambda item: item[0])
         next_positions = positions + rates * (scale * dt)
-        return ServoStep(next_positions[self._arm_index], scale, reason, sigma)
+        return ServoStep(next_positions[self._to_arm], scale, reason, sigma)
 
     def _limit_scale(self, positions: list[float], rates: list[float], dt: float) -> tuple[float, SlowReason]:
         """The largest fraction of joint `rates` (and why it is below 1) that keeps every joint within its velocity
