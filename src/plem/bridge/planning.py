@@ -25,6 +25,7 @@ from plem.planning.goals import Goal, Plan, PlanOptions, goal_of
 from plem.planning.poses import Pose
 from plem.planning.protocol import goal_json, options_json, plan_from_json
 from plem.planning.scene import PlanningScene, SceneObject
+from plem.planning.sequence import Circular, Item, Linear, ToolLimits, item_json
 
 if TYPE_CHECKING:
     from plem.planning.service import PlannerService
@@ -212,6 +213,41 @@ class PlanningCalls:
             frame=frame, link=link, max_step=max_step, jump_threshold=jump_threshold,
             options=options_json(options), start=None if start is None else [float(v) for v in start])
         return plan_from_json(result)
+
+    def plan_sequence(self, items: Sequence[Item], *, link: str = "", tool_limits: ToolLimits | None = None,
+                      start: Sequence[float] | None = None, options: PlanOptions | None = None) -> Plan:
+        """A plan through `items` (Joint, Linear, Circular, each with a blend radius) from `start` (default: where the
+        arm is), passing corners with a blend radius without stopping, within the joint limits and `tool_limits` (on
+        Cartesian moves); refused, naming the item and pose, where the path cannot be followed. Nothing moves."""
+        options = options or PlanOptions()
+        result = self._planner().request(
+            "sequence", options.timeout_s + ANSWER_MARGIN_S, items=[item_json(item) for item in items], link=link,
+            tool_limits=(tool_limits or ToolLimits()).to_json(), options=options_json(options),
+            start=None if start is None else [float(v) for v in start])
+        return plan_from_json(result)
+
+    def move_sequence(self, items: Sequence[Item], *, link: str = "", tool_limits: ToolLimits | None = None,
+                      options: PlanOptions | None = None, tolerances: TrajectoryTolerances | None = None) -> Any:
+        """Plan `items` from where the arm is (`plan_sequence`) and run the plan through the robot's command path;
+        returns the accepted motion's handle (`.wait()` for its result). ur_rtde's moveL/moveJ with a path."""
+        plan = self.plan_sequence(items, link=link, tool_limits=tool_limits, options=options)
+        return self.execute_trajectory(plan.trajectory, tolerances)  # type: ignore[attr-defined]
+
+    def move_linear(self, pose: Pose, *, frame: str = "", link: str = "", tool_limits: ToolLimits | None = None,
+                    options: PlanOptions | None = None, tolerances: TrajectoryTolerances | None = None) -> Any:
+        """Move the tool (`link`, the group's tip) in a straight line to `pose` in `frame`, the orientation turning
+        by slerp (Pilz's LIN, ur_rtde's moveL); returns the motion's handle."""
+        return self.move_sequence([Linear(pose, frame=frame)], link=link, tool_limits=tool_limits, options=options,
+                                  tolerances=tolerances)
+
+    def move_circular(self, via: Pose | Sequence[float] | None, pose: Pose, *,
+                      center: Pose | Sequence[float] | None = None, frame: str = "", link: str = "",
+                      tool_limits: ToolLimits | None = None, options: PlanOptions | None = None,
+                      tolerances: TrajectoryTolerances | None = None) -> Any:
+        """Move the tool on an arc through `via` (or around `center`, with via None) to `pose` (Pilz's CIRC,
+        ur_rtde's moveC); returns the motion's handle."""
+        return self.move_sequence([Circular(pose, via=via, center=center, frame=frame)], link=link,
+                                  tool_limits=tool_limits, options=options, tolerances=tolerances)
 
     def compute_ik(self, pose: Pose, *, frame: str = "", seed: Sequence[float] | None = None, group: str = "",
                    link: str = "", timeout: float | None = None, avoid_collisions: bool = True,

@@ -30,7 +30,12 @@ FrameOption = Annotated[str, typer.Option("--frame", help="Frame of --to-pose: a
 LinkOption = Annotated[str, typer.Option("--link", help="Link to bring to --to-pose (default: the group's tip).")]
 GroupOption = Annotated[str, typer.Option("--group", help="Planning group of the SRDF (default: its first).")]
 PlannerOption = Annotated[str, typer.Option("--planner", help="OMPL planner, e.g. RRTConnect (the default), RRTstar.")]
-CartesianOption = Annotated[bool, typer.Option("--cartesian", help="Move the tool along a straight line to --to-pose.")]
+CartesianOption = Annotated[bool, typer.Option(
+    "--cartesian", help="Move the tool along a straight line to --to-pose, as far as it can go (MoveIt's "
+    "compute_cartesian_path).")]
+LinearOption = Annotated[bool, typer.Option(
+    "--linear", help="Move the tool along a straight line to --to-pose, all the way or not at all, within the tool's "
+    "speed limits (Pilz's LIN).")]
 SpeedOption = Annotated[float, typer.Option("--speed-scale", help="Fraction of full speed, from 0.001 to 1.")]
 PlanningTimeOption = Annotated[float, typer.Option("--planning-time", help="Seconds the planner may take, at most 60.")]
 TimeoutOption = Annotated[float, typer.Option("--timeout", help="Seconds to wait for the motion.")]
@@ -38,8 +43,8 @@ TimeoutOption = Annotated[float, typer.Option("--timeout", help="Seconds to wait
 
 def move(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption = "", link: LinkOption = "",
          group: GroupOption = "", planner: PlannerOption = "", cartesian: CartesianOption = False,
-         speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0, robot_id: RobotId = None,
-         timeout: TimeoutOption = 60.0) -> None:
+         linear: LinearOption = False, speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0,
+         robot_id: RobotId = None, timeout: TimeoutOption = 60.0) -> None:
     """Move the arm to a named state, joint positions or a tool pose (enables the drives first if they are off);
     planned around obstacles when a planner runs. Waits until the arm arrives; Ctrl-C stops the arm smoothly."""
     with connect_robot(robot_id) as client, MotionGuard(client) as guard:
@@ -53,20 +58,21 @@ def move(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
             stdout.print(f"{client.robot_id}: {result.message} (no planner runs: moved straight in joint space, "
                          "without collision checks)", markup=False)
             return
-        plan = _plan(client, to, to_pose, frame, link, cartesian, options)
+        plan = _plan(client, to, to_pose, frame, link, _path_kind(cartesian, linear), options)
         stdout.print(f"{client.robot_id}: {plan.summary()}", markup=False)
         _run(guard, plan, timeout)
 
 
 def plan(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption = "", link: LinkOption = "",
          group: GroupOption = "", planner: PlannerOption = "", cartesian: CartesianOption = False,
-         speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0,
+         linear: LinearOption = False, speed_scale: SpeedOption = 0.5, planning_time: PlanningTimeOption = 5.0,
          dry_run: Annotated[bool, typer.Option("--dry-run", help="Print the plan and checks; do not move.")] = False,
          robot_id: RobotId = None, timeout: TimeoutOption = 60.0) -> None:
     """Plan a motion with the robot's planner and print its duration and checks, then run it (not with --dry-run);
     Ctrl-C stops the arm smoothly."""
     with connect_robot(robot_id) as client, MotionGuard(client) as guard:
-        found = _plan(client, to, to_pose, frame, link, cartesian, _options(group, planner, speed_scale, planning_time))
+        found = _plan(client, to, to_pose, frame, link, _path_kind(cartesian, linear),
+                      _options(group, planner, speed_scale, planning_time))
         stdout.print(f"{client.robot_id}: {found.summary()}", markup=False)
         points = found.trajectory.points
         stdout.print(f"  {len(points)} trajectory points, first {_positions(points[0].positions)}, "
@@ -104,21 +110,34 @@ def _planner_runs(client: RobotClient) -> bool:
     return True
 
 
-def _plan(client: RobotClient, to: str | None, to_pose: Pose7 | None, frame: str, link: str, cartesian: bool,
+def _path_kind(cartesian: bool, linear: bool) -> str:
+    """'cartesian', 'linear' or '' (a planned path), from the flags; both at once is a usage error."""
+    if cartesian and linear:
+        raise UsageError("--cartesian and --linear exclude each other",
+                         what="one way to move along a straight line",
+                         why="both were given", how="--linear for the whole line within the tool's speed limits, "
+                         "--cartesian for as far as the arm can follow it")
+    return "cartesian" if cartesian else "linear" if linear else ""
+
+
+def _plan(client: RobotClient, to: str | None, to_pose: Pose7 | None, frame: str, link: str, path: str,
           options: PlanOptions) -> Plan:
     from plem.planning.goals import PoseGoal
     from plem.planning.poses import Pose
+    from plem.planning.sequence import Linear
 
     if (to is None) == (to_pose is None):
         raise _no_target()
-    if cartesian and to_pose is None:
-        raise UsageError("--cartesian needs --to-pose", what="a tool pose to move to along a straight line",
-                         why="--cartesian was given with --to", how="give --to-pose x y z qx qy qz qw")
+    if path and to_pose is None:
+        raise UsageError(f"--{path} needs --to-pose", what="a tool pose to move to along a straight line",
+                         why=f"--{path} was given with --to", how="give --to-pose x y z qx qy qz qw")
     _hold(client)
     if to_pose is not None:
         pose = Pose.of(list(to_pose))
-        if cartesian:
+        if path == "cartesian":
             return client.cartesian_path([pose], frame=frame, link=link, options=options)
+        if path == "linear":
+            return client.plan_sequence([Linear(pose, frame=frame)], link=link, options=options)
         goal: Goal = PoseGoal(pose, frame, link)
         return client.plan(goal, options=options)
     assert to is not None

@@ -8,6 +8,8 @@ from plem.planning.goals import JointGoal, NamedGoal, Plan, PlanOptions, PoseGoa
 from plem.planning.poses import Pose
 from plem.planning.retiming import Timed, along_straight_lines, fit_to_limits
 from plem.planning.scene import Box, Cylinder, Mesh, PlanningScene, SceneObject, Sphere
+from plem.planning.sequence import Circular, Joint, Linear, ToolLimits
 
-__all__ = ["Box", "Cylinder", "JointGoal", "Mesh", "NamedGoal", "Plan", "PlanOptions", "PlanningScene", "Pose",
-           "PoseGoal", "SceneObject", "Sphere", "Timed", "along_straight_lines", "fit_to_limits"]
+__all__ = ["Box", "Circular", "Cylinder", "Joint", "JointGoal", "Linear", "Mesh", "NamedGoal", "Plan", "PlanOptions",
+           "PlanningScene", "Pose", "PoseGoal", "SceneObject", "Sphere", "Timed", "ToolLimits", "along_straight_lines",
+           "fit_to_limits"]

@@ -253,9 +253,15 @@ class Planner:
                 goal = PoseGoal(goal.pose, goal.frame, link)
             return self._goal_states(goal, q, group, options, began)[0]
 
+        solver = self._solver(group, link)
+
+        def reachable(target: pin.SE3, seed: np.ndarray) -> bool:
+            return solver.solve(target, seed, timeout_s=group.settings.budget_s, rng=self._rng,
+                                stop=self.cancelled).success
+
         kinematics = Kinematics(
             placement=lambda q: self._placement_at(q, tip),
-            solve=self._stepper(group, link, options, began, "use fewer or shorter moves"),
+            solve=self._stepper(group, link, options, began, "use fewer or shorter moves"), reachable=reachable,
             joint_target=joint_target, in_root=lambda pose, frame, q: self._in_root(pose, frame, q),
             sigma=sigma, describe=lambda placement: f"{describe(placement)} in {self.root_link}")
         samples = build_path(q_start, items, kinematics)

@@ -33,6 +33,7 @@ from plem.planning.planner import Planner
 from plem.planning.poses import MAX_COORDINATE_M, Pose
 from plem.planning.protocol import flag, goal_from_json, number, options_from_json, plan_json, text
 from plem.planning.scene import PlanningScene
+from plem.planning.sequence import ToolLimits, items_from_json
 
 #: Largest request frame the planner reads (a scene mesh or a long list of waypoints fits).
 MAX_REQUEST_BYTES = 16 << 20
@@ -100,7 +101,7 @@ class PlannerService:
         self._logged: set[tuple[str, str]] = set()
         self._operations: dict[str, Callable[[dict[str, Any]], Any]] = {
             "describe": self._describe, "fk": self._fk, "ik": self._ik, "plan": self._plan,
-            "cartesian": self._cartesian, "scene": self._scene, "contacts": self._contacts,
+            "cartesian": self._cartesian, "sequence": self._sequence, "scene": self._scene, "contacts": self._contacts,
             "view": self._view,
         }
 
@@ -174,7 +175,7 @@ class PlannerService:
             if isinstance(asked, int | float) and not isinstance(asked, bool) and 0 < asked <= MAX_IK_TIMEOUT_S:
                 return float(asked)
             return max(group.settings.budget_s for group in self.planner.groups.values())
-        if op in ("plan", "cartesian"):
+        if op in ("plan", "cartesian", "sequence"):
             options = request.get("options")
             asked = options.get("timeout_s") if isinstance(options, dict) else None
             if isinstance(asked, int | float) and not isinstance(asked, bool) and math.isfinite(asked):
@@ -250,6 +251,13 @@ class PlannerService:
                                       jump_threshold=number(request, "jump_threshold", 0.0, 0.0, math.inf,
                                                             low_included=True),
                                       options=options_from_json(request.get("options")))
+        return plan_json(plan)
+
+    def _sequence(self, request: dict[str, Any]) -> dict[str, Any]:
+        plan = self.planner.sequence(self._positions(request.get("start")), items_from_json(request.get("items")),
+                                     link=text(request, "link"),
+                                     tool_limits=ToolLimits.from_json(request.get("tool_limits")),
+                                     options=options_from_json(request.get("options")))
         return plan_json(plan)
 
     def _contacts(self, request: dict[str, Any]) -> list[list[str]]:

@@ -58,12 +58,14 @@ class Sample:
 @dataclass(frozen=True)
 class Kinematics:
     """What building a path asks of the planner: the tool's placement at q, IK from a seed (None when it fails),
+    whether a placement is reachable at all (IK from any seed),
     the joint state of a joint item (from the previous state), a pose in a frame (a link's taken at q) as a
     placement in the root frame, the smallest singular value of the tip's Jacobian at
     q, a collision check, and how to name a placement to the user."""
 
     placement: Callable[[np.ndarray], pin.SE3]
     solve: Callable[[pin.SE3, np.ndarray], np.ndarray | None]
+    reachable: Callable[[pin.SE3, np.ndarray], bool]
     joint_target: Callable[[Joint, np.ndarray], np.ndarray]
     in_root: Callable[[Pose, str, np.ndarray], pin.SE3]
     sigma: Callable[[np.ndarray], float]
@@ -98,6 +100,11 @@ def _segment(begin: Sample, item: Item, index: int, kinematics: Kinematics) -> l
         states = [begin.q + (goal - begin.q) * k / count for k in range(1, count + 1)]
         return [Sample(q, kinematics.placement(q), index) for q in states]
     target = kinematics.in_root(item.pose, item.frame, begin.q)
+    if not kinematics.reachable(target, begin.q):
+        raise _refused(f"the pose of item {index} is outside the arm's workspace", code=MoveItCode.NO_IK_SOLUTION,
+                       what="a pose the tool reaches with the joints within their limits",
+                       why=f"no IK solution for item {index}'s pose {kinematics.describe(target)}",
+                       how="give a pose within the arm's reach, in the right frame (frame= of the item)")
     if isinstance(item, Linear):
         placements = _line(begin.tool, target)
     else:
@@ -147,7 +154,8 @@ def _follow(begin: Sample, placements: Sequence[pin.SE3], index: int, kinematics
 def _line(begin: pin.SE3, end: pin.SE3) -> list[pin.SE3]:
     """Placements along the straight line, the orientation by slerp, at most MAX_STEP apart (the end included)."""
     count = max(int(np.ceil(_travel(begin, end) / MAX_STEP)), 1)
-    return [pin.SE3.Interpolate(begin, end, k / count) for k in range(1, count + 1)]
+    shift = end.translation - begin.translation
+    return [pin.SE3(_slerp(begin, end, k / count), begin.translation + shift * k / count) for k in range(1, count + 1)]
 
 
 def _arc(begin: pin.SE3, end: pin.SE3, point: np.ndarray, item: Circular, index: int,
@@ -186,7 +194,7 @@ def _arc(begin: pin.SE3, end: pin.SE3, point: np.ndarray, item: Circular, index:
         s = k / count
         radius = radius0 + (radius2 - radius0) * s
         position = center + radius * (np.cos(angle * s) * u + np.sin(angle * s) * w)
-        placements.append(pin.SE3(pin.SE3.Interpolate(begin, end, s).rotation, position))
+        placements.append(pin.SE3(_slerp(begin, end, s), position))
     placements[-1] = end
     return placements
 
@@ -228,7 +236,7 @@ def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int
         curve = _bezier(a.tool.translation, c.tool.translation, b.tool.translation)
         count = max(int(np.ceil(max(_polyline(curve(np.linspace(0.0, 1.0, 33))), _rotation(a.tool, b.tool))
                                 / MAX_STEP)), 2)
-        placements = [pin.SE3(pin.SE3.Interpolate(a.tool, b.tool, s).rotation, curve(np.array([s]))[0])
+        placements = [pin.SE3(_slerp(a.tool, b.tool, s), curve(np.array([s]))[0])
                       for s in np.arange(1, count) / count]
         blended = _follow(a, [*placements, b.tool], index, kinematics, blend=True)[:-1]
     else:
@@ -259,6 +267,12 @@ def _bezier(a: np.ndarray, c: np.ndarray, b: np.ndarray) -> Callable[[np.ndarray
 
 def _polyline(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def _slerp(a: pin.SE3, b: pin.SE3, share: float) -> np.ndarray:
+    """The orientation `share` of the way from `a`'s to `b`'s, turning about one axis at a steady rate (slerp)."""
+    rotation: np.ndarray = a.rotation @ pin.exp3(share * pin.log3(a.rotation.T @ b.rotation))
+    return rotation
 
 
 def _rotation(a: pin.SE3, b: pin.SE3) -> float:
