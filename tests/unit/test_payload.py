@@ -185,3 +185,18 @@ def test_no_payload_fits_as_none(indy7):
     poses = estimation_poses(dynamics, limits, START, "link6")
     fitted = fit_payload(residuals(dynamics, Payload(0.0), "link6", poses, noise=0.05), dynamics, "link6")
     assert fitted == Payload(0.0)
+
+
+def test_an_arm_whose_joints_are_listed_in_another_order_gets_the_same_poses_and_fit_in_that_order():
+    report = validate_package("indy7_v2_description")
+    assert report.urdf_xml is not None
+    order = [1, 2, 3, 4, 5, 0]
+    names = [JOINTS[i] for i in order]
+    listed = ArmDynamics(report.urdf_xml, names, "tcp")
+    chain = ArmDynamics(report.urdf_xml, JOINTS, "tcp")
+    expected = estimation_poses(chain, ArmLimits.from_joint_limits(report.limits, JOINTS), START, "link6")
+    poses = estimation_poses(listed, ArmLimits.from_joint_limits(report.limits, names), START[order], "link6")
+    np.testing.assert_array_equal(np.array(poses), np.array(expected)[:, order])
+    samples = [(q[order], tau[order]) for q, tau in residuals(chain, GRIPPER, "link6", expected)]
+    fitted = fit_payload(samples, listed, "link6")
+    np.testing.assert_allclose(fitted.com, GRIPPER.com, atol=1e-6)

@@ -45,6 +45,12 @@ class PayloadFitError(PlemError):
     """Efforts at the given poses cannot determine a payload."""
 
 
+def wrist_joints(dynamics: ArmDynamics) -> np.ndarray:
+    """The arm-order indices of the last three joints of the chain (the wrist), in chain order."""
+    indices: np.ndarray = np.argsort(dynamics.model_indices)[-3:]
+    return indices
+
+
 def flange_link(model: pin.Model) -> str:
     """The link the arm's last joint moves (the flange, e.g. the Indy7's `link6`), where payloads are given."""
     last = model.njoints - 1
@@ -109,7 +115,7 @@ def fit_payload(samples: Sequence[tuple[np.ndarray, np.ndarray]], dynamics: ArmD
     Poses that leave a combination of the four unknowns undetermined (condition number above MAX_CONDITION) are a
     PayloadFitError naming it; a mass within MASS_SIGNIFICANCE standard errors of zero is no payload (mass 0).
     """
-    wrist = ", ".join(dynamics.joint_names[-3:])
+    wrist = ", ".join(dynamics.joint_names[k] for k in wrist_joints(dynamics))
     how = (f"hold more poses that turn the wrist ({wrist}) by about a quarter turn each way, so the flange's axes "
            "lie across gravity in some poses and along it in others (robot.estimate_payload() holds such poses)")
     if len(samples) < 2:
@@ -155,7 +161,7 @@ def estimation_poses(dynamics: ArmDynamics, limits: ArmLimits, start_q: np.ndarr
     """
     start = np.asarray(start_q, dtype=float)
     low, high = limits.min_position + LIMIT_CLEARANCE, limits.max_position - LIMIT_CLEARANCE
-    wrist = range(dynamics.dof - 3, dynamics.dof)
+    wrist = wrist_joints(dynamics)
     candidates: list[np.ndarray] = []
     for turns in np.array(np.meshgrid(*[WRIST_TURNS] * 3)).reshape(3, -1).T:
         pose = start.copy()
