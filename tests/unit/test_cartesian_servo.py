@@ -11,6 +11,7 @@ from plem.control.cartesian_servo import CartesianServo, ServoSettings
 from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
 from plem.description.validate import validate_package
+from plem.errors import CommandRejected, ConfigError
 
 JOINTS = [f"joint{i}" for i in range(6)]
 #: A working pose of the Indy7, away from its singularities (smallest singular value 0.17).
@@ -189,3 +190,36 @@ def test_an_arm_whose_joints_are_listed_in_another_order_gets_its_targets_in_tha
     got = listed.twist_step(q[order], twist, DT, frame="tool")
     np.testing.assert_allclose(got.q, expected.q[order], atol=1e-15)
     assert (got.scale, got.reason) == (expected.scale, expected.reason) and expected.reason == "joint limit"
+
+
+@pytest.mark.parametrize(("q", "twist", "dt", "why"), [
+    (START, [0.1, 0, 0, 0, 0, float("nan")], DT, "twist (or the pose target it comes from) is not all finite"),
+    (START, [0.1, 0, 0], DT, "the twist has 3 values"),
+    (START, [0.1, 0, 0, 0, 0, 0], 0.0, "the period is 0.0 s"),
+    (START[:5], [0.1, 0, 0, 0, 0, 0], DT, "got 5"),
+    (np.where(np.arange(6) == 2, np.inf, START), [0.1, 0, 0, 0, 0, 0], DT, "not finite for joint2"),
+])
+def test_a_step_from_values_that_are_not_finite_or_not_of_their_shape_is_refused(servo: CartesianServo, q, twist,
+                                                                                 dt, why):
+    with pytest.raises(CommandRejected) as error:
+        servo.twist_step(np.asarray(q), np.asarray(twist, dtype=float), dt)
+    assert why in error.value.why
+
+
+def test_a_pose_target_that_is_not_finite_is_refused(servo: CartesianServo):
+    target = servo.tool_pose(START)
+    target.translation = np.array([0.3, np.nan, 0.5])
+    with pytest.raises(CommandRejected, match="pose target"):
+        servo.pose_step(START, target, DT)
+
+
+@pytest.mark.parametrize(("changes", "why"), [
+    ({"stop_singular_value": 0.1}, "stop_singular_value 0.1 is not below slowdown_singular_value 0.08"),
+    ({"joint_limit_stop": 0.2}, "joint_limit_stop 0.2 is not below joint_limit_margin 0.1"),
+    ({"max_linear_speed": -1.0}, "max_linear_speed = -1.0 is not a positive number"),
+    ({"damping": float("nan")}, "damping = nan is not a positive number"),
+])
+def test_settings_that_cannot_work_are_refused(changes: dict[str, float], why: str):
+    with pytest.raises(ConfigError) as error:
+        ServoSettings(**changes)
+    assert why in error.value.why

@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from plem.control.kinematics import ArmDynamics, link_frame
 from plem.control.limits import ArmLimits
+from plem.errors import CommandRejected, ConfigError
 
 #: Why a step was slowed: nothing, the tool's approach to a singularity, a joint near its position limit, or a
 #: joint at its velocity limit.
@@ -58,6 +59,23 @@ class ServoSettings:
     #: Deceleration of the tool as it comes to a pose target (m/s², rad/s²).
     linear_deceleration: float = 1.0
     angular_deceleration: float = 2.0
+
+    def __post_init__(self) -> None:
+        problems = [f"{name} = {value!r} is not a positive number" for name, value in vars(self).items()
+                    if not (isinstance(value, int | float) and math.isfinite(value) and value > 0)]
+        if not problems and self.stop_singular_value >= self.slowdown_singular_value:
+            problems.append(f"stop_singular_value {self.stop_singular_value:g} is not below slowdown_singular_value "
+                            f"{self.slowdown_singular_value:g}")
+        if not problems and self.joint_limit_stop >= self.joint_limit_margin:
+            problems.append(f"joint_limit_stop {self.joint_limit_stop:g} is not below joint_limit_margin "
+                            f"{self.joint_limit_margin:g}")
+        if problems:
+            raise ConfigError("invalid Cartesian servo settings",
+                              what="positive, finite thresholds, speeds and decelerations; each stop below where "
+                                   "its slowing starts",
+                              why="; ".join(problems),
+                              how="pass ServoSettings(...) with those values corrected, or leave them at their "
+                                  "defaults")
 
 
 @dataclass(frozen=True)
@@ -99,6 +117,7 @@ class CartesianServo:
         #: Indices that gather arm-order values into pinocchio's order (chain order, parents first), and back.
         self._to_model = np.argsort(dynamics.model_indices)
         self._to_arm = dynamics.model_indices
+        self._limits = limits
         self._lower = limits.min_position[self._to_model].tolist()
         self._upper = limits.max_position[self._to_model].tolist()
         self._max_velocity = limits.max_velocity[self._to_model].tolist()
@@ -148,9 +167,12 @@ class CartesianServo:
         return twist
 
     def _model_order(self, q: np.ndarray) -> np.ndarray:
-        """Positions `q` (arm order) in pinocchio's order, a new array."""
-        positions: np.ndarray = np.asarray(q, dtype=float)[self._to_model]
-        return positions
+        """Positions `q` (arm order: one finite number per joint, else CommandRejected) in pinocchio's order."""
+        positions = np.asarray(q, dtype=float)
+        if positions.shape != (self._limits.dof,) or not np.isfinite(positions).all():
+            positions = self._limits.check_vector(q, "the servo's joint positions")   # raises, naming the fault
+        ordered: np.ndarray = positions[self._to_model]
+        return ordered
 
     def _jacobian(self, positions: np.ndarray) -> tuple[np.ndarray, pin.SE3]:
         """The tool's Jacobian in the base frame's axes at the tool point (columns in pinocchio's order), and the
@@ -162,6 +184,8 @@ class CartesianServo:
 
     def _step(self, positions: np.ndarray, jacobian: np.ndarray, velocity: np.ndarray, dt: float) -> ServoStep:
         """The scaled damped-least-squares step for base-frame tool `velocity` (positions in pinocchio's order)."""
+        if velocity.shape != (6,) or not np.isfinite(velocity).all() or not (dt > 0.0 and math.isfinite(dt)):
+            raise self._refused(velocity, dt)
         settings = self.settings
         u, singular, vt = np.linalg.svd(jacobian, full_matrices=False)
         sigma = float(singular[-1])
@@ -178,6 +202,19 @@ class CartesianServo:
         scale, reason = min(scales, key=lambda item: item[0])
         next_positions = positions + rates * (scale * dt)
         return ServoStep(next_positions[self._to_arm], scale, reason, sigma)
+
+    @staticmethod
+    def _refused(velocity: np.ndarray, dt: float) -> CommandRejected:
+        """The refusal of a step whose twist, target or period is not finite or not of its shape."""
+        if not (dt > 0.0 and math.isfinite(dt)):
+            found = f"the period is {dt!r} s"
+        elif velocity.shape != (6,):
+            found = f"the twist has {velocity.size} values"
+        else:
+            found = "the twist (or the pose target it comes from) is not all finite"
+        return CommandRejected("Cartesian servo step refused", what="a twist of 6 finite numbers (vx, vy, vz in m/s, "
+                               "then wx, wy, wz in rad/s) or a finite pose target, and a positive period",
+                               why=found, how="send finite values of that shape")
 
     def _limit_scale(self, positions: list[float], rates: list[float], dt: float) -> tuple[float, SlowReason]:
         """The largest fraction of joint `rates` (and why it is below 1) that keeps every joint within its velocity
