@@ -7,6 +7,7 @@ carries both answers.
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -15,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from plem.control.modes import Mode
+from plem.control.motion import StartState
 from plem.control.polynomial import PolynomialMotion
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
@@ -43,6 +45,8 @@ class CommandHandle:
         self.stale = False
         self.result: Any = None
         self.error: PlemError | None = None
+        #: The core's token for the command once handed over (a stream's session).
+        self.token = 0
 
     # -- loop side -------------------------------------------------------------------------------
     def accept(self) -> None:
@@ -106,6 +110,16 @@ class CommandHandle:
 PREEMPTION_LEAD_S = 0.02
 #: Attempts at planning a preemption before the caller is told the state kept changing.
 PLAN_ATTEMPTS = 5
+#: Longest a plan waits for the running motion's future to be known (a stream coming to rest).
+UNKNOWN_WAIT_S = 3.0
+
+
+def unknown_future(reason: str) -> CommandRejected:
+    """The refusal of a plan that waited UNKNOWN_WAIT_S for the running motion's future to be known."""
+    return CommandRejected("cannot plan from the running motion now", what="its future known ahead",
+                           why=f"{reason} (for {UNKNOWN_WAIT_S:g} s)",
+                           how="stop the robot (stop()) and let it hold, then move; end a stream before a planned "
+                               "motion")
 
 
 def preemption_lead(attempt: int, planning_s: float) -> float:
@@ -127,6 +141,19 @@ class PlanBasis:
     motion: PolynomialMotion | None = None
     motion_start_cycle: int = 0
     generation: int = 0
+    unknown: str = ""               # why the running motion's future is not known ahead ("" when it is)
+
+    def start(self, cycle: int, lead_s: float, dt: float) -> tuple[int | None, StartState] | None:
+        """Where a motion planned now starts: at rest at the hold position (activation None), or in the running
+        motion's state at an activation cycle `lead_s` after `cycle`; None while that state is not known ahead (see
+        `unknown`)."""
+        if self.unknown:
+            return None
+        dof = len(self.hold_position)
+        if self.motion is None:
+            return None, (self.hold_position.copy(), np.zeros(dof), np.zeros(dof))
+        activation = cycle + max(2, math.ceil(lead_s / dt))
+        return activation, self.motion.state_at((activation - self.motion_start_cycle) * dt)
 
 
 @dataclass
@@ -171,8 +198,17 @@ class ResetFault:
     handle: CommandHandle
 
 
+@dataclass
+class StartStream:
+    """Follow the stream block's samples from now on; a stream without samples for `timeout_cycles` comes to rest
+    and ends. The handle is accepted with the stream's session, and finishes when the stream ends."""
+
+    timeout_cycles: int
+    handle: CommandHandle
+
+
 #: Everything the loop's inbox carries.
-Command = SetMode | StartMotion | StopMotion | ResetFault
+Command = SetMode | StartMotion | StopMotion | ResetFault | StartStream
 
 
 def motion_error(result: TrajectoryResult) -> PlemError | None:

@@ -26,6 +26,7 @@ from plem.control.commands import (
     ResetFault,
     SetMode,
     StartMotion,
+    StartStream,
     StopMotion,
     motion_error,
 )
@@ -38,6 +39,7 @@ from plem.control.loop import OverrunWindow
 from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
 from plem.control.state import StateBlock
+from plem.control.streaming import StreamBlock
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
 from plem.control.wording import CAUSES, Reported, Wording
 from plem.errors import CommandRejected
@@ -57,7 +59,10 @@ _LOGGED_REFUSALS = frozenset({C["PLEM_ANSWER_NOT_HOLDING"], C["PLEM_ANSWER_MODE_
                               C["PLEM_ANSWER_MOVING"], C["PLEM_ANSWER_RESET_NO_BUS"], C["PLEM_ANSWER_INVALID_SLOT"],
                               C["PLEM_ANSWER_UNKNOWN_OP"]})
 _MOTION_ENDS = {C["PLEM_ANSWER_SUCCEEDED"], C["PLEM_ANSWER_GOAL_VIOLATED"], C["PLEM_ANSWER_PATH_VIOLATED"],
-                C["PLEM_ANSWER_FAULT_ABORTED"], C["PLEM_ANSWER_PREEMPTED"], C["PLEM_ANSWER_CANCELED"]}
+                C["PLEM_ANSWER_FAULT_ABORTED"], C["PLEM_ANSWER_PREEMPTED"], C["PLEM_ANSWER_CANCELED"],
+                C["PLEM_ANSWER_STREAM_TIMED_OUT"]}
+#: Why a running motion's future is not known ahead, by the basis's slot: a plan cannot take it over yet.
+_UNKNOWN_FUTURE = {C["PLEM_STREAM_SLOT"]: "a stream runs"}
 _OUTSIDE_FAULTS = {"overrun": C["PLEM_CAUSE_OVERRUN"], "internal_error": C["PLEM_CAUSE_INTERNAL_ERROR"]}
 _MODE_REASONS = {C["PLEM_CAUSE_SET_MODE_IDLE"]: "drives disabled on request",
                  C["PLEM_CAUSE_SET_MODE_FREE_DRIVE"]: "gravity compensation on",
@@ -99,7 +104,7 @@ class ArmRuntime:
                  free_drive: FreeDriveController, settings: RuntimeSettings | None = None,
                  state_block: StateBlock | None = None, events: EventLog | None = None,
                  slab: MotionSlab | None = None, raw_ring: SlotRing | None = None,
-                 max_consecutive_overruns: int = 10) -> None:
+                 max_consecutive_overruns: int = 10, stream: StreamBlock | None = None) -> None:
         dof = setup.dof
         self.bus = bus
         self.setup = setup
@@ -121,10 +126,13 @@ class ArmRuntime:
         arm["settings"]["bus"] = simulated is not None or master is not None
         compiled.core.arm_init(self.arm)
         self.slab = slab or MotionSlab.private(dof)
+        #: Where streamed samples arrive, and where the core reports on streams and the speed override.
+        self.stream = stream or StreamBlock.private(dof)
         #: The timing of the core's real-time thread, when it runs the cycles.
         self.stats = compiled.new(compiled.STATS)
         self._core = compiled.core.Core(self.arm, self.state_block.header, self.state_block.values, self.slab.buffer,
-                                        simulated, None if raw_ring is None else raw_ring.buffer, self.stats, master)
+                                        simulated, None if raw_ring is None else raw_ring.buffer, self.stats, master,
+                                        self.stream.buffer)
         #: The bus is written in Python: the core cannot step it from its own thread, a Python loop runs the cycles.
         self.python_bus = simulated is None and master is None
         self._handed_over = master is None   # an EtherCAT bus keeps its watchdogs fed until the core's first cycle
@@ -177,9 +185,9 @@ class ArmRuntime:
                 continue
             generation, slot, segments = int(basis["generation"]), int(basis["slot"]), int(basis["segments"])
             start, hold = int(basis["start_cycle"]), basis["hold_position"][:dof].copy()
-            motion = self._motion_in(slot, segments) if slot != -1 else None
+            motion = self._motion_in(slot, segments) if slot >= 0 or slot == C["PLEM_STOP_SLOT"] else None
             if int(basis["sequence"]) == before:
-                return PlanBasis(hold, motion, start, generation)
+                return PlanBasis(hold, motion, start, generation, _UNKNOWN_FUTURE.get(slot, ""))
 
     def _motion_in(self, slot: int, segments: int) -> PolynomialMotion | None:
         """The motion in a slab slot, or a copy of the core's stop; None when the slot no longer holds it."""
@@ -290,6 +298,7 @@ class ArmRuntime:
             if refusal is not None:   # e.g. drives whose torque units are unknown: no gravity torque reaches them
                 raise refusal
         token = next(self._tokens)
+        command.handle.token = token
         request = _Request(command)
         with self._submitting:
             index, records = self._rings["commands"]
@@ -323,6 +332,8 @@ class ArmRuntime:
         elif isinstance(command, StopMotion):
             record["op"] = C["PLEM_OP_STOP"]
             record["goal"] = 0 if command.goal is None else self._token_of(command.goal)
+        elif isinstance(command, StartStream):
+            record["op"], record["cycles"] = C["PLEM_OP_STREAM"], command.timeout_cycles
         else:
             record["op"] = C["PLEM_OP_START"]
             slot, segments = command.slot, command.segments
@@ -378,7 +389,9 @@ class ArmRuntime:
 
     def _label(self, token: int, default: str = "motion ended") -> str:
         request = self._pending.get(token)
-        return request.command.label if request is not None and isinstance(request.command, StartMotion) else default
+        command = request.command if request is not None else None
+        return command.label if isinstance(command, StartMotion) else "stream" if isinstance(command, StartStream) \
+            else default
 
     def _on_event(self, event: np.void) -> None:
         kind, cause, token = int(event["kind"]), int(event["cause"]), int(event["token"])
@@ -429,7 +442,7 @@ class ArmRuntime:
     def _result(self, reported: Reported, token: int) -> TrajectoryResult:
         request = self._pending.get(token)
         command = request.command if request is not None else None
-        label = command.label if isinstance(command, StartMotion) else "motion"
+        label = self._label(token, "motion")
         goal_time = command.tolerances.goal_time if isinstance(command, StartMotion) else 0.0
         result = self._wording.result(reported, label, goal_time, self.fault_reason)
         note = command.note if isinstance(command, StartMotion) else ""

@@ -172,6 +172,15 @@ class Wording:
                                    what=f"{answer.values[0]:.0f} segments in slot {answer.detail}",
                                    why=f"it holds {answer.values[1]:.0f}",
                                    how="restart the robot (its command service is out of step)")
+        if code == C["PLEM_ANSWER_STREAMING"]:
+            return CommandRejected("cannot start a planned motion while a stream runs",
+                                   what="the stream to end first",
+                                   why="the arm follows streamed samples, whose future is not known to plan from",
+                                   how="stop the stream (robot.stop(), or stop sending samples: it ends after its "
+                                       "timeout), then move")
+        if code == C["PLEM_ANSWER_INVALID_VALUE"]:
+            return CommandRejected("a value of the request is out of range", what="a value the core accepts",
+                                   why=f"got {answer.values[0]:.6g}", how="check the request against its documentation")
         return CommandRejected("the request could not be handled", what="a request the core knows",
                                why=f"request code {answer.detail}", how="use the same plem version throughout")
 
@@ -193,4 +202,9 @@ class Wording:
                                     ErrorCode.PATH_TOLERANCE_VIOLATED)
         if code == C["PLEM_ANSWER_PREEMPTED"]:
             return TrajectoryResult.preempted()
+        if code == C["PLEM_ANSWER_STREAM_TIMED_OUT"]:
+            gap = v[0] * self.cycle_time_s
+            return TrajectoryResult(TrajectoryOutcome.SUCCEEDED,
+                                    f"{label} ended: no sample for {gap:g} s, the arm came to rest",
+                                    ErrorCode.SUCCESSFUL)
         return TrajectoryResult.canceled()

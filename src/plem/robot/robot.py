@@ -19,16 +19,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from plem.bridge.planning import LocalPlannerLink, PlanningCalls
+from plem.bridge.streaming import StreamingCalls
 from plem.control.commands import (
     PLAN_ATTEMPTS,
+    UNKNOWN_WAIT_S,
     Command,
     CommandHandle,
     PlanBasis,
     ResetFault,
     SetMode,
     StartMotion,
+    StartStream,
     StopMotion,
     preemption_lead,
+    unknown_future,
 )
 from plem.control.core_thread import CoreThread
 from plem.control.events import EventKind, EventLog
@@ -41,6 +45,7 @@ from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
+from plem.control.streaming import StreamBlock
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.core import arguments
 from plem.description.drives import drive_parameters
@@ -99,7 +104,7 @@ def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]
     return tuple(model.joint_names) if model else tuple(j.name for j in urdf.actuated_joints)
 
 
-class Robot(PlanningCalls):
+class Robot(PlanningCalls, StreamingCalls):
     """A built arm: bus opened, limits and dynamics loaded, loop ready to run; with an SRDF, plans in this process."""
 
     def __init__(self, config: SerialArmConfig, bus: IBus | SteppedBus, runtime: ArmRuntime,
@@ -368,9 +373,8 @@ class Robot(PlanningCalls):
         tolerances = tolerances or TrajectoryTolerances()
         planning_s = 0.0
         for attempt in range(PLAN_ATTEMPTS):
-            basis: PlanBasis = self.runtime.basis
             lead_s = preemption_lead(attempt, planning_s)
-            activation, start = self._start_state(basis, lead_s)
+            basis, activation, start = self._start_state(lead_s)
             began = time.monotonic()
             motion, note = plan(start)
             planning_s = time.monotonic() - began
@@ -383,14 +387,33 @@ class Robot(PlanningCalls):
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop() first")
 
-    def _start_state(self, basis: PlanBasis, lead_s: float) -> tuple[int | None, StartState]:
-        dof = self.limits.dof
-        if basis.motion is None:
-            return None, (basis.hold_position.copy(), np.zeros(dof), np.zeros(dof))
-        lead = max(2, math.ceil(lead_s / self.runtime.dt))
-        activation = self.runtime.cycle_count + lead
-        t = (activation - basis.motion_start_cycle) * self.runtime.dt
-        return activation, basis.motion.state_at(t)
+    def _start_state(self, lead_s: float) -> tuple[PlanBasis, int | None, StartState]:
+        """The basis a plan starts from, waiting (at most UNKNOWN_WAIT_S) while the running motion's future is not
+        known ahead."""
+        runtime = self.runtime
+        self._pump(lambda: not runtime.basis.unknown, UNKNOWN_WAIT_S)
+        deadline = time.monotonic() + UNKNOWN_WAIT_S
+        while True:
+            basis = runtime.basis
+            found = basis.start(runtime.cycle_count, lead_s, runtime.dt)
+            if found is not None:
+                return basis, *found
+            if time.monotonic() > deadline or not self.running:
+                raise unknown_future(basis.unknown)
+            time.sleep(runtime.dt)
+
+    # -- streaming ----------------------------------------------------------------------------------------
+    def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:
+        return self.limits, self.joint_names
+
+    def _stream_block(self) -> StreamBlock:
+        return self.runtime.stream
+
+    def _open_stream(self, timeout_s: float) -> tuple[int, CommandHandle]:
+        handle = self._send(StartStream(max(1, round(timeout_s / self.runtime.dt)),
+                                        CommandHandle("stream", self._pump)))
+        handle.wait_accepted(ACCEPT_TIMEOUT_S)
+        return handle.token, handle
 
     def wait_until_idle(self, timeout: float = 30.0) -> None:
         """Block until no motion (user or internal stop) is running."""

@@ -199,6 +199,7 @@ static void end_motion(plem_arm *arm, int outcome, int joint, double v0, double 
     uint64_t token = arm->active_token;
     int slot = arm->active_slot;
     arm->active = 0;
+    arm->stream.session = 0;
     rebase(arm);
     if (arm->mode == PLEM_TRAJECTORY) set_mode(arm, PLEM_HOLD, PLEM_CAUSE_MOTION_FINISHED, token, slot);
     if (token && outcome) {
@@ -247,6 +248,7 @@ static void fault(plem_arm *arm, const plem_slab *slab, int cause, int joint, in
     if (arm->active) {
         uint64_t token = arm->active_token;
         arm->active = 0;
+        arm->stream.session = 0;
         if (token) answer(arm, token, PLEM_FINISHED, PLEM_ANSWER_FAULT_ABORTED, arm->mode, cause, joint, 0, 0);
     }
     if (arm->pending && arm->pending_token) reject(arm, arm->pending_token, PLEM_ANSWER_FAULTED, cause, -1, 0, 0);
@@ -433,6 +435,34 @@ static void request_mode(plem_arm *arm, const plem_slab *slab, const plem_comman
     }
 }
 
+/* The running motion (not the core's own stop) is replaced by a newer one: say so to whoever waits for it. */
+static void preempt(plem_arm *arm) {
+    if (!arm->active || !arm->active_token) return;
+    answer(arm, arm->active_token, PLEM_FINISHED, PLEM_ANSWER_PREEMPTED, arm->mode, 0, -1, 0, 0);
+    emit(arm, PLEM_EVENT_MOTION_FINISHED, PLEM_ANSWER_PREEMPTED, -1, -1, PLEM_ANSWER_PREEMPTED, arm->active_token,
+         0, 0, 0, 0);
+}
+
+/* Follow the stream block from now on, from the command as it is (a running motion is taken over where it is). */
+static void start_stream(plem_arm *arm, const plem_command *c) {
+    int n = arm->settings.dof;
+    if ((arm->mode != PLEM_HOLD && arm->mode != PLEM_TRAJECTORY) || arm->pending)
+        return reject(arm, c->token, PLEM_ANSWER_NOT_HOLDING, arm->pending, -1, 0, 0);
+    if (c->cycles < 1) return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, (double)c->cycles, 0);
+    preempt(arm);
+    plem_stream *st = &arm->stream;
+    st->session = c->token, st->timeout_cycles = c->cycles, st->last_cycle = arm->cycle, st->last_count = 0;
+    st->last_stamp = 0, st->kind = PLEM_STREAM_VELOCITY, st->timed_out = 0;
+    for (int i = 0; i < n; i++) st->target[i] = 0.0, st->feed[i] = 0.0;   /* until the first sample: come to rest */
+    arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
+    arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
+    arm->active_has_path = arm->active_has_goal = 0;
+    rebase(arm);
+    answer(arm, c->token, PLEM_ACCEPTED, 0, arm->mode, 0, -1, 0, 0);
+    set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, c->token, 0);
+    emit(arm, PLEM_EVENT_MOTION_STARTED, PLEM_CAUSE_MOTION_STARTED, -1, -1, 1, c->token, INFINITY, 0, 0, 0);
+}
+
 static void activate(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
     int n = arm->settings.dof;
     if ((arm->mode != PLEM_HOLD && arm->mode != PLEM_TRAJECTORY) || arm->pending)
@@ -441,13 +471,11 @@ static void activate(plem_arm *arm, const plem_slab *slab, const plem_command *c
     const double *values = slab_slot(slab, n, c->slot, &capacity);
     if (!values || c->segments < 0 || c->segments > capacity || (int32_t)values[0] != c->segments)
         return reject(arm, c->token, PLEM_ANSWER_INVALID_SLOT, c->slot, -1, c->segments, values ? values[0] : -1);
+    if (arm->active && arm->active_slot == PLEM_STREAM_SLOT)
+        return reject(arm, c->token, PLEM_ANSWER_STREAMING, 0, -1, 0, 0);
     if (c->basis != arm->basis.generation || (c->activation >= 0 && arm->cycle != c->activation))
         return reject(arm, c->token, PLEM_ANSWER_STALE, 0, -1, 0, 0);
-    if (arm->active && arm->active_token) {
-        answer(arm, arm->active_token, PLEM_FINISHED, PLEM_ANSWER_PREEMPTED, arm->mode, 0, -1, 0, 0);
-        emit(arm, PLEM_EVENT_MOTION_FINISHED, PLEM_ANSWER_PREEMPTED, -1, -1, PLEM_ANSWER_PREEMPTED, arm->active_token,
-             0, 0, 0, 0);
-    }
+    preempt(arm);
     arm->active = 1, arm->active_ended = 0, arm->active_slot = c->slot, arm->active_segments = c->segments;
     arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
     arm->active_cursor = 0, arm->active_has_path = c->has_path, arm->active_has_goal = c->has_goal;
@@ -485,6 +513,7 @@ static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c)
         answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
         break;
     case PLEM_OP_RESET: reset(arm, c); break;
+    case PLEM_OP_STREAM: start_stream(arm, c); break;
     default: reject(arm, c->token, PLEM_ANSWER_UNKNOWN_OP, c->op, -1, 0, 0);
     }
 }
@@ -581,7 +610,104 @@ static void check_command(plem_arm *arm, const plem_slab *slab) {
         }
 }
 
-static void control(plem_arm *arm, const plem_slab *slab) {
+/* ---- streams -------------------------------------------------------------------------------------------------- */
+
+/* A stream sample's checksum: FNV-1a over its words (plem.control.streaming computes the same). */
+static uint64_t stream_checksum(uint64_t session, uint64_t count, int64_t kind, int64_t stamp, const double *target,
+                                int n) {
+    uint64_t words[4 + PLEM_MAX_JOINTS] = {session, count, (uint64_t)kind, (uint64_t)stamp}, sum = 0xcbf29ce484222325ULL;
+    memcpy(words + 4, target, (size_t)n * sizeof(double));
+    for (int i = 0; i < 4 + n; i++) sum = (sum ^ words[i]) * 0x100000001b3ULL;
+    return sum;
+}
+
+/* Take the stream block's sample when it is whole, new, of the running stream and finite. */
+static void read_stream(plem_arm *arm, plem_stream_block *block) {
+    plem_stream *st = &arm->stream;
+    int n = arm->settings.dof;
+    if (!block) return;
+    _Atomic uint64_t *sequence = (_Atomic uint64_t *)&block->sequence;
+    uint64_t before = atomic_load_explicit(sequence, memory_order_acquire);
+    if (before & 1) return;
+    uint64_t session = block->session, count = block->count, checksum = block->checksum;
+    int64_t kind = block->kind, stamp = block->stamp_ns;
+    double target[PLEM_MAX_JOINTS];
+    memcpy(target, block->target, (size_t)n * sizeof(double));
+    atomic_thread_fence(memory_order_acquire);
+    if (atomic_load_explicit(sequence, memory_order_relaxed) != before || session != st->session
+        || count == st->last_count || checksum != stream_checksum(session, count, kind, stamp, target, n)
+        || (kind != PLEM_STREAM_POSITION && kind != PLEM_STREAM_VELOCITY))
+        return;
+    for (int i = 0; i < n; i++)
+        if (!isfinite(target[i])) return;
+    int feed = kind == PLEM_STREAM_POSITION && st->kind == PLEM_STREAM_POSITION && st->last_count
+               && stamp > st->last_stamp;
+    double span = feed ? (double)(stamp - st->last_stamp) * 1e-9 : 0.0;
+    for (int i = 0; i < n; i++) {
+        double speed = feed ? (target[i] - st->target[i]) / span : 0.0, limit = arm->settings.max_velocity[i];
+        st->feed[i] = fmin(fmax(speed, -limit), limit);
+        st->target[i] = target[i];
+    }
+    st->feed_until = arm->cycle + (feed ? (int64_t)ceil(span / arm->settings.dt) : 0);
+    st->kind = (int32_t)kind, st->last_count = count, st->last_stamp = stamp, st->last_cycle = arm->cycle;
+    st->timed_out = 0;
+    block->used_count = count, block->used_cycle = arm->cycle, block->latency_ns = plem_now_ns() - stamp;
+}
+
+/* One cycle of the running stream: follow its newest sample; without one for its timeout, come to rest and end. */
+static void follow_stream(plem_arm *arm, plem_stream_block *block) {
+    const plem_settings *s = &arm->settings;
+    plem_stream *st = &arm->stream;
+    read_stream(arm, block);
+    if (arm->cycle - st->last_cycle > st->timeout_cycles) st->timed_out = 1;
+    int n = s->dof, position = st->kind == PLEM_STREAM_POSITION && !st->timed_out, at_rest = 1;
+    int feeding = position && arm->cycle <= st->feed_until;
+    for (int i = 0; i < n; i++) {
+        double velocity = st->timed_out ? 0.0 : position ? (feeding ? st->feed[i] : 0.0) : st->target[i];
+        plem_follow(&row(arm, COMMAND)[i], &row(arm, COMMAND + 1)[i], &row(arm, COMMAND + 2)[i],
+                    position ? st->target[i] : NAN, velocity, s->max_velocity[i] * INSIDE,
+                    s->max_velocity[i] * INSIDE, s->max_acceleration[i] * INSIDE, s->max_jerk[i] * INSIDE,
+                    arm->reach[0][i], arm->reach[1][i], s->dt);
+        at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12;
+    }
+    if (st->timed_out && at_rest) {
+        memset(row(arm, COMMAND + 1), 0, (size_t)n * sizeof(double));
+        memset(row(arm, COMMAND + 2), 0, (size_t)n * sizeof(double));
+        end_motion(arm, PLEM_ANSWER_STREAM_TIMED_OUT, -1, (double)st->timeout_cycles, 0);
+    }
+}
+
+static void publish_stream(const plem_arm *arm, plem_stream_block *block) {
+    if (!block) return;
+    int streaming = arm->active && arm->active_slot == PLEM_STREAM_SLOT;
+    block->used_session = streaming ? arm->stream.session : 0;
+    block->state = !streaming ? PLEM_STREAM_NONE : arm->stream.timed_out ? PLEM_STREAM_TIMED_OUT
+                 : PLEM_STREAM_FOLLOWING;
+}
+
+/* ---- control -------------------------------------------------------------------------------------------------- */
+
+/* The running motion at this cycle: the stream's follower, or a sampled motion (a slab slot or the core's stop). */
+static void run_motion(plem_arm *arm, const plem_slab *slab, plem_stream_block *block) {
+    int n = arm->settings.dof, aborted = 0;
+    if (arm->active_slot == PLEM_STREAM_SLOT) return follow_stream(arm, block);
+    if (!arm->active_ended) {
+        plem_motion motion;
+        if (active_motion(arm, slab, &motion)) {
+            double out[3 * PLEM_MAX_JOINTS];
+            arm->active_ended = plem_motion_sample(&motion, (double)(arm->cycle - arm->active_start_cycle)
+                                                            * arm->settings.dt, out);
+            arm->active_cursor = motion.cursor;
+            for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
+        } else {
+            arm->active_ended = 1;  /* the slab went away: hold where the motion was */
+        }
+        if (arm->active_has_path) aborted = check_path(arm, slab);
+    }
+    if (arm->active_ended && !aborted) settle(arm);
+}
+
+static void control(plem_arm *arm, const plem_slab *slab, plem_stream_block *block) {
     const plem_settings *s = &arm->settings;
     int n = s->dof, mode = arm->mode;
     if (mode == PLEM_IDLE || (mode == PLEM_FAULTED && !can_command(arm))) {
@@ -598,23 +724,7 @@ static void control(plem_arm *arm, const plem_slab *slab) {
         }
         return;
     }
-    if (arm->active) {
-        double t = (double)(arm->cycle - arm->active_start_cycle) * s->dt;
-        int aborted = 0;
-        if (!arm->active_ended) {
-            plem_motion motion;
-            if (active_motion(arm, slab, &motion)) {
-                double out[3 * PLEM_MAX_JOINTS];
-                arm->active_ended = plem_motion_sample(&motion, t, out);
-                arm->active_cursor = motion.cursor;
-                for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
-            } else {
-                arm->active_ended = 1;  /* the slab went away: hold where the motion was */
-            }
-            if (arm->active_has_path) aborted = check_path(arm, slab);
-        }
-        if (arm->active_ended && !aborted) settle(arm);
-    }
+    if (arm->active) run_motion(arm, slab, block);
     check_command(arm, slab);
     if (arm->pending) advance_enable(arm);
 }
@@ -695,7 +805,8 @@ void plem_arm_init(plem_arm *arm) {
     rebase(arm);
 }
 
-void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block) {
+void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block,
+                    plem_stream_block *stream) {
     const plem_settings *s = &arm->settings;
     int n = s->dof;
     if (read_bus(arm, bus)) {
@@ -712,10 +823,11 @@ void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, p
         fault(arm, slab, PLEM_CAUSE_COMMUNICATION_LOST, -1, 0, 0, 0, 0);
     }
     take_commands(arm, slab);
-    control(arm, slab);
+    control(arm, slab, stream);
     write_bus(arm, bus);
     arm->cycle++;
     publish(arm, block);
+    publish_stream(arm, stream);
 }
 
 void plem_arm_report_overruns(plem_arm *arm, int64_t overruns, int64_t missed, int64_t longest, int64_t total,

@@ -74,6 +74,23 @@ static PyObject *dynamics_call(PyObject *args, int which) {
     return result;
 }
 
+/* follow(state, target_position, target_velocity, speed, max_velocity, max_acceleration, max_jerk, low, high, dt):
+ * one joint's (p, v, a) in a float64 buffer of 3, one follower cycle on. */
+static PyObject *follow(PyObject *self, PyObject *args) {
+    (void)self;
+    PyObject *object;
+    double target, velocity, speed, max_velocity, max_acceleration, max_jerk, low, high, dt;
+    if (!PyArg_ParseTuple(args, "Oddddddddd", &object, &target, &velocity, &speed, &max_velocity, &max_acceleration,
+                          &max_jerk, &low, &high, &dt))
+        return NULL;
+    argument held = {{0}, 0};
+    double *state = take(object, &held, 3 * sizeof(double), 1, "state");
+    if (state) plem_follow(&state[0], &state[1], &state[2], target, velocity, speed, max_velocity, max_acceleration,
+                           max_jerk, low, high, dt);
+    release(&held, 1);
+    return state ? Py_NewRef(Py_None) : NULL;
+}
+
 static PyObject *inverse_dynamics(PyObject *self, PyObject *args) { (void)self; return dynamics_call(args, 0); }
 static PyObject *gravity(PyObject *self, PyObject *args) { (void)self; return dynamics_call(args, 1); }
 static PyObject *forward_dynamics(PyObject *self, PyObject *args) { (void)self; return dynamics_call(args, 2); }
@@ -301,7 +318,7 @@ static PyObject *drive_transition(PyObject *self, PyObject *args) {
 
 typedef struct {
     PyObject_HEAD
-    argument arm, header, values, slab, sim, raw, stats;
+    argument arm, header, values, slab, sim, raw, stats, stream;
     PyObject *master_object;         /* the Master the bus exchanges through, kept alive while held */
     plem_bus bus;
     plem_slab slab_view;
@@ -325,8 +342,9 @@ static void core_stop_thread(Core *core) {
 
 static void core_release(Core *core) {
     core_stop_thread(core);
-    argument *held[7] = {&core->arm, &core->header, &core->values, &core->slab, &core->sim, &core->raw, &core->stats};
-    for (int i = 0; i < 7; i++) release(held[i], 1);
+    argument *held[8] = {&core->arm,  &core->header, &core->values, &core->slab,
+                         &core->sim,  &core->raw,    &core->stats,  &core->stream};
+    for (int i = 0; i < 8; i++) release(held[i], 1);
     core->bus = (plem_bus){NULL, NULL};
     Py_CLEAR(core->master_object);
 }
@@ -354,10 +372,11 @@ static int take_raw(Core *core, PyObject *raw, int dof) {
 }
 
 static int core_init(Core *core, PyObject *args, PyObject *kwargs) {
-    static char *keywords[] = {"arm", "header", "values", "slab", "sim", "raw", "stats", "master", NULL};
+    static char *keywords[] = {"arm", "header", "values", "slab", "sim", "raw", "stats", "master", "stream", NULL};
     PyObject *arm, *header, *values, *slab, *sim = Py_None, *raw = Py_None, *stats = Py_None, *master = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOOO", keywords, &arm, &header, &values, &slab, &sim, &raw,
-                                     &stats, &master))
+    PyObject *stream = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOOOO", keywords, &arm, &header, &values, &slab, &sim, &raw,
+                                     &stats, &master, &stream))
         return -1;
     core_release(core);
     plem_arm *a = take(arm, &core->arm, sizeof(plem_arm), 1, "arm");
@@ -395,6 +414,7 @@ static int core_init(Core *core, PyObject *args, PyObject *kwargs) {
     }
     if (raw != Py_None && !take_raw(core, raw, dof)) goto fail;
     if (stats != Py_None && !take(stats, &core->stats, sizeof(plem_stats), 1, "stats")) goto fail;
+    if (stream != Py_None && !take(stream, &core->stream, sizeof(plem_stream_block), 1, "stream")) goto fail;
     return 0;
 fail:
     core_release(core);
@@ -413,12 +433,14 @@ static int core_ready(Core *core) {
     return 1;
 }
 
+static plem_stream_block *stream_of(Core *core) { return core->stream.held ? core->stream.view.buf : NULL; }
+
 static PyObject *core_cycle(Core *core, PyObject *unused) {
     (void)unused;
     if (!core_ready(core)) return NULL;
     if (core->bus.master && (!core->bus.master->open || core->bus.master->in_cycle))
         return PyErr_Format(PyExc_RuntimeError, "the core's EtherCAT master is closed or cycled by another core");
-    plem_arm_cycle(core->arm.view.buf, &core->bus, &core->slab_view, &core->block);
+    plem_arm_cycle(core->arm.view.buf, &core->bus, &core->slab_view, &core->block, stream_of(core));
     Py_RETURN_NONE;
 }
 
@@ -455,7 +477,7 @@ static PyObject *core_start(Core *core, PyObject *args, PyObject *kwargs) {
     plem_master *master = core->bus.master;
     if (master && (!master->open || master->in_cycle))
         return PyErr_Format(PyExc_RuntimeError, "the core's EtherCAT master is closed or cycled by another core");
-    core->loop = (plem_loop){core->arm.view.buf, core->bus, &core->slab_view, &core->block,
+    core->loop = (plem_loop){core->arm.view.buf, core->bus, &core->slab_view, &core->block, stream_of(core),
                              core->raw.held ? &core->raw_view : NULL, core->stats.view.buf, period, window, cpus,
                              priority, overruns, 0};
     if (master) master->in_cycle = 1;
@@ -574,6 +596,19 @@ static const field BASIS_FIELDS[] = {
     FIELD(plem_basis, sequence), FIELD(plem_basis, generation), FIELD(plem_basis, slot), FIELD(plem_basis, segments),
     FIELD(plem_basis, start_cycle), FIELD(plem_basis, hold_position), {NULL, 0, 0}};
 
+static const field STREAM_FIELDS[] = {
+    FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
+    FIELD(plem_stream, last_count), FIELD(plem_stream, last_stamp), FIELD(plem_stream, feed_until),
+    FIELD(plem_stream, kind), FIELD(plem_stream, timed_out), FIELD(plem_stream, target), FIELD(plem_stream, feed),
+    {NULL, 0, 0}};
+
+static const field STREAM_BLOCK_FIELDS[] = {
+    FIELD(plem_stream_block, sequence), FIELD(plem_stream_block, session), FIELD(plem_stream_block, count),
+    FIELD(plem_stream_block, kind), FIELD(plem_stream_block, stamp_ns), FIELD(plem_stream_block, checksum),
+    FIELD(plem_stream_block, target), FIELD(plem_stream_block, used_session), FIELD(plem_stream_block, used_count),
+    FIELD(plem_stream_block, used_cycle), FIELD(plem_stream_block, latency_ns), FIELD(plem_stream_block, state),
+    {NULL, 0, 0}};
+
 static const field RING_FIELDS[] = {
     FIELD(plem_ring, head), FIELD(plem_ring, tail), FIELD(plem_ring, dropped), {NULL, 0, 0}};
 
@@ -582,7 +617,7 @@ static const field COMMAND_FIELDS[] = {
     FIELD(plem_command, segments), FIELD(plem_command, basis), FIELD(plem_command, activation),
     FIELD(plem_command, goal), FIELD(plem_command, has_path), FIELD(plem_command, has_goal),
     FIELD(plem_command, goal_time), FIELD(plem_command, stopped_velocity), FIELD(plem_command, path),
-    FIELD(plem_command, goal_tolerance), {NULL, 0, 0}};
+    FIELD(plem_command, goal_tolerance), FIELD(plem_command, cycles), {NULL, 0, 0}};
 
 static const field OUTCOME_FIELDS[] = {
     FIELD(plem_outcome, token), FIELD(plem_outcome, cycle), FIELD(plem_outcome, stage), FIELD(plem_outcome, answer),
@@ -611,7 +646,7 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, active_goal), FIELD(plem_arm, active_final), FIELD(plem_arm, pending),
     FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
     FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
-    FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis),
+    FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, stream),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
     FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};
 
@@ -645,6 +680,10 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_ANSWER_FAULTED), CONSTANT(PLEM_ANSWER_SUCCEEDED), CONSTANT(PLEM_ANSWER_GOAL_VIOLATED),
     CONSTANT(PLEM_ANSWER_PATH_VIOLATED), CONSTANT(PLEM_ANSWER_FAULT_ABORTED), CONSTANT(PLEM_ANSWER_PREEMPTED),
     CONSTANT(PLEM_ANSWER_CANCELED), CONSTANT(PLEM_ANSWER_INVALID_SLOT), CONSTANT(PLEM_ANSWER_UNKNOWN_OP),
+    CONSTANT(PLEM_ANSWER_STREAMING), CONSTANT(PLEM_ANSWER_STREAM_TIMED_OUT), CONSTANT(PLEM_ANSWER_INVALID_VALUE),
+    CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_STREAM_POSITION),
+    CONSTANT(PLEM_STREAM_VELOCITY), CONSTANT(PLEM_STREAM_NONE), CONSTANT(PLEM_STREAM_FOLLOWING),
+    CONSTANT(PLEM_STREAM_TIMED_OUT), CONSTANT(PLEM_STREAM_SLOT),
     CONSTANT(PLEM_EVENT_MODE_CHANGED), CONSTANT(PLEM_EVENT_FAULT), CONSTANT(PLEM_EVENT_FAULT_CLEARED),
     CONSTANT(PLEM_EVENT_MOTION_STARTED), CONSTANT(PLEM_EVENT_MOTION_FINISHED), CONSTANT(PLEM_EVENT_COMMAND_REJECTED),
     CONSTANT(PLEM_EVENT_WARNING), CONSTANT(PLEM_EVENT_OVERRUN), CONSTANT(PLEM_CAUSE_SET_MODE_IDLE), CONSTANT(PLEM_CAUSE_SET_MODE_FREE_DRIVE),
@@ -690,6 +729,8 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_model", MODEL_FIELDS, sizeof(plem_model)}, {"plem_power", POWER_FIELDS, sizeof(plem_power)},
         {"plem_sim", SIM_FIELDS, sizeof(plem_sim)}, {"plem_settings", SETTINGS_FIELDS, sizeof(plem_settings)},
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
+        {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
+        {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},
         {"plem_series", SERIES_FIELDS, sizeof(plem_series)}, {"plem_stats", STATS_FIELDS, sizeof(plem_stats)},
@@ -729,6 +770,8 @@ static PyMethodDef METHODS[] = {
      "motion_sample(knots, coefficients, final, segments, dof, t, cursor_int32, out) -> True once over"},
     {"plan_stop", plan_stop, METH_VARARGS,
      "plan_stop(p, v, a, max_acceleration, max_jerk, knots_out, coefficients_out, final_out) -> segments"},
+    {"follow", follow, METH_VARARGS,
+     "follow(state, target_position, target_velocity, speed, max_velocity, max_acceleration, max_jerk, low, high, dt)"},
     {"arm_init", arm_init, METH_O, "arm_init(arm): a fresh arm (settings and model written) ready to cycle"},
     {"sim_read", sim_read, METH_O, "sim_read(sim) -> False while communication is lost"},
     {"sim_write", sim_write, METH_O, "sim_write(sim): controlwords, then one cycle"},

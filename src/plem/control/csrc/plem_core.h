@@ -105,6 +105,37 @@ int plem_motion_sample(plem_motion *motion, double t, double *out);
 int plem_plan_stop(int dof, const double *p, const double *v, const double *a, const double *max_acceleration,
                    const double *max_jerk, double *knots, double *coefficients, double *final);
 
+/* ---- streaming: an online jerk-limited follower ------------------------------------------------------------ */
+
+/* One joint's next command (p, v, a) one cycle on, toward a position at rest (finite target_position; it may move
+ * at target_velocity) or a velocity (target_position NaN), never faster than speed, past max_velocity,
+ * max_acceleration or max_jerk, or outside [low, high]: a jump or a gap in the targets is smoothed, never passed on. */
+void plem_follow(double *p, double *v, double *a, double target_position, double target_velocity, double speed,
+                 double max_velocity, double max_acceleration, double max_jerk, double low, double high, double dt);
+
+enum plem_stream_kind { PLEM_STREAM_POSITION = 1, PLEM_STREAM_VELOCITY = 2 };
+enum plem_stream_state { PLEM_STREAM_NONE = 0, PLEM_STREAM_FOLLOWING = 1, PLEM_STREAM_TIMED_OUT = 2 };
+
+/* The stream block: a client writes samples into it (a seqlock and a checksum, so a torn or mixed sample is never
+ * used), the core reads the newest each cycle and writes back what it used. */
+typedef struct {
+    uint64_t sequence;               /* odd while a sample is written */
+    uint64_t session;                /* the stream the sample belongs to: its start request's token */
+    uint64_t count;                  /* samples written in this session */
+    int64_t kind;                    /* enum plem_stream_kind */
+    int64_t stamp_ns;                /* the writer's CLOCK_MONOTONIC when it wrote the sample */
+    uint64_t checksum;               /* xor of session, count, kind, stamp and every target's bits */
+    uint64_t pad0[2];
+    double target[PLEM_MAX_JOINTS];  /* rad, or rad/s */
+    /* written by the core */
+    uint64_t used_session;           /* the stream the core follows, 0 for none */
+    uint64_t used_count;             /* the last sample a cycle used */
+    int64_t used_cycle;
+    int64_t latency_ns;              /* that sample's stamp to the cycle that first used it */
+    int32_t state;                   /* enum plem_stream_state */
+    int32_t pad1;
+} plem_stream_block;
+
 /* ---- the simulated arm -------------------------------------------------------------------------------- */
 
 /* Simulated CiA402 drives, encoders and joints: the bus of bus:=mock and the drives of the virtual network.
@@ -189,7 +220,10 @@ void plem_sim_power_off(plem_sim *sim);
 enum plem_mode { PLEM_IDLE = 0, PLEM_HOLD = 1, PLEM_TRAJECTORY = 2, PLEM_FREE_DRIVE = 3, PLEM_FAULTED = 4 };
 
 /* Requests from Python (the command ring). */
-enum plem_op { PLEM_OP_SET_MODE = 1, PLEM_OP_START = 2, PLEM_OP_STOP = 3, PLEM_OP_RESET = 4 };
+enum plem_op {
+    PLEM_OP_SET_MODE = 1, PLEM_OP_START = 2, PLEM_OP_STOP = 3, PLEM_OP_RESET = 4,
+    PLEM_OP_STREAM = 5,              /* follow the stream block's samples (cycles: the timeout) */
+};
 
 /* Answers to requests (the outcome ring): a stage and, for refusals and ends, a code with its numbers. */
 enum plem_stage { PLEM_ACCEPTED = 1, PLEM_REJECTED = 2, PLEM_FINISHED = 3 };
@@ -213,6 +247,9 @@ enum plem_answer {
     PLEM_ANSWER_CANCELED,          /* motion canceled */
     PLEM_ANSWER_INVALID_SLOT,      /* rejected start: the slot does not hold the announced motion */
     PLEM_ANSWER_UNKNOWN_OP,        /* rejected: not a request the core knows */
+    PLEM_ANSWER_STREAMING,         /* rejected start: a stream runs (stop it first) */
+    PLEM_ANSWER_STREAM_TIMED_OUT,  /* stream ended: no sample for (detail) cycles, the arm came to rest */
+    PLEM_ANSWER_INVALID_VALUE,     /* rejected: a number outside its range (values[0]) */
 };
 
 /* What happened in the loop (the event ring). */
@@ -254,6 +291,7 @@ typedef struct {
     double stopped_velocity;         /* start: rad/s below which a joint counts as stopped */
     double path[PLEM_MAX_JOINTS];    /* rad; inf leaves a joint unchecked */
     double goal_tolerance[PLEM_MAX_JOINTS];
+    int64_t cycles;                  /* stream: cycles without a sample before it stops */
 } plem_command;
 
 typedef struct {
@@ -314,16 +352,32 @@ typedef struct {
 } plem_settings;
 
 /* Where a new motion starts: the held position, or a running motion (a slab slot, or the core's stop) from a
- * cycle on. Its generation changes whenever it does; a start planned from another generation is stale. */
+ * cycle on. Its generation changes whenever it does; a start planned from another generation is stale. A stream's
+ * future is not known, so no start takes one over. */
 #define PLEM_STOP_SLOT (-2)
+#define PLEM_STREAM_SLOT (-3)
 typedef struct {
     uint64_t sequence;               /* seqlock: odd while written */
     uint64_t generation;
-    int32_t slot;                    /* -1: holding; PLEM_STOP_SLOT: the core's stop; else a slab slot */
+    int32_t slot;                    /* -1: holding; PLEM_STOP_SLOT: the core's stop; PLEM_STREAM_SLOT; a slab slot */
     int32_t segments;
     int64_t start_cycle;
     double hold_position[PLEM_MAX_JOINTS];
 } plem_basis;
+
+/* The stream the core follows. */
+typedef struct {
+    uint64_t session;                /* the stream's token; 0: none */
+    int64_t timeout_cycles;
+    int64_t last_cycle;              /* when the last new sample arrived */
+    uint64_t last_count;
+    int64_t last_stamp;
+    int64_t feed_until;              /* the cycle until which `feed` holds: one sample period after the last */
+    int32_t kind;                    /* of the last sample */
+    int32_t timed_out;
+    double target[PLEM_MAX_JOINTS];
+    double feed[PLEM_MAX_JOINTS];    /* the targets' velocity, from the last two position samples */
+} plem_stream;
 
 /* The arm: settings, the state of its cycle, and its rings. */
 typedef struct {
@@ -387,6 +441,7 @@ typedef struct {
     int32_t stop_segments;
     int32_t pad4;
     plem_basis basis;
+    plem_stream stream;
     /* rings */
     plem_ring commands_index;
     plem_command commands[PLEM_COMMAND_SLOTS];
@@ -426,7 +481,8 @@ void plem_master_write(struct plem_master *master, const plem_arm *arm, const ui
 void plem_arm_init(plem_arm *arm);
 /* One cycle: read the bus (the simulated arm, the EtherCAT master, or process data the caller put in io_*),
  * supervise, take requests, control, check the command against every limit, write the bus, publish. */
-void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block);
+void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, plem_state_block *block,
+                    plem_stream_block *stream);
 /* Fault from outside the cycle (consecutive overruns, a failing caller), with two numbers for the reason. */
 void plem_arm_fault(plem_arm *arm, int cause, double value0, double value1);
 /* The summary of one overrun window, as an event. */

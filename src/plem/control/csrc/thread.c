@@ -81,7 +81,7 @@ void *plem_loop_run(void *argument) {
     while (!atomic_load_explicit(&loop->stop, memory_order_acquire)) {
         plem_sleep_until(deadline);
         int64_t woke = plem_now_ns();
-        plem_arm_cycle(arm, &loop->bus, loop->slab, loop->block);
+        plem_arm_cycle(arm, &loop->bus, loop->slab, loop->block, loop->stream);
         if (loop->raw) plem_raw_write(loop->raw, loop->block, dof, woke - deadline, previous_compute);
         int64_t done = plem_now_ns();
         /* compute: the cycle's own work; the time on the wire is the master's to report */

@@ -12,6 +12,7 @@ typedef struct {
     plem_bus bus;
     const plem_slab *slab;
     plem_state_block *block;
+    plem_stream_block *stream;        /* NULL: no stream can be followed */
     plem_raw_ring *raw;               /* NULL: no rt_raw record */
     plem_stats *stats;
     int64_t period_ns;

@@ -1,0 +1,114 @@
+"""Streaming joint targets, as the in-process `Robot` and the process client `RobotClient` both offer them.
+
+`servo_joints`, `speed_joints` and `jog` write samples straight into the robot's stream block, which the core
+reads every cycle, so a sample reaches the loop within a cycle of being written, whatever runs in the caller's
+process. The first sample of a stream (and the first after one ended) asks the robot to follow the block; the
+stream ends when its samples stop for its timeout (the arm comes to rest), on `stop()`, or on a fault.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import numpy as np
+
+from plem.control.limits import ArmLimits
+from plem.control.streaming import DEFAULT_TIMEOUT_S, MAX_TIMEOUT_S, StreamBlock, StreamStatus
+from plem.core import arguments
+from plem.errors import CommandRejected
+
+
+class StreamHandle(Protocol):
+    """What streaming needs of a request's handle: whether it ended, and its end."""
+
+    @property
+    def done(self) -> bool:
+        """The stream ended."""
+
+    def wait(self, timeout: float | None = None) -> Any:
+        """How the stream ended."""
+
+
+class StreamingCalls:
+    """Streamed joint targets; subclasses provide the block, the limits and the request that opens a stream."""
+
+    _stream: tuple[int, StreamHandle, float] | None = None   # the open stream: session, handle, timeout
+
+    # -- what a subclass provides --------------------------------------------------------------------
+    def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:
+        """The arm's limits and joint names."""
+        raise NotImplementedError
+
+    def _stream_block(self) -> StreamBlock:
+        raise NotImplementedError
+
+    def _open_stream(self, timeout_s: float) -> tuple[int, StreamHandle]:
+        """Ask the robot to follow the stream block; the session its samples carry, and the stream's handle."""
+        raise NotImplementedError
+
+    # -- streaming -----------------------------------------------------------------------------------
+    def servo_joints(self, positions: Sequence[float] | np.ndarray, timeout: float = DEFAULT_TIMEOUT_S) -> int:
+        """Stream a joint position target (rad), at any rate up to the loop's; returns the sample's number.
+
+        The arm follows the newest target as fast as its limits allow (a target past a position limit is followed
+        to the limit); without a new sample for `timeout` s it comes to rest and the stream ends.
+        """
+        return self._sample("position", self._joint_values(positions, "positions"), timeout)
+
+    def speed_joints(self, velocities: Sequence[float] | np.ndarray, timeout: float = DEFAULT_TIMEOUT_S) -> int:
+        """Stream joint velocities (rad/s), reached within the acceleration and jerk limits; see `servo_joints`."""
+        values = self._joint_values(velocities, "velocities")
+        limits, names = self._stream_arm()
+        limit = limits.maximum("velocity")
+        over = np.flatnonzero(np.abs(values) > limit)
+        if over.size:
+            i = int(over[0])
+            raise CommandRejected("a streamed velocity is above its joint's limit",
+                                  what=f"|velocity| ≤ {limit[i]:g} rad/s for {names[i]}",
+                                  why=f"got {values[i]:g} rad/s", how="stream a velocity within the joint's limit")
+        return self._sample("velocity", values, timeout)
+
+    def jog(self, joint: int | str, velocity: float, timeout: float = DEFAULT_TIMEOUT_S) -> int:
+        """Stream one joint's velocity (rad/s), the others at rest: call it again within `timeout` to keep going."""
+        values = np.zeros(self._stream_arm()[0].dof)
+        values[self._joint_index(joint)] = arguments.real(velocity, "velocity")
+        return self.speed_joints(values, timeout)
+
+    def stream_status(self) -> StreamStatus:
+        """The core's report on streaming, as of its last cycle (see StreamStatus)."""
+        return self._stream_block().status()
+
+    def _sample(self, kind: str, values: np.ndarray, timeout: float) -> int:
+        timeout = arguments.seconds(timeout, "timeout")
+        if not 0.0 < timeout <= MAX_TIMEOUT_S:
+            raise CommandRejected("the stream timeout is out of range", what=f"0 < timeout ≤ {MAX_TIMEOUT_S:g} s",
+                                  why=f"got {timeout:g} s",
+                                  how=f"pass a timeout of e.g. {DEFAULT_TIMEOUT_S:g} s, and send samples faster")
+        opened = self._stream
+        if opened is None or opened[1].done or opened[2] != timeout:
+            session, handle = self._open_stream(timeout)
+            opened = self._stream = (session, handle, timeout)
+        return self._stream_block().write(opened[0], kind, values)
+
+    def _joint_values(self, values: Sequence[float] | np.ndarray, name: str) -> np.ndarray:
+        limits, names = self._stream_arm()
+        checked = np.asarray(arguments.reals(values, name), dtype=float)
+        if checked.shape != (limits.dof,):
+            raise CommandRejected(f"wrong number of {name}", what=f"one value per joint ({limits.dof})",
+                                  why=f"got {checked.size}", how=f"pass {limits.dof} values in joint order: "
+                                                                 f"{', '.join(names)}")
+        if not np.all(np.isfinite(checked)):
+            raise CommandRejected(f"{name} must be finite numbers", what=f"finite {name}",
+                                  why=f"got {checked.tolist()}", how=f"pass one finite number per joint")
+        return checked
+
+    def _joint_index(self, joint: int | str) -> int:
+        limits, names = self._stream_arm()
+        if isinstance(joint, str) and joint in names:
+            return names.index(joint)
+        if isinstance(joint, int) and not isinstance(joint, bool) and 0 <= joint < limits.dof:
+            return joint
+        raise CommandRejected("no such joint", what=f"a joint name ({', '.join(names)}) or an index from "
+                                                    f"0 to {limits.dof - 1}",
+                              why=f"got {joint!r}", how="name the joint as the robot's joint_names do")
