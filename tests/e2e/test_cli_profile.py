@@ -41,3 +41,19 @@ def test_bad_inputs(isolated_environment: Path):
     assert not (isolated_environment / "profiles" / "A1.json").exists()
     for result in (wrong_count, bad_serial, not_numbers, missing):
         assert "Traceback" not in result.stderr
+
+
+def test_replacing_the_offsets_keeps_the_payload_and_show_prints_it(isolated_environment: Path):
+    assert run_plem("profile", "create", "--serial", "A1", "--offsets", "1,2,3,4,5,6").returncode == 0
+    path = isolated_environment / "profiles" / "A1.json"
+    stored = json.loads(path.read_text())
+    stored["payload"] = {"mass": 1.5, "center_of_mass": [0.0, 0.0, 0.05]}
+    path.write_text(json.dumps(stored))
+    shown = run_plem("profile", "show", "A1")
+    assert "payload:       1.5 kg at [0.0, 0.0, 0.05] m in the flange frame" in shown.stdout, shown.stdout
+    forced = run_plem("profile", "create", "--serial", "A1", "--offsets", "9,9,9,9,9,9", "--force")
+    assert forced.returncode == 0, forced.stderr
+    replaced = json.loads(path.read_text())
+    assert replaced["joint_offsets"] == [9] * 6 and replaced["payload"] == stored["payload"]
+    assert run_plem("profile", "create", "--serial", "B1", "--offsets", "1,2,3,4,5,6").returncode == 0
+    assert "payload:       (none)" in run_plem("profile", "show", "B1").stdout

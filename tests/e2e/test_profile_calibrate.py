@@ -83,3 +83,16 @@ def test_create_force_keeps_the_replaced_profile(robot: Launch):
     (backup,) = profiles(robot).glob("CAL02.json.*.bak")
     assert f"Kept the previous profile as {backup}" in replaced.stdout
     assert json.loads(backup.read_text())["joint_offsets"] == [1, 2, 3, 4, 5, 6]
+
+
+def test_calibrating_again_keeps_the_profiles_payload(robot: Launch):
+    assert run_plem("profile", "create", "--serial", "CAL03", "--offsets", "1,2,3,4,5,6", env=robot.env).returncode == 0
+    path = profiles(robot) / "CAL03.json"
+    stored = json.loads(path.read_text())
+    stored["payload"] = {"mass": 2.0, "center_of_mass": [0.0, 0.01, 0.1], "inertia": [0.01, 0, 0, 0.02, 0, 0.02]}
+    path.write_text(json.dumps(stored))
+    calibrated = run_plem("profile", "calibrate", "--serial", "CAL03", "--robot-id", robot.robot_id, "--force",
+                          env=robot.env)
+    assert calibrated.returncode == 0, calibrated.stderr
+    replaced = json.loads(path.read_text())
+    assert replaced["joint_offsets"] != [1, 2, 3, 4, 5, 6] and replaced["payload"] == stored["payload"]

@@ -18,7 +18,7 @@ from plem.errors import PlemError, ProfileError, UsageError
 from plem.robot.config import SUPPORTED_DOF
 
 if TYPE_CHECKING:
-    from plem.robot.profile import RobotProfile
+    from plem.robot.profile import ProfilePayload, RobotProfile
 
 app = typer.Typer(help="Create and inspect robot profiles (calibration offsets).", no_args_is_help=True)
 
@@ -62,8 +62,10 @@ def create(
             why=f"--offsets has {len(values)} values",
             how=f"give one offset per joint ({dof} values)",
         )
-    profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=date or _now())
     path = RobotProfile.default_path(serial)
+    kept = _load_or_none(path) if force and path.exists() else None
+    profile = RobotProfile(robot_serial=serial, joint_offsets=values, profile_date=date or _now(),
+                           payload=kept.payload if kept is not None else None)
     if force:
         _replace(profile, path)
     else:
@@ -133,7 +135,8 @@ def calibrate(
                                                  offsets, strict=True):
         table.add_row(name, str(raw), f"{position:+.4f}", str(earlier), str(new))
     stdout.print(table)
-    profile = RobotProfile(robot_serial=serial, joint_offsets=offsets, profile_date=_now())
+    profile = RobotProfile(robot_serial=serial, joint_offsets=offsets, profile_date=_now(),
+                           payload=old.payload if old is not None else None)
     if old is not None or path.exists():
         _replace(profile, path)
     else:
@@ -230,7 +233,16 @@ def show(
     stdout.print(f"robot_serial:  {profile.robot_serial}\n"
                  f"joint_offsets: {profile.joint_offsets}\n"
                  f"profile_date:  {profile.profile_date or '(not set)'}\n"
+                 f"payload:       {_payload_text(profile.payload)}\n"
                  f"path:          {path}", markup=False)
+
+
+def _payload_text(payload: ProfilePayload | None) -> str:
+    """A profile's payload on one line, as `plem profile show` prints it."""
+    if payload is None:
+        return "(none)"
+    inertia = "" if payload.inertia is None else f", inertia {payload.inertia} kg·m²"
+    return f"{payload.mass:g} kg at {payload.center_of_mass} m in the flange frame{inertia}"
 
 
 @app.command("list")
