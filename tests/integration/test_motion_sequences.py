@@ -210,6 +210,10 @@ def test_blends_that_do_not_fit_and_a_blend_at_the_end_are_refused(indy7: Arm) -
              Linear(Pose(CORNERS[2], DOWN))]
     assert "overlap" in refusal(indy7, short).summary
     assert "last item has a blend radius" in refusal(indy7, [Linear(Pose(CORNERS[0], DOWN), blend=0.01)]).summary
+    back = [Linear(Pose(CORNERS[0], DOWN), blend=0.02), Linear(Pose(CORNERS[1], DOWN), blend=0.02),
+            Linear(Pose(CORNERS[0], DOWN))]
+    turned = refusal(indy7, back)
+    assert "item 1 turns back on itself" in turned.summary and turned.how == "set blend=0 on item 1"
     collinear = Circular(Pose(CORNERS[1], DOWN), via=((CORNERS[0][0] + CORNERS[1][0]) / 2, CORNERS[0][1], 0.45))
     assert "spans no arc" in refusal(indy7, [Linear(Pose(CORNERS[0], DOWN)), collinear]).summary
 

@@ -23,7 +23,7 @@ import pinocchio as pin
 from plem.control.limits import ArmLimits
 from plem.control.spline import Spline
 from plem.control.trajectory import JointTrajectory, TrajectoryPoint
-from plem.planning.retiming import fit_to_limits
+from plem.planning.retiming import fit_to_limits, smoothing_needs
 from plem.planning.sequence import ToolLimits
 
 #: Share of each joint's acceleration limit the change of pace may take along the path; the rest is for turning.
@@ -35,6 +35,10 @@ TOOL_SHARE = 0.5**0.5
 JERK_SHARE = 0.5
 #: A piece shorter than this in joint space (rad) is no motion: its stops are merged.
 STILL = 1e-9
+#: Rounds of slowing the pace where the smoothed trajectory would still break a limit (`smoothing_needs`).
+SLOWING_ROUNDS = 12
+#: Each slowing asks for this much more than the segment needs.
+SLOWING_MARGIN = 1.02
 #: Joint-space distance (rad) between the states a path's trajectory passes as its points.
 KNOT_SPACING = 0.01
 
@@ -53,21 +57,42 @@ def time_path(states: np.ndarray, positions: np.ndarray, rotations: np.ndarray, 
     turn = np.concatenate([[0.0], np.cumsum([np.linalg.norm(pin.log3(a.T @ b))
                                              for a, b in zip(rotations[:-1], rotations[1:], strict=True)])])
     window = 2.0 * ACCELERATION_SHARE * float(np.min(limits.max_acceleration / limits.max_jerk))
-    times = [np.zeros(1)]
     marks = np.flatnonzero(stops)
+    pieces = []
     for first, last in zip(marks[:-1], marks[1:], strict=True):
         piece = slice(first, last + 1)
         length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(states[piece], axis=0), axis=1))])
-        derivatives = _derivatives(states[piece], length)
-        tool_derivatives = _derivatives(np.column_stack([positions[piece], turn[piece]]), length)
-        pace = _pace(length, derivatives, tool_derivatives, cartesian[piece], limits, tool)
-        times.append(times[-1][-1] + _jerk_limited(length, pace, window, cycle_time_s)[1:])
-    trajectory = JointTrajectory(limits.joint_names, tuple(
-        TrajectoryPoint(tuple(map(float, q)), float(t), (0.0,) * limits.dof if stop else None,
-                        (0.0,) * limits.dof if stop else None)
-        for q, t, stop in zip(states, np.concatenate(times), stops, strict=True)))
+        cap, change = _caps(length, _derivatives(states[piece], length),
+                            _derivatives(np.column_stack([positions[piece], turn[piece]]), length), cartesian[piece],
+                            limits, tool)
+        pieces.append((first, last, length, cap, change))
     rest = np.zeros(limits.dof)
-    return fit_to_limits(trajectory, limits, (states[0].copy(), rest, rest.copy()), cycle_time_s).motion
+    start = (states[0].copy(), rest, rest.copy())
+    for _ in range(SLOWING_ROUNDS):
+        times = [np.zeros(1)]
+        for _, _, length, cap, change in pieces:
+            times.append(times[-1][-1] + _jerk_limited(length, _pass(length, cap, change), window, cycle_time_s)[1:])
+        trajectory = JointTrajectory(limits.joint_names, tuple(
+            TrajectoryPoint(tuple(map(float, q)), float(t), (0.0,) * limits.dof if stop else None,
+                            (0.0,) * limits.dof if stop else None)
+            for q, t, stop in zip(states, np.concatenate(times), stops, strict=True)))
+        need = smoothing_needs(trajectory, limits, start)
+        if need is None or need.max() <= 1.0:
+            break
+        slower = _spread(need, np.concatenate(times), window)
+        for first, last, _, cap, _ in pieces:
+            cap /= np.where(slower[first:last + 1] > 1.0, slower[first:last + 1] * SLOWING_MARGIN, 1.0)
+    return fit_to_limits(trajectory, limits, start, cycle_time_s).motion
+
+
+def _spread(need: np.ndarray, times: np.ndarray, window: float) -> np.ndarray:
+    """At each state, the most any segment within `window` seconds of it needs (the averaging of the time law
+    spreads a state's pace over that window, so slowing one state alone would not slow its segment)."""
+    ends = np.concatenate([[1.0], need]), np.concatenate([need, [1.0]])
+    at_states = np.maximum(*ends)
+    low = np.searchsorted(times, times - window)
+    high = np.searchsorted(times, times + window, side="right")
+    return np.array([at_states[a:b].max() for a, b in zip(low, high, strict=True)])
 
 
 def _knots(states: np.ndarray, stops: np.ndarray) -> np.ndarray:
@@ -98,10 +123,10 @@ def _derivatives(values: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np
     return slope, bend, np.gradient(bend, length, axis=0)
 
 
-def _pace(length: np.ndarray, joint: tuple[np.ndarray, np.ndarray, np.ndarray],
+def _caps(length: np.ndarray, joint: tuple[np.ndarray, np.ndarray, np.ndarray],
           tool_path: tuple[np.ndarray, np.ndarray, np.ndarray], cartesian: np.ndarray, limits: ArmLimits,
-          tool: ToolLimits) -> np.ndarray:
-    """σ̇ at each state of a rest-to-rest piece: the forward-backward pass over the speed and acceleration caps."""
+          tool: ToolLimits) -> tuple[np.ndarray, np.ndarray]:
+    """At each state of a rest-to-rest piece, the most σ̇ may be and the most σ̈ may change it by."""
     slope, bend, twist = (np.abs(values) for values in joint)
     tool_slope, tool_bend, _ = tool_path
     travel = np.linalg.norm(tool_slope[:, :3], axis=1)
@@ -121,6 +146,11 @@ def _pace(length: np.ndarray, joint: tuple[np.ndarray, np.ndarray, np.ndarray],
     cap = np.where(on_tool, np.minimum(cap, tool_cap), cap)
     change = np.where(on_tool, np.minimum(change, tool_change), change)
     cap[0] = cap[-1] = 0.0
+    return cap, change
+
+
+def _pass(length: np.ndarray, cap: np.ndarray, change: np.ndarray) -> np.ndarray:
+    """σ̇ at each state of a rest-to-rest piece: the forward-backward pass over the caps."""
     steps = np.diff(length)
     pace: np.ndarray = cap.copy()
     for k in range(len(pace) - 1):

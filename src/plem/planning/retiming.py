@@ -311,6 +311,16 @@ def _smoothed(waypoints: Waypoints, limits: ArmLimits, cycle_time_s: float, keep
     acceleration a·r² + v·r·dr/dt. A segment whose peaks exceed a limit slows the pace at both its ends.
     The start keeps the arm's own state.
     """
+    positions, velocities, accelerations = _point_states(waypoints, keep_given, estimate)
+    candidates = [_paced(waypoints, positions, velocities, accelerations, limits, cycle_time_s, local)
+                  for local in PACINGS]
+    feasible = [spline for spline in candidates if spline is not None]
+    return min(feasible, key=lambda spline: spline.duration) if feasible else None
+
+
+def _point_states(waypoints: Waypoints, keep_given: bool, estimate: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions, velocities and accelerations at the points for smoothing (see `_smoothed`); the start is the
+    arm's own state."""
     times, states = waypoints.times, waypoints.states
     positions = states[:, 0].copy()
     positions[0] = waypoints.start[0]
@@ -322,10 +332,21 @@ def _smoothed(waypoints: Waypoints, limits: ArmLimits, cycle_time_s: float, keep
     velocities = ESTIMATES[estimate](times, positions, given_v, known[:, 1])
     accelerations = (_cubic_accelerations(times, positions, velocities, given_a, known[:, 2]) if estimate == "spline"
                      else np.where(given_a[:, None], known[:, 2], 0.0))
-    candidates = [_paced(waypoints, positions, velocities, accelerations, limits, cycle_time_s, local)
-                  for local in PACINGS]
-    feasible = [spline for spline in candidates if spline is not None]
-    return min(feasible, key=lambda spline: spline.duration) if feasible else None
+    return positions, velocities, accelerations
+
+
+def smoothing_needs(trajectory: JointTrajectory, limits: ArmLimits, start: StartState) -> np.ndarray | None:
+    """Per segment between the trajectory's knots, how many times longer it must take for the smoothest spline
+    through its points (the first one `fit_to_limits` tries, given velocities and accelerations kept) to keep the
+    velocity, acceleration and jerk limits (1 where it does); None when that spline swings past a position limit.
+    For a caller that times a path itself and slows it where needed before handing it over."""
+    waypoints = _checked_waypoints(trajectory, limits, start)
+    positions, velocities, accelerations = _point_states(waypoints, True, "spline")
+    durations = np.diff(waypoints.times)
+    coefficients = hermite_coefficients(durations[:, None], positions[:-1], positions[1:], velocities[:-1],
+                                        velocities[1:], accelerations[:-1], accelerations[1:],
+                                        np.full(len(durations), 5))
+    return _needed_slowdown(coefficients, durations, limits)
 
 
 def _paced(waypoints: Waypoints, positions: np.ndarray, velocities: np.ndarray, accelerations: np.ndarray,

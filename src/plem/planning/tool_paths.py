@@ -37,6 +37,11 @@ FLIP_STEP = 0.2
 #: Smallest singular value of the tip's Jacobian (m/rad, rad/rad) a Cartesian path may pass: below it the tool's
 #: speed needs joint speeds beyond any limit (a wrist, elbow or shoulder singularity).
 SINGULAR_SIGMA = 0.02
+#: Where a blend's inner control points sit on each leg, as shares of the way from its end to the corner: the
+#: pair that keeps the largest curvature lowest for right-angled corners (1.07/r, a circular arc's being 1/r).
+BEZIER_LEG = (0.2, 0.6)
+#: Cosine of the largest turn a blend may round (170°): at a corner where the tool turns back it must stop.
+REVERSAL = -0.985
 #: A centre this far (m) from being equidistant from an arc's start and end is refused.
 RADIUS_TOLERANCE = 1e-3
 #: Three points closer than this (m²) to a line span no circle.
@@ -85,6 +90,9 @@ def build_path(start: np.ndarray, items: Sequence[Item], kinematics: Kinematics)
         samples[-1].stop = True
         corners.append(len(samples) - 1)
     _check_radii(samples, items, corners)
+    for index, corner in enumerate(corners[:-1]):
+        if items[index].blend > 0.0:
+            _check_turn(samples, corner, index, kinematics)
     for index in reversed(range(len(items) - 1)):
         if items[index].blend > 0.0:
             _blend(samples, corners[index], items, index, kinematics)
@@ -208,12 +216,25 @@ def _check_radii(samples: list[Sample], items: Sequence[Item], corners: list[int
         first = corners[index - 1] if index > 0 else 0
         points = np.array([sample.tool.translation for sample in samples[first:corners[index] + 1]])
         length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-        if before + item.blend > length:
+        if before + item.blend > length * (1.0 + 1e-9):
             raise _refused(f"the blend radii around item {index} overlap",
                            what="blend radii at the two ends of a move that together fit its tool travel",
                            why=f"item {index} moves the tool {length * 1e3:.1f} mm; the blends at its start and end "
                                f"are {before * 1e3:.1f} mm and {item.blend * 1e3:.1f} mm",
                            how="give smaller blend radii, or points farther apart")
+
+
+def _check_turn(samples: list[Sample], corner: int, index: int, kinematics: Kinematics) -> None:
+    """Refuses a blend where the tool turns back on itself: it has to stop there."""
+    here = samples[corner].tool.translation
+    arriving, leaving = here - samples[corner - 1].tool.translation, samples[corner + 1].tool.translation - here
+    cosine = float(arriving @ leaving) / max(float(np.linalg.norm(arriving) * np.linalg.norm(leaving)), 1e-12)
+    if cosine < REVERSAL:
+        raise _refused(f"the blend at the end of item {index} turns back on itself",
+                       what="a blend at a corner the tool passes without stopping",
+                       why=f"the tool turns by {np.degrees(np.arccos(max(cosine, -1.0))):.0f}° at item {index}'s end "
+                           f"{kinematics.describe(samples[corner].tool)}: it must stop there",
+                       how=f"set blend=0 on item {index}")
 
 
 def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int, kinematics: Kinematics) -> None:
@@ -250,10 +271,11 @@ def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int
 
 
 def _bezier(a: np.ndarray, c: np.ndarray, b: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    """The quintic Bézier curve from a to b around the corner c, at parameters s (a row per s): its control points
-    a, (a+c)/2, c, c, (c+b)/2, b lie three on each leg, so it leaves and joins the legs tangent to them and with no
-    curvature (no jump of the centripetal acceleration there), within the triangle a c b."""
-    controls = np.stack([a, (a + c) / 2.0, c, c, (c + b) / 2.0, b])
+    """The quintic Bézier curve from a to b around the corner c, at parameters s (a row per s): three control points
+    on each leg (BEZIER_LEG of the way from the ends toward the corner), so it leaves and joins the legs tangent to
+    them and with no curvature (no jump of the centripetal acceleration there), within the triangle a c b."""
+    near, far = BEZIER_LEG
+    controls = np.stack([a, a + near * (c - a), a + far * (c - a), b + far * (c - b), b + near * (c - b), b])
     binomial = np.array([1.0, 5.0, 10.0, 10.0, 5.0, 1.0])
     powers = np.arange(6)
 
