@@ -100,7 +100,7 @@ class StreamingCalls:
                                                                  f"{', '.join(names)}")
         if not np.all(np.isfinite(checked)):
             raise CommandRejected(f"{name} must be finite numbers", what=f"finite {name}",
-                                  why=f"got {checked.tolist()}", how=f"pass one finite number per joint")
+                                  why=f"got {checked.tolist()}", how="pass one finite number per joint")
         return checked
 
     def _joint_index(self, joint: int | str) -> int:
