@@ -23,9 +23,9 @@ from tests.wire_values import (
 )
 
 SERVICES = ("GetPositionIK", "GetPositionFK", "GetMotionPlan", "GetCartesianPath", "ApplyPlanningScene",
-            "GetPlanningScene")
+            "GetPlanningScene", "GetMotionSequence")
 EXECUTE = "moveit_msgs/action/ExecuteTrajectory"
-#: Requests and replies of the six services and of ExecuteTrajectory's goal and result calls.
+#: Requests and replies of the seven services and of ExecuteTrajectory's goal and result calls.
 SERVICE_PARTS = [f"moveit_msgs/srv/{name}_{part}" for name in SERVICES for part in ("Request", "Response")] + [
     f"{EXECUTE}_{part}" for part in ACTION_PARTS if "_Re" in part]
 PARTS = SERVICE_PARTS + [f"{EXECUTE}_{part}" for part in ("Goal", "Result", "Feedback", "FeedbackMessage")]
@@ -50,12 +50,12 @@ REACHED = _reached(PARTS)
 
 
 def test_every_definition_file_is_reached() -> None:
-    """The shipped definitions are exactly what the seven interfaces need: nothing missing, nothing unused."""
+    """The shipped definitions are exactly what the eight interfaces need: nothing missing, nothing unused."""
     shipped = {path.relative_to(INTERFACES).with_suffix("").as_posix()
                for package in ON_DEMAND for path in (INTERFACES / package).glob("*/*.*")}
     interfaces = {f"moveit_msgs/srv/{name}" for name in SERVICES} | {EXECUTE}
     assert shipped == set(REACHED) | interfaces
-    assert len(REACHED) == 31
+    assert len(REACHED) == 34
 
 
 # -- CDR equality ------------------------------------------------------------------------------------------
@@ -144,6 +144,13 @@ UPSTREAM = {
     "moveit_msgs/msg/MotionPlanResponse": [
         ("trajectory_start", _RS), ("group_name", "string"), ("trajectory", _RT), ("planning_time", "float64"),
         ("error_code", _EC)],
+    "moveit_msgs/srv/GetMotionSequence_Request": [("request", "moveit_msgs/msg/MotionSequenceRequest")],
+    "moveit_msgs/srv/GetMotionSequence_Response": [("response", "moveit_msgs/msg/MotionSequenceResponse")],
+    "moveit_msgs/msg/MotionSequenceRequest": [("items", "moveit_msgs/msg/MotionSequenceItem[]")],
+    "moveit_msgs/msg/MotionSequenceItem": [("req", "moveit_msgs/msg/MotionPlanRequest"), ("blend_radius", "float64")],
+    "moveit_msgs/msg/MotionSequenceResponse": [
+        ("error_code", _EC), ("sequence_start", _RS), ("planned_trajectories", f"{_RT}[]"),
+        ("planning_time", "float64")],
     "moveit_msgs/srv/GetCartesianPath_Request": [
         ("header", _HEADER), ("start_state", _RS), ("group_name", "string"), ("link_name", "string"),
         ("waypoints", f"{_POSE}[]"), ("max_step", "float64"), ("jump_threshold", "float64"),

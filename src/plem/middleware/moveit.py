@@ -1,7 +1,9 @@
 """MoveIt's ROS 2 services and execute_trajectory action, answered by plem's planner under `/{robot_id}/`.
 
-compute_ik, compute_fk, plan_kinematic_path, compute_cartesian_path, apply_planning_scene and
-get_planning_scene take and give moveit_msgs types, as move_group serves them; the node that holds them is
+compute_ik, compute_fk, plan_kinematic_path, compute_cartesian_path, apply_planning_scene,
+get_planning_scene and plan_sequence_path (pilz_industrial_motion_planner's sequence capability) take and give
+moveit_msgs types, as move_group serves them; plan_kinematic_path plans Pilz's planner ids PTP, LIN and CIRC as
+plem's sequences (plem.middleware.pilz), any other with OMPL; the node that holds them is
 announced as `/{robot_id}/move_group`. Every call runs on the planner through `PlannerService.call`, one at a
 time with plem's own clients. A request plem cannot serve as asked is answered with a MoveIt error code and the
 WHAT/WHY/HOW text in `error_code.message`, and logged (to /rosout too); apply_planning_scene, whose reply holds
@@ -66,6 +68,7 @@ from plem.middleware.moveit_scene import (
 )
 from plem.middleware.node import Node, ServiceServer
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
+from plem.middleware.pilz import is_pilz, pilz_item
 from plem.middleware.types import InterfaceLibrary
 from plem.planning.goals import Goal, Plan, PlanOptions
 from plem.planning.planner import Planner
@@ -77,7 +80,7 @@ EXECUTE = "moveit_msgs/action/ExecuteTrajectory"
 #: The services, by name, with their moveit_msgs service type.
 SERVICES = {"compute_ik": "GetPositionIK", "compute_fk": "GetPositionFK", "plan_kinematic_path": "GetMotionPlan",
             "compute_cartesian_path": "GetCartesianPath", "apply_planning_scene": "ApplyPlanningScene",
-            "get_planning_scene": "GetPlanningScene"}
+            "get_planning_scene": "GetPlanningScene", "plan_sequence_path": "GetMotionSequence"}
 #: What execute_trajectory's result code is for each way the motion ended.
 EXECUTION_CODES = {SUCCEEDED: MoveItCode.SUCCESS, CANCELED: MoveItCode.PREEMPTED}
 
@@ -142,6 +145,8 @@ class MoveItServices:
             "compute_cartesian_path": (self._cartesian, lambda code: {"error_code": code}),
             "apply_planning_scene": (self._apply_scene, lambda code: {"success": False}),
             "get_planning_scene": (self._get_scene, lambda code: {}),
+            "plan_sequence_path": (self._sequence, lambda code: {"response": new(
+                "moveit_msgs/msg/MotionSequenceResponse", error_code=code)}),
         }
         self.graph = NodeGraph(node)
         move_group = self.graph.add(namespace, "move_group", *self.servers.values(), self.execute)
@@ -263,6 +268,8 @@ class MoveItServices:
     # -- planning ---------------------------------------------------------------------------------------
     def _plan(self, request: Any) -> dict[str, Any]:
         motion = request.motion_plan_request
+        if is_pilz(motion):
+            return {"motion_plan_response": self._pilz(motion)}
         check_motion_request(motion)
         goals = goals_from_constraints(list(motion.goal_constraints))
         options, warnings = plan_options(motion, motion.allowed_planning_time)
@@ -281,6 +288,61 @@ class MoveItServices:
                 planning_time=best.planning_time_s, error_code=error_code(self.library))
 
         return {"motion_plan_response": self.service.call(plan)}
+
+    def _pilz(self, motion: Any) -> Any:
+        """A MotionPlanRequest for Pilz's PTP, LIN or CIRC, planned as a sequence of one item."""
+        options, warnings = plan_options(motion, motion.allowed_planning_time)
+        for warning in warnings:
+            _log.warning("plan_kinematic_path: %s", warning)
+
+        def plan(planner: Planner) -> Any:
+            start = state_positions(motion.start_state, planner.joint_names, self._current, "start_state")
+            item, link = pilz_item(planner, start, motion, 0.0, "motion_plan_request")
+            found = planner.sequence(start, [item], link=link, options=options)
+            return self.library.new(
+                "moveit_msgs/msg/MotionPlanResponse",
+                trajectory_start=state_message(self.library, planner.joint_names, start),
+                group_name=planner.group(options.group).name,
+                trajectory=trajectory_message(self.library, found.trajectory, self._frame(planner)),
+                planning_time=found.planning_time_s, error_code=error_code(self.library))
+
+        return self.service.call(plan)
+
+    def _sequence(self, request: Any) -> dict[str, Any]:
+        """pilz_industrial_motion_planner's plan_sequence_path: the items planned as one blended sequence."""
+        items = list(request.request.items)
+        if not items:
+            raise PlanningError("the sequence is empty", what="request.items with at least one item",
+                                why="request.items is empty", how="give the motions to plan, one item each",
+                                code=MoveItCode.INVALID_GOAL_CONSTRAINTS)
+        first = items[0].req
+        for index, item in enumerate(items[1:], 1):
+            if item.req.start_state.joint_state.name:
+                raise refused(f"request.items[{index}].req.start_state", "each motion starts where the one before "
+                              "ends; only the first item may give a start state", "leave it empty",
+                              MoveItCode.INVALID_ROBOT_STATE)
+        options, warnings = plan_options(first, first.allowed_planning_time)
+        for warning in warnings:
+            _log.warning("plan_sequence_path: %s", warning)
+
+        def plan(planner: Planner) -> Any:
+            start = state_positions(first.start_state, planner.joint_names, self._current,
+                                    "request.items[0].req.start_state")
+            converted = [pilz_item(planner, start, item.req, float(item.blend_radius), f"request.items[{index}].req")
+                         for index, item in enumerate(items)]
+            links = sorted({link for _, link in converted if link})
+            if len(links) > 1:
+                raise refused(f"goals on links {', '.join(links)}", "a sequence moves one link",
+                              "constrain the same link in every item", MoveItCode.INVALID_LINK_NAME)
+            found = planner.sequence(start, [item for item, _ in converted], link=links[0] if links else "",
+                                     options=options)
+            return self.library.new(
+                "moveit_msgs/msg/MotionSequenceResponse", error_code=error_code(self.library),
+                sequence_start=state_message(self.library, planner.joint_names, start),
+                planned_trajectories=[trajectory_message(self.library, found.trajectory, self._frame(planner))],
+                planning_time=found.planning_time_s)
+
+        return {"response": self.service.call(plan)}
 
     def _cartesian(self, request: Any) -> dict[str, Any]:
         check_cartesian_request(request)
