@@ -244,3 +244,16 @@ def test_the_in_process_robot_moves_the_tool_along_a_line() -> None:
         share = np.clip((points - tool.position) @ line / (line @ line), 0.0, 1.0)
         assert np.linalg.norm(points - tool.position - share[:, None] * line, axis=1).max() < 1e-4
         np.testing.assert_allclose(robot.compute_fk(links=["tcp"])["tcp"].position, goal.position, atol=1e-3)
+
+
+def test_a_cartesian_path_that_turns_the_tool_keeps_it_on_the_line(indy7: Arm) -> None:
+    """compute_cartesian_path's steps lie on the straight line even when the orientation turns (they once followed
+    pinocchio's SE3 interpolation, a screw 11 mm off the line for this half-radian turn)."""
+    goal = moved(indy7, (0.1, 0.15, -0.15), turn=0.5)
+    plan = indy7.planner.cartesian(indy7.home, [goal], max_step=0.005)
+    assert plan.fraction == 1.0
+    begin = indy7.tool(indy7.home).translation
+    points = np.array([indy7.tool(np.array(point.positions)).translation for point in plan.trajectory.points])
+    line = np.array(goal.position) - begin
+    share = np.clip((points - begin) @ line / (line @ line), 0.0, 1.0)
+    assert np.linalg.norm(points - begin - share[:, None] * line, axis=1).max() < 1e-4

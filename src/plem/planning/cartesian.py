@@ -46,7 +46,7 @@ def cartesian_states(start: np.ndarray, waypoints: Sequence[pin.SE3], placement:
     covered = stepped = 0.0  # Cartesian way covered (m), joint-space way stepped (rad)
     for begin, end, length, count in zip(poses[:-1], poses[1:], lengths, counts, strict=True):
         for k in range(1, count + 1):
-            q = solve(pin.SE3.Interpolate(begin, end, k / count), states[-1])
+            q = solve(along_line(begin, end, k / count), states[-1])
             step = np.inf if q is None else float(np.linalg.norm(q - states[-1]))
             # a step over jump_threshold times the mean so far is a flip to another IK branch
             jumped = jump_threshold > 0.0 and len(states) > 1 and step > jump_threshold * stepped / (len(states) - 1)
@@ -56,6 +56,14 @@ def cartesian_states(start: np.ndarray, waypoints: Sequence[pin.SE3], placement:
             covered += length / count
             stepped += step
     return np.array(states), 1.0
+
+
+def along_line(a: pin.SE3, b: pin.SE3, share: float) -> pin.SE3:
+    """The placement `share` of the way from `a` to `b`: the position on the straight line, the orientation by slerp
+    (turning about one axis at a steady rate). Not pinocchio's SE3.Interpolate, whose position follows a screw when
+    the orientation turns."""
+    rotation = a.rotation @ pin.exp3(share * pin.log3(a.rotation.T @ b.rotation))
+    return pin.SE3(rotation, a.translation + (b.translation - a.translation) * share)
 
 
 def _length(a: pin.SE3, b: pin.SE3) -> float:

@@ -24,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from plem.errors import MoveItCode, PlanningError
+from plem.planning.cartesian import along_line
 from plem.planning.poses import Pose
 from plem.planning.sequence import Circular, Item, Joint, Linear
 
@@ -162,8 +163,7 @@ def _follow(begin: Sample, placements: Sequence[pin.SE3], index: int, kinematics
 def _line(begin: pin.SE3, end: pin.SE3) -> list[pin.SE3]:
     """Placements along the straight line, the orientation by slerp, at most MAX_STEP apart (the end included)."""
     count = max(int(np.ceil(_travel(begin, end) / MAX_STEP)), 1)
-    shift = end.translation - begin.translation
-    return [pin.SE3(_slerp(begin, end, k / count), begin.translation + shift * k / count) for k in range(1, count + 1)]
+    return [along_line(begin, end, k / count) for k in range(1, count + 1)]
 
 
 def _arc(begin: pin.SE3, end: pin.SE3, point: np.ndarray, item: Circular, index: int,
@@ -202,7 +202,7 @@ def _arc(begin: pin.SE3, end: pin.SE3, point: np.ndarray, item: Circular, index:
         s = k / count
         radius = radius0 + (radius2 - radius0) * s
         position = center + radius * (np.cos(angle * s) * u + np.sin(angle * s) * w)
-        placements.append(pin.SE3(_slerp(begin, end, s), position))
+        placements.append(pin.SE3(along_line(begin, end, s).rotation, position))
     placements[-1] = end
     return placements
 
@@ -257,7 +257,7 @@ def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int
         curve = _bezier(a.tool.translation, c.tool.translation, b.tool.translation)
         count = max(int(np.ceil(max(_polyline(curve(np.linspace(0.0, 1.0, 33))), _rotation(a.tool, b.tool))
                                 / MAX_STEP)), 2)
-        placements = [pin.SE3(_slerp(a.tool, b.tool, s), curve(np.array([s]))[0])
+        placements = [pin.SE3(along_line(a.tool, b.tool, s).rotation, curve(np.array([s]))[0])
                       for s in np.arange(1, count) / count]
         blended = _follow(a, [*placements, b.tool], index, kinematics, blend=True)[:-1]
     else:
@@ -289,12 +289,6 @@ def _bezier(a: np.ndarray, c: np.ndarray, b: np.ndarray) -> Callable[[np.ndarray
 
 def _polyline(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-
-
-def _slerp(a: pin.SE3, b: pin.SE3, share: float) -> np.ndarray:
-    """The orientation `share` of the way from `a`'s to `b`'s, turning about one axis at a steady rate (slerp)."""
-    rotation: np.ndarray = a.rotation @ pin.exp3(share * pin.log3(a.rotation.T @ b.rotation))
-    return rotation
 
 
 def _rotation(a: pin.SE3, b: pin.SE3) -> float:
