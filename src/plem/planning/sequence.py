@@ -79,6 +79,7 @@ class Circular:
             raise _invalid("a circular move needs via or center", what="exactly one of via (a point on the arc) and "
                            "center (the arc's centre)", why="both were given" if self.via is not None else
                            "neither was given", how="give Circular(pose, via=...) or Circular(pose, center=...)")
+        position_of(self.via if self.via is not None else self.center)  # x y z or a Pose, else refused here
 
     @property
     def point(self) -> tuple[float, float, float]:
