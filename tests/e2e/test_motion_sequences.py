@@ -18,6 +18,7 @@ from plem.control.state import JointState
 from plem.errors import MoveItCode, PlanningError
 from plem.planning.poses import Pose
 from plem.planning.sequence import Joint, Linear, ToolLimits
+from tests.e2e.cli import run_plem
 from tests.e2e.launched import Launch, join_domain, launched_robot, wait_for
 from tests.e2e.test_moveit_services import MoveIt, assert_within_limits, read_back
 
@@ -211,3 +212,19 @@ def test_moveit_plans_pilz_ptp_lin_and_circ_and_sequences(pilz: Pilz, client: Ro
                                                                 items=items)).response
     assert refused.error_code.val == MoveItCode.INVALID_MOTION_PLAN
     assert "the last item has a blend radius" in refused.error_code.message
+
+
+def test_plem_move_linear_moves_the_tool_straight_or_says_why_not(at_home: RobotClient, launch: Launch) -> None:
+    robot = ("--robot-id", launch.robot_id)
+    begin = np.array(at_home.compute_fk(links=["tcp"])["tcp"].position)
+    goal = begin + np.array([0.05, 0.05, -0.1])
+    moved = run_plem("move", "--to-pose", *map(str, goal), "0", "1", "0", "0", "--linear", *robot, env=launch.env)
+    assert moved.returncode == 0, moved.stderr
+    assert "LIN:" in moved.stdout and "every limit kept" in moved.stdout
+    np.testing.assert_allclose(at_home.compute_fk(links=["tcp"])["tcp"].position, goal, atol=1e-3)
+    both = run_plem("move", "--to-pose", *map(str, goal), "0", "1", "0", "0", "--linear", "--cartesian", *robot,
+                    env=launch.env)
+    assert both.returncode == 2 and "exclude each other" in both.stderr
+    far = run_plem("move", "--to-pose", "1.6", "0", "0.5", "0", "1", "0", "0", "--linear", *robot, env=launch.env)
+    assert far.returncode == 1 and "Traceback" not in far.stderr
+    assert "outside the arm's workspace" in far.stderr and "HOW:" in far.stderr
