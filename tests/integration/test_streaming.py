@@ -109,3 +109,58 @@ def test_the_follower_settles_on_a_step_without_buzzing_and_stops_before_a_posit
     assert trail_[:, 0].max() <= 0.8
     assert np.all(np.abs(np.diff(trail_[:, 2])) <= 200.0 * 0.001 * (1 + 1e-9))
     assert np.all(np.abs(trail_[:, 1]) <= 2.0) and np.all(np.abs(trail_[:, 2]) <= 10.0)
+
+
+def test_the_speed_override_keeps_the_path_and_every_limit_through_1_03_0_1(robot: Robot) -> None:
+    trace = Trace.attach(robot)
+    times: list[float] = []
+    recorded = robot.runtime.cycle
+
+    def with_time() -> None:
+        recorded()
+        times.append(float(robot.runtime.arm[0]["override"]["time"]))
+
+    robot.runtime.cycle = with_time
+    start = robot.state().position.copy()
+    target = start + np.array([2.5, -0.6, 0.7, 0.5, -0.4, 0.3])
+    handle = robot.move_joints(target, speed_scale=0.5)
+    motion = robot.runtime.basis.motion
+    robot.step(300)
+    for factor in (0.3, 0.0):
+        robot.set_speed_override(factor)
+        for _ in range(5000):
+            if robot.speed_override == factor:
+                break
+            robot.step()
+        assert robot.speed_override == factor and robot.mode is Mode.TRAJECTORY
+    robot.step(300)
+    paused = robot.state()   # stopped on its path, the motion still running
+    assert robot.mode is Mode.TRAJECTORY and robot.speed_override == 0.0
+    assert np.all(paused.command_velocity == 0.0) and np.all(paused.command_acceleration == 0.0)
+    assert not np.allclose(paused.command_position, target, atol=1e-3)
+    robot.set_speed_override(1.0)
+    handle.wait(30.0)
+    commands = trace.commands()
+    _within_limits(robot, commands)
+    assert motion is not None and robot.mode is Mode.HOLD and robot.fault_reason == ""
+    # every commanded position is the planned path's at the motion's own time: the path is unchanged
+    path = np.array([motion.state_at(t)[0] for t in times[-len(commands):]])
+    moving = np.array([m is Mode.TRAJECTORY for m in trace.modes])
+    assert np.max(np.abs(commands[moving, 0] - path[moving])) < 1e-6
+    assert np.allclose(robot.state().command_position, target, atol=1e-9)
+
+
+def test_random_speed_override_changes_on_random_motions_never_break_a_limit(robot: Robot) -> None:
+    rng = np.random.default_rng(32)
+    trace = Trace.attach(robot)
+    limits = robot.limits
+    low, high = limits.min_position * 0.8, limits.max_position * 0.8
+    for _ in range(8):
+        handle = robot.move_joints(rng.uniform(low, high), speed_scale=float(rng.uniform(0.3, 1.0)))
+        while not handle.done:
+            robot._request_speed_override(float(rng.choice([0.0, 0.2, 0.5, 0.8, 1.0])))
+            robot.step(int(rng.integers(50, 600)))
+        handle.wait(0)
+        robot._request_speed_override(1.0)
+        assert robot.fault_reason == ""
+    _within_limits(robot, trace.commands())

@@ -1,4 +1,4 @@
-"""Streaming joint targets, as the in-process `Robot` and the process client `RobotClient` both offer them.
+"""Streaming and the speed override, as the in-process `Robot` and the process client `RobotClient` both offer them.
 
 `servo_joints`, `speed_joints` and `jog` write samples straight into the robot's stream block, which the core
 reads every cycle, so a sample reaches the loop within a cycle of being written, whatever runs in the caller's
@@ -31,7 +31,7 @@ class StreamHandle(Protocol):
 
 
 class StreamingCalls:
-    """Streamed joint targets; subclasses provide the block, the limits and the request that opens a stream."""
+    """Streamed targets and the speed override; subclasses provide the block, the limits and the two requests."""
 
     _stream: tuple[int, StreamHandle, float] | None = None   # the open stream: session, handle, timeout
 
@@ -45,6 +45,9 @@ class StreamingCalls:
 
     def _open_stream(self, timeout_s: float) -> tuple[int, StreamHandle]:
         """Ask the robot to follow the stream block; the session its samples carry, and the stream's handle."""
+        raise NotImplementedError
+
+    def _request_speed_override(self, factor: float) -> StreamHandle:
         raise NotImplementedError
 
     # -- streaming -----------------------------------------------------------------------------------
@@ -76,7 +79,7 @@ class StreamingCalls:
         return self.speed_joints(values, timeout)
 
     def stream_status(self) -> StreamStatus:
-        """The core's report on streaming, as of its last cycle (see StreamStatus)."""
+        """The core's report on streaming and the speed override, as of its last cycle (see StreamStatus)."""
         return self._stream_block().status()
 
     def _sample(self, kind: str, values: np.ndarray, timeout: float) -> int:
@@ -112,3 +115,23 @@ class StreamingCalls:
         raise CommandRejected("no such joint", what=f"a joint name ({', '.join(names)}) or an index from "
                                                     f"0 to {limits.dof - 1}",
                               why=f"got {joint!r}", how="name the joint as the robot's joint_names do")
+
+    # -- the speed override --------------------------------------------------------------------------
+    def set_speed_override(self, factor: float, timeout: float = 5.0) -> None:
+        """Scale the speed of every motion from now on along its own path: 1 as planned, 0 stopped on the path.
+
+        Position, velocity and acceleration follow the same path at the new speed, and the change itself keeps
+        every limit, so it takes effect as fast as the running motion leaves room (see docs/motion.md); raising
+        it again resumes. Streams are capped at this share of each joint's velocity limit. Returns once the core
+        took the factor; `speed_override` tells the factor in force.
+        """
+        factor = arguments.real(factor, "factor")
+        if not 0.0 <= factor <= 1.0:
+            raise CommandRejected("the speed override is out of range", what="a factor from 0 to 1",
+                                  why=f"got {factor:g}", how="pass e.g. 0.5 for half speed, 0 to pause, 1 to resume")
+        self._request_speed_override(factor).wait(arguments.seconds(timeout, "timeout"))
+
+    @property
+    def speed_override(self) -> float:
+        """The speed override in force now (it moves toward the one set as fast as the limits allow)."""
+        return self._stream_block().status().speed_override

@@ -110,7 +110,7 @@ class CommandHandle:
 PREEMPTION_LEAD_S = 0.02
 #: Attempts at planning a preemption before the caller is told the state kept changing.
 PLAN_ATTEMPTS = 5
-#: Longest a plan waits for the running motion's future to be known (a stream coming to rest).
+#: Longest a plan waits for the running motion's future to be known (a speed override changing, a stream ending).
 UNKNOWN_WAIT_S = 3.0
 
 
@@ -141,19 +141,22 @@ class PlanBasis:
     motion: PolynomialMotion | None = None
     motion_start_cycle: int = 0
     generation: int = 0
+    motion_time: float = 0.0        # the running motion's own time at motion_start_cycle
+    rate: float = 1.0               # how fast that time advances: the speed override in force for it
     unknown: str = ""               # why the running motion's future is not known ahead ("" when it is)
 
     def start(self, cycle: int, lead_s: float, dt: float) -> tuple[int | None, StartState] | None:
         """Where a motion planned now starts: at rest at the hold position (activation None), or in the running
-        motion's state at an activation cycle `lead_s` after `cycle`; None while that state is not known ahead (see
-        `unknown`)."""
+        motion's state in its own time (the speed override scales the new motion as it does the running one) at an
+        activation cycle `lead_s` after `cycle`; None while that state is not known ahead (see `unknown`)."""
         if self.unknown:
             return None
         dof = len(self.hold_position)
         if self.motion is None:
             return None, (self.hold_position.copy(), np.zeros(dof), np.zeros(dof))
         activation = cycle + max(2, math.ceil(lead_s / dt))
-        return activation, self.motion.state_at((activation - self.motion_start_cycle) * dt)
+        return activation, self.motion.state_at(self.motion_time + self.rate * (activation - self.motion_start_cycle)
+                                                * dt)
 
 
 @dataclass
@@ -207,8 +210,16 @@ class StartStream:
     handle: CommandHandle
 
 
+@dataclass
+class SetSpeedOverride:
+    """Scale the speed of every motion from now on, 0 (stopped on its path) to 1 (as planned)."""
+
+    factor: float
+    handle: CommandHandle
+
+
 #: Everything the loop's inbox carries.
-Command = SetMode | StartMotion | StopMotion | ResetFault | StartStream
+Command = SetMode | StartMotion | StopMotion | ResetFault | StartStream | SetSpeedOverride
 
 
 def motion_error(result: TrajectoryResult) -> PlemError | None:

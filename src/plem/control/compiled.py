@@ -91,20 +91,22 @@ _SETTINGS_FIELDS = [
                                     "max_effort", "damping")),
 ]
 _BASIS_FIELDS = [("sequence", "<u8"), ("generation", "<u8"), ("slot", "<i4"), ("segments", "<i4"),
-                 ("start_cycle", "<i8"), ("hold_position", "<f8", J)]
+                 ("start_cycle", "<i8"), ("time", "<f8"), ("rate", "<f8"), ("ramping", "<i4"), ("pad", "<i4"),
+                 ("hold_position", "<f8", J)]
+_OVERRIDE_FIELDS = [("target", "<f8"), ("factor", "<f8"), ("rate", "<f8"), ("time", "<f8"), ("peaks", "<f8", (3, J))]
 _STREAM_FIELDS = [("session", "<u8"), ("timeout_cycles", "<i8"), ("last_cycle", "<i8"), ("last_count", "<u8"),
                   ("last_stamp", "<i8"), ("feed_until", "<i8"), ("kind", "<i4"), ("timed_out", "<i4"),
                   ("target", "<f8", J), ("feed", "<f8", J)]
 _STREAM_BLOCK_FIELDS = [("sequence", "<u8"), ("session", "<u8"), ("count", "<u8"), ("kind", "<i8"),
                         ("stamp_ns", "<i8"), ("checksum", "<u8"), ("pad0", "<u8", 2), ("target", "<f8", J),
                         ("used_session", "<u8"), ("used_count", "<u8"), ("used_cycle", "<i8"), ("latency_ns", "<i8"),
-                        ("state", "<i4"), ("pad1", "<i4")]
+                        ("state", "<i4"), ("pad1", "<i4"), ("speed_override", "<f8"), ("override_target", "<f8")]
 _RING_FIELDS = [("head", "<u8"), ("pad0", "<u8", 7), ("tail", "<u8"), ("pad1", "<u8", 7), ("dropped", "<u8"),
                 ("pad2", "<u8", 7)]
 _COMMAND_FIELDS = [("token", "<u8"), ("op", "<i4"), ("mode", "<i4"), ("slot", "<i4"), ("segments", "<i4"),
                    ("basis", "<u8"), ("activation", "<i8"), ("goal", "<u8"), ("has_path", "<i4"), ("has_goal", "<i4"),
                    ("goal_time", "<f8"), ("stopped_velocity", "<f8"), ("path", "<f8", J), ("goal_tolerance", "<f8", J),
-                   ("cycles", "<i8")]
+                   ("peaks", "<f8", (3, J)), ("value", "<f8"), ("cycles", "<i8")]
 _OUTCOME_FIELDS = [("token", "<u8"), ("cycle", "<i8"), ("stage", "<i4"), ("answer", "<i4"), ("mode", "<i4"),
                    ("detail", "<i4"), ("joint", "<i4"), ("pad", "<i4"), ("values", "<f8", 2)]
 _EVENT_FIELDS = [("cycle", "<i8"), ("monotonic_ns", "<i8"), ("token", "<u8"), ("kind", "<i4"), ("cause", "<i4"),
@@ -113,6 +115,7 @@ _EVENT_FIELDS = [("cycle", "<i8"), ("monotonic_ns", "<i8"), ("token", "<u8"), ("
 CONSTANTS: dict[str, int] = dict(_LAYOUT["constants"])
 SETTINGS = _checked("plem_settings", _SETTINGS_FIELDS)
 BASIS = _checked("plem_basis", _BASIS_FIELDS)
+OVERRIDE = _checked("plem_override", _OVERRIDE_FIELDS)
 STREAM = _checked("plem_stream", _STREAM_FIELDS)
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
@@ -137,7 +140,8 @@ ARM = _checked("plem_arm", [
     ("pending", "<i4"), ("pending_target", "<i4"), ("pending_deadline", "<i8"), ("pending_token", "<u8"),
     ("pending_enable_sent", "<i4"), ("pad3", "<i4"),
     ("stop_knots", "<f8", STOP_SEGMENTS + 1), ("stop_coefficients", "<f8", STOP_SEGMENTS * ORDER * J),
-    ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("stream", STREAM),
+    ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("override", OVERRIDE),
+    ("stream", STREAM),
     ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),
     ("outcomes_index", RING), ("outcomes", OUTCOME, CONSTANTS["PLEM_OUTCOME_SLOTS"]),
     ("events_index", RING), ("events", EVENT, CONSTANTS["PLEM_EVENT_SLOTS"]),

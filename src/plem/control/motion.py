@@ -70,6 +70,9 @@ class RuckigMotion:
 
 #: ruckig plans this far inside the limits, so that rounding in the piecewise-polynomial form never crosses them.
 INSIDE = 1.0 - 1e-6
+#: The share of the acceleration and jerk limits a point-to-point motion uses: the rest is the room the speed override
+#: needs to slow the motion down at any moment of it (see plem_override in the core).
+OVERRIDE_ROOM = 0.9
 #: How far past a position limit ruckig's extrema may lie from rounding alone (rad).
 POSITION_ROUNDING = 1e-9
 
@@ -81,8 +84,8 @@ def _input(limits: ArmLimits, position: np.ndarray, velocity: np.ndarray, accele
     parameters.current_velocity = velocity.tolist()
     parameters.current_acceleration = acceleration.tolist()
     parameters.max_velocity = (limits.max_velocity * scale * INSIDE).tolist()
-    parameters.max_acceleration = (limits.max_acceleration * scale**2 * INSIDE).tolist()
-    parameters.max_jerk = (limits.max_jerk * scale**3 * INSIDE).tolist()
+    parameters.max_acceleration = (limits.max_acceleration * scale**2 * OVERRIDE_ROOM).tolist()
+    parameters.max_jerk = (limits.max_jerk * scale**3 * OVERRIDE_ROOM).tolist()
     return parameters
 
 

@@ -95,6 +95,10 @@ def segment_ranges(derivatives: np.ndarray, durations: np.ndarray) -> tuple[np.n
     return low.reshape(4, segments, dof), high.reshape(4, segments, dof)
 
 
+#: Samples per segment from which a motion's velocity peak is bounded (`PolynomialMotion.peaks`).
+PEAK_SAMPLES = 17
+
+
 class PolynomialMotion:
     """A motion sampled from knot times and coefficient arrays, which it views without copying.
 
@@ -120,6 +124,45 @@ class PolynomialMotion:
         done: bool = compiled.core.motion_sample(self.knots, self.coefficients, self._final, self.segments,
                                                  self._dof, t, self._cursor, out)
         return done
+
+    def peaks(self) -> np.ndarray:
+        """The largest |velocity|, |acceleration| and |jerk| of each joint along the motion, (3, dof): what the speed
+        override must leave room for when it scales the motion (see plem_override). Per segment, the jerk (a
+        quadratic) peaks at its ends or vertex and the acceleration (a cubic) at its ends or where the jerk is zero,
+        exactly; the velocity at most its largest of PEAK_SAMPLES samples plus the acceleration's peak times half their
+        spacing."""
+        if self.segments == 0:
+            at_rest: np.ndarray = np.vstack([np.abs(self._final[1]), np.abs(self._final[2]), np.zeros(self._dof)])
+            return at_rest
+        c = self.coefficients                          # (segments, ORDER, dof), lowest order first
+        span = np.diff(self.knots)[:, None]            # (segments, 1)
+        c2, c3, c4, c5 = c[:, 2], c[:, 3], c[:, 4], c[:, 5]
+        qa, qb, qc = 60.0 * c5, 24.0 * c4, 6.0 * c3    # jerk = qa·t² + qb·t + qc
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))
+            quadratic = np.abs(qa) > 1e-300
+            roots = [np.where(quadratic, (-qb + root) / (2.0 * qa), np.where(qb != 0.0, -qc / qb, 0.0)),
+                     np.where(quadratic, (-qb - root) / (2.0 * qa), 0.0),
+                     np.where(quadratic, -qb / (2.0 * qa), 0.0)]   # the jerk's zeros, and its vertex
+        times = [np.zeros_like(c2), np.broadcast_to(span, c2.shape)] + [np.clip(r, 0.0, span) for r in roots]
+
+        def acceleration(t: np.ndarray) -> np.ndarray:
+            value: np.ndarray = np.abs(2.0 * c2 + 6.0 * c3 * t + 12.0 * c4 * t * t + 20.0 * c5 * t ** 3)
+            return value
+
+        def jerk(t: np.ndarray) -> np.ndarray:
+            value: np.ndarray = np.abs(qc + qb * t + qa * t * t)
+            return value
+
+        segment_acceleration = np.max([acceleration(t) for t in times[:4]], axis=0)
+        peak_jerk = np.max([jerk(t) for t in (times[0], times[1], times[4])], axis=0).max(axis=0)
+        fractions = np.linspace(0.0, 1.0, PEAK_SAMPLES)[:, None, None]
+        t = fractions * span[None]                     # (samples, segments, 1)
+        velocity = np.abs(c[:, 1] + 2.0 * c2 * t + 3.0 * c3 * t * t + 4.0 * c4 * t ** 3 + 5.0 * c5 * t ** 4)
+        segment_velocity = velocity.max(axis=0) + segment_acceleration * span / (2.0 * (PEAK_SAMPLES - 1))
+        peaks: np.ndarray = np.vstack([np.maximum(segment_velocity.max(axis=0), np.abs(self._final[1])),
+                                       np.maximum(segment_acceleration.max(axis=0), np.abs(self._final[2])), peak_jerk])
+        return peaks
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration at `t` as new arrays, without touching the sampling cursor."""

@@ -25,6 +25,7 @@ from plem.control.commands import (
     PlanBasis,
     ResetFault,
     SetMode,
+    SetSpeedOverride,
     StartMotion,
     StartStream,
     StopMotion,
@@ -185,9 +186,26 @@ class ArmRuntime:
                 continue
             generation, slot, segments = int(basis["generation"]), int(basis["slot"]), int(basis["segments"])
             start, hold = int(basis["start_cycle"]), basis["hold_position"][:dof].copy()
+            time_, rate, ramping = float(basis["time"]), float(basis["rate"]), bool(basis["ramping"])
             motion = self._motion_in(slot, segments) if slot >= 0 or slot == C["PLEM_STOP_SLOT"] else None
             if int(basis["sequence"]) == before:
-                return PlanBasis(hold, motion, start, generation, _UNKNOWN_FUTURE.get(slot, ""))
+                return PlanBasis(hold, motion, start, generation, time_, rate, self._unknown(slot, ramping))
+
+    def _unknown(self, slot: int, ramping: bool) -> str:
+        """Why the running motion's future is not known ahead (see PlanBasis.unknown): a stream, the speed override
+        changing, or the core's own stop while the override is not 1 (a plan from it would run at another speed)."""
+        if slot in _UNKNOWN_FUTURE:
+            return _UNKNOWN_FUTURE[slot]
+        if ramping:
+            return "the speed override is changing"
+        if slot == C["PLEM_STOP_SLOT"] and self.speed_override != 1.0:
+            return "the arm is stopping while the speed override is below 1"
+        return ""
+
+    @property
+    def speed_override(self) -> float:
+        """The speed override in force (0..1)."""
+        return float(self.arm[0]["override"]["factor"])
 
     def _motion_in(self, slot: int, segments: int) -> PolynomialMotion | None:
         """The motion in a slab slot, or a copy of the core's stop; None when the slot no longer holds it."""
@@ -334,6 +352,8 @@ class ArmRuntime:
             record["goal"] = 0 if command.goal is None else self._token_of(command.goal)
         elif isinstance(command, StartStream):
             record["op"], record["cycles"] = C["PLEM_OP_STREAM"], command.timeout_cycles
+        elif isinstance(command, SetSpeedOverride):
+            record["op"], record["value"] = C["PLEM_OP_OVERRIDE"], command.factor
         else:
             record["op"] = C["PLEM_OP_START"]
             slot, segments = command.slot, command.segments
@@ -342,6 +362,7 @@ class ArmRuntime:
                 segments = self.slab.write(slot, command.motion)
             record["slot"], record["segments"] = slot, segments
             record["basis"] = command.basis.generation
+            record["peaks"][:, :self.setup.dof] = command.motion.peaks()
             record["activation"] = -1 if command.activation_cycle is None else command.activation_cycle
             tolerances = command.tolerances
             for name in ("path", "goal"):

@@ -4,7 +4,7 @@ A sample is a joint position target (`servo_joints`) or a joint velocity (`speed
 writer's monotonic clock. The core follows the newest one with its jerk-limited follower (`plem_follow`), so a
 late, missing or jumping sample is smoothed within every limit; a stream without samples for its timeout brings
 the arm to rest and ends. The block is written under a seqlock with a checksum, so the core never takes a torn
-sample or a mix of two writers'; it writes back which sample it used, and when.
+sample or a mix of two writers'; it writes back which sample it used, when, and the speed override in force.
 """
 
 from __future__ import annotations
@@ -42,13 +42,15 @@ def checksum(session: int, count: int, kind: int, stamp_ns: int, targets: np.nda
 
 @dataclass(frozen=True)
 class StreamStatus:
-    """What the core reports about streaming, as of its last cycle."""
+    """What the core reports about streaming and the speed override, as of its last cycle."""
 
     session: int            # the stream the core follows; 0 for none
     state: str              # "none", "following", or "timed out" (coming to rest)
     used_count: int         # the last sample a cycle used
     used_cycle: int         # that cycle
     latency_ns: int         # that sample's stamp to the cycle that first used it
+    speed_override: float   # the factor in force
+    override_target: float  # the factor asked for
 
 
 class StreamBlock:
@@ -89,4 +91,5 @@ class StreamBlock:
         """The core's side of the block, as of its last cycle."""
         view = self._view
         return StreamStatus(int(view["used_session"]), _STATES.get(int(view["state"]), "none"),
-                            int(view["used_count"]), int(view["used_cycle"]), int(view["latency_ns"]))
+                            int(view["used_count"]), int(view["used_cycle"]), int(view["latency_ns"]),
+                            float(view["speed_override"]), float(view["override_target"]))

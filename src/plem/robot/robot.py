@@ -28,6 +28,7 @@ from plem.control.commands import (
     PlanBasis,
     ResetFault,
     SetMode,
+    SetSpeedOverride,
     StartMotion,
     StartStream,
     StopMotion,
@@ -402,7 +403,7 @@ class Robot(PlanningCalls, StreamingCalls):
                 raise unknown_future(basis.unknown)
             time.sleep(runtime.dt)
 
-    # -- streaming ----------------------------------------------------------------------------------------
+    # -- streaming and the speed override ----------------------------------------------------------------
     def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:
         return self.limits, self.joint_names
 
@@ -414,6 +415,9 @@ class Robot(PlanningCalls, StreamingCalls):
                                         CommandHandle("stream", self._pump)))
         handle.wait_accepted(ACCEPT_TIMEOUT_S)
         return handle.token, handle
+
+    def _request_speed_override(self, factor: float) -> CommandHandle:
+        return self._send(SetSpeedOverride(factor, CommandHandle("set_speed_override()", self._pump)))
 
     def wait_until_idle(self, timeout: float = 30.0) -> None:
         """Block until no motion (user or internal stop) is running."""

@@ -20,6 +20,12 @@
 #define VELOCITY 1
 #define EFFORT 2
 #define COMMAND 3
+/* The speed override: how fast the factor follows its target (1/s) at most, and its rate's change (1/s²) when no
+ * motion bounds it; the share of a joint's acceleration room its rate may take; the gain toward the target (1/s). */
+#define OVERRIDE_RATE 2.0
+#define OVERRIDE_RATE_CHANGE 20.0
+#define OVERRIDE_SHARE 0.9
+#define OVERRIDE_GAIN 8.0
 
 /* The motion slab's layout (plem.ipc.motion_slab): a 64-byte header, then per slot its segment count, final state,
  * knots and coefficients as float64. */
@@ -180,6 +186,8 @@ static int active_motion(plem_arm *arm, const plem_slab *slab, plem_motion *moti
     return 1;
 }
 
+static int override_ramping(const plem_override *o) { return o->factor != o->target || o->rate != 0.0; }
+
 /* A new basis: plans made from the old one are stale from now on (the seqlock keeps readers from tearing it). */
 static void rebase(plem_arm *arm) {
     plem_basis *b = &arm->basis;
@@ -189,7 +197,11 @@ static void rebase(plem_arm *arm) {
     b->generation++;
     b->slot = arm->active ? arm->active_slot : -1;
     b->segments = arm->active ? arm->active_segments : 0;
-    b->start_cycle = arm->active ? arm->active_start_cycle : 0;
+    int overridden = arm->active && arm->active_slot >= 0;
+    b->start_cycle = !arm->active ? 0 : overridden ? arm->cycle : arm->active_start_cycle;
+    b->time = overridden ? arm->override.time : 0.0;
+    b->rate = overridden ? arm->override.factor : 1.0;
+    b->ramping = overridden && override_ramping(&arm->override);
     memcpy(b->hold_position, row(arm, COMMAND), (size_t)arm->settings.dof * sizeof(double));
     atomic_store_explicit(sequence, b->sequence + 1, memory_order_release);
     reach_from_command(arm);
@@ -463,6 +475,13 @@ static void start_stream(plem_arm *arm, const plem_command *c) {
     emit(arm, PLEM_EVENT_MOTION_STARTED, PLEM_CAUSE_MOTION_STARTED, -1, -1, 1, c->token, INFINITY, 0, 0, 0);
 }
 
+static void set_override(plem_arm *arm, const plem_command *c) {
+    if (!(c->value >= 0.0 && c->value <= 1.0))
+        return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, c->value, 0);
+    arm->override.target = c->value;
+    answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
+}
+
 static void activate(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
     int n = arm->settings.dof;
     if ((arm->mode != PLEM_HOLD && arm->mode != PLEM_TRAJECTORY) || arm->pending)
@@ -473,9 +492,18 @@ static void activate(plem_arm *arm, const plem_slab *slab, const plem_command *c
         return reject(arm, c->token, PLEM_ANSWER_INVALID_SLOT, c->slot, -1, c->segments, values ? values[0] : -1);
     if (arm->active && arm->active_slot == PLEM_STREAM_SLOT)
         return reject(arm, c->token, PLEM_ANSWER_STREAMING, 0, -1, 0, 0);
-    if (c->basis != arm->basis.generation || (c->activation >= 0 && arm->cycle != c->activation))
+    if (c->basis != arm->basis.generation || (c->activation >= 0 && arm->cycle != c->activation)
+        || (c->activation >= 0 && arm->basis.ramping))
         return reject(arm, c->token, PLEM_ANSWER_STALE, 0, -1, 0, 0);
     preempt(arm);
+    arm->override.time = 0.0;
+    for (int r = 0; r < 3; r++)
+        for (int i = 0; i < n; i++) {   /* unknown peaks count as the limits */
+            const plem_settings *s = &arm->settings;
+            double limit = r == 0 ? s->max_velocity[i] : r == 1 ? s->max_acceleration[i] : s->max_jerk[i];
+            arm->override.peaks[r][i] = c->peaks[r][i] > 0.0 ? fmin(c->peaks[r][i], limit) : c->peaks[r][i] == 0.0
+                                        ? 0.0 : limit;
+        }
     arm->active = 1, arm->active_ended = 0, arm->active_slot = c->slot, arm->active_segments = c->segments;
     arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
     arm->active_cursor = 0, arm->active_has_path = c->has_path, arm->active_has_goal = c->has_goal;
@@ -514,6 +542,7 @@ static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c)
         break;
     case PLEM_OP_RESET: reset(arm, c); break;
     case PLEM_OP_STREAM: start_stream(arm, c); break;
+    case PLEM_OP_OVERRIDE: set_override(arm, c); break;
     default: reject(arm, c->token, PLEM_ANSWER_UNKNOWN_OP, c->op, -1, 0, 0);
     }
 }
@@ -610,6 +639,60 @@ static void check_command(plem_arm *arm, const plem_slab *slab) {
         }
 }
 
+/* ---- the speed override ------------------------------------------------------------------------------------- */
+
+/* One cycle of the factor toward its target. On a running motion with peaks P1, P2, P3 (velocity, acceleration,
+ * jerk) in its own time, joint i's command is p'·f (velocity), p''·f² + p'·r (acceleration) and
+ * p'''·f³ + 3·p''·f·r + p'·u (jerk), with r and u the factor's rate and its change. So
+ *     P2·f² + P1·|r| <= A   and   P3·f³ + 3·P2·f·|r| + P1·|u| <= J
+ * keep every limit wherever on the motion the arm is. The rate follows the gain toward the target within a share of
+ * the first room, its change within the second: a share small enough (below the root of 4β²x + 6βx = 3 with
+ * x = A²/(P1·J), the worst case P2 = A, P3 = J) that the rate can always shrink as fast as its room does. A motion
+ * planned at its very limits leaves no room at factor 1: it keeps its speed until it ends. */
+static void step_override(plem_arm *arm, int on_motion) {
+    const plem_settings *s = &arm->settings;
+    plem_override *o = &arm->override;
+    double f = o->factor, r = o->rate, dt = s->dt, share = OVERRIDE_SHARE, room = OVERRIDE_RATE;   /* 1/s */
+    double change = OVERRIDE_RATE_CHANGE;
+    for (int i = 0; on_motion && i < s->dof; i++) {
+        double A = s->max_acceleration[i], J = s->max_jerk[i];
+        double P1 = o->peaks[0][i], P2 = o->peaks[1][i], P3 = o->peaks[2][i], x = A * A / (P1 * J);
+        if (!(P1 > 0.0)) continue;   /* a joint that does not move takes nothing from the factor's change */
+        double joint_share = x > 0.0 ? fmin(share, 0.8 * (sqrt(36.0 * x * x + 48.0 * x) - 6.0 * x) / (8.0 * x)) : share;
+        room = fmin(room, joint_share * fmax(A - P2 * f * f, 0.0) / P1);
+        change = fmin(change, 0.9 * fmax(J - P3 * f * f * f - 3.0 * P2 * f * fabs(r), 0.0) / P1);
+    }
+    double bound = room;
+    double wanted = fmin(fmax(OVERRIDE_GAIN * (o->target - f), -bound), bound);
+    double next = fmin(fmax(wanted, r - change * dt), r + change * dt);
+    double factor = fmin(fmax(f + (r + next) * dt / 2.0, 0.0), 1.0);
+    if (fabs(o->target - factor) < 1e-9 && fabs(next) < 1e-6) factor = o->target, next = 0.0;
+    o->factor = factor, o->rate = next;
+}
+
+/* The running slab motion at this cycle under the override, into the command rows; 1 once it ended. */
+static int sample_overridden(plem_arm *arm, plem_motion *motion) {
+    const plem_settings *s = &arm->settings;
+    plem_override *o = &arm->override;
+    const plem_basis *b = &arm->basis;
+    int n = s->dof;
+    double out[3 * PLEM_MAX_JOINTS], before = o->factor;
+    if (override_ramping(o)) {
+        step_override(arm, 1);
+        o->time = arm->cycle == arm->active_start_cycle ? 0.0 : o->time + (before + o->factor) * s->dt / 2.0;
+    } else {
+        o->time = arm->cycle == arm->active_start_cycle ? 0.0
+                : b->time + b->rate * (double)(arm->cycle - b->start_cycle) * s->dt;
+    }
+    int ended = plem_motion_sample(motion, o->time, out);
+    for (int i = 0; i < n; i++) {
+        row(arm, COMMAND)[i] = out[i];
+        row(arm, COMMAND + 1)[i] = out[n + i] * o->factor;
+        row(arm, COMMAND + 2)[i] = out[2 * n + i] * o->factor * o->factor + out[n + i] * o->rate;
+    }
+    return ended;
+}
+
 /* ---- streams -------------------------------------------------------------------------------------------------- */
 
 /* A stream sample's checksum: FNV-1a over its words (plem.control.streaming computes the same). */
@@ -665,7 +748,7 @@ static void follow_stream(plem_arm *arm, plem_stream_block *block) {
     for (int i = 0; i < n; i++) {
         double velocity = st->timed_out ? 0.0 : position ? (feeding ? st->feed[i] : 0.0) : st->target[i];
         plem_follow(&row(arm, COMMAND)[i], &row(arm, COMMAND + 1)[i], &row(arm, COMMAND + 2)[i],
-                    position ? st->target[i] : NAN, velocity, s->max_velocity[i] * INSIDE,
+                    position ? st->target[i] : NAN, velocity, s->max_velocity[i] * INSIDE * arm->override.factor,
                     s->max_velocity[i] * INSIDE, s->max_acceleration[i] * INSIDE, s->max_jerk[i] * INSIDE,
                     arm->reach[0][i], arm->reach[1][i], s->dt);
         at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12;
@@ -683,33 +766,46 @@ static void publish_stream(const plem_arm *arm, plem_stream_block *block) {
     block->used_session = streaming ? arm->stream.session : 0;
     block->state = !streaming ? PLEM_STREAM_NONE : arm->stream.timed_out ? PLEM_STREAM_TIMED_OUT
                  : PLEM_STREAM_FOLLOWING;
+    block->speed_override = arm->override.factor;
+    block->override_target = arm->override.target;
 }
 
 /* ---- control -------------------------------------------------------------------------------------------------- */
 
-/* The running motion at this cycle: the stream's follower, or a sampled motion (a slab slot or the core's stop). */
+/* The running motion at this cycle: the stream's follower, the core's stop in real time, or a slab motion under the
+ * speed override (the basis follows the override's ramps). */
 static void run_motion(plem_arm *arm, const plem_slab *slab, plem_stream_block *block) {
-    int n = arm->settings.dof, aborted = 0;
+    int n = arm->settings.dof, aborted = 0, slab_motion = arm->active_slot >= 0;
     if (arm->active_slot == PLEM_STREAM_SLOT) return follow_stream(arm, block);
     if (!arm->active_ended) {
         plem_motion motion;
-        if (active_motion(arm, slab, &motion)) {
+        if (!active_motion(arm, slab, &motion)) {
+            arm->active_ended = 1;  /* the slab went away: hold where the motion was */
+        } else if (slab_motion) {
+            arm->active_ended = sample_overridden(arm, &motion);
+            arm->active_cursor = motion.cursor;
+        } else {
             double out[3 * PLEM_MAX_JOINTS];
             arm->active_ended = plem_motion_sample(&motion, (double)(arm->cycle - arm->active_start_cycle)
                                                             * arm->settings.dt, out);
             arm->active_cursor = motion.cursor;
             for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
-        } else {
-            arm->active_ended = 1;  /* the slab went away: hold where the motion was */
         }
         if (arm->active_has_path) aborted = check_path(arm, slab);
+    } else if (slab_motion && override_ramping(&arm->override)) {
+        step_override(arm, 0);   /* the motion ended: its last state is at rest, nothing left to fit */
     }
+    if (slab_motion && arm->active && (override_ramping(&arm->override) != arm->basis.ramping
+                                       || arm->basis.rate != arm->override.factor))
+        rebase(arm);
     if (arm->active_ended && !aborted) settle(arm);
 }
 
 static void control(plem_arm *arm, const plem_slab *slab, plem_stream_block *block) {
     const plem_settings *s = &arm->settings;
     int n = s->dof, mode = arm->mode;
+    if (!(arm->active && arm->active_slot >= 0) && override_ramping(&arm->override))
+        step_override(arm, 0);   /* no motion it must fit */
     if (mode == PLEM_IDLE || (mode == PLEM_FAULTED && !can_command(arm))) {
         seed_from_measurement(arm);
         if (arm->pending) advance_enable(arm);
@@ -802,6 +898,7 @@ void plem_arm_init(plem_arm *arm) {
     arm->power_wanted = PLEM_SWITCH_ON_DISABLED;
     plem_power_init(&arm->power, arm->settings.dof);
     set_io_mode(arm, PLEM_CSP);
+    arm->override.target = arm->override.factor = 1.0;
     rebase(arm);
 }
 

@@ -594,7 +594,12 @@ static const field SETTINGS_FIELDS[] = {
 
 static const field BASIS_FIELDS[] = {
     FIELD(plem_basis, sequence), FIELD(plem_basis, generation), FIELD(plem_basis, slot), FIELD(plem_basis, segments),
-    FIELD(plem_basis, start_cycle), FIELD(plem_basis, hold_position), {NULL, 0, 0}};
+    FIELD(plem_basis, start_cycle), FIELD(plem_basis, time), FIELD(plem_basis, rate), FIELD(plem_basis, ramping),
+    FIELD(plem_basis, hold_position), {NULL, 0, 0}};
+
+static const field OVERRIDE_FIELDS[] = {
+    FIELD(plem_override, target), FIELD(plem_override, factor), FIELD(plem_override, rate), FIELD(plem_override, time),
+    FIELD(plem_override, peaks), {NULL, 0, 0}};
 
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
@@ -607,7 +612,7 @@ static const field STREAM_BLOCK_FIELDS[] = {
     FIELD(plem_stream_block, kind), FIELD(plem_stream_block, stamp_ns), FIELD(plem_stream_block, checksum),
     FIELD(plem_stream_block, target), FIELD(plem_stream_block, used_session), FIELD(plem_stream_block, used_count),
     FIELD(plem_stream_block, used_cycle), FIELD(plem_stream_block, latency_ns), FIELD(plem_stream_block, state),
-    {NULL, 0, 0}};
+    FIELD(plem_stream_block, speed_override), FIELD(plem_stream_block, override_target), {NULL, 0, 0}};
 
 static const field RING_FIELDS[] = {
     FIELD(plem_ring, head), FIELD(plem_ring, tail), FIELD(plem_ring, dropped), {NULL, 0, 0}};
@@ -617,7 +622,8 @@ static const field COMMAND_FIELDS[] = {
     FIELD(plem_command, segments), FIELD(plem_command, basis), FIELD(plem_command, activation),
     FIELD(plem_command, goal), FIELD(plem_command, has_path), FIELD(plem_command, has_goal),
     FIELD(plem_command, goal_time), FIELD(plem_command, stopped_velocity), FIELD(plem_command, path),
-    FIELD(plem_command, goal_tolerance), FIELD(plem_command, cycles), {NULL, 0, 0}};
+    FIELD(plem_command, goal_tolerance), FIELD(plem_command, peaks), FIELD(plem_command, value),
+    FIELD(plem_command, cycles), {NULL, 0, 0}};
 
 static const field OUTCOME_FIELDS[] = {
     FIELD(plem_outcome, token), FIELD(plem_outcome, cycle), FIELD(plem_outcome, stage), FIELD(plem_outcome, answer),
@@ -646,7 +652,8 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, active_goal), FIELD(plem_arm, active_final), FIELD(plem_arm, pending),
     FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
     FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
-    FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, stream),
+    FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, override),
+    FIELD(plem_arm, stream),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
     FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};
 
@@ -681,7 +688,7 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_ANSWER_PATH_VIOLATED), CONSTANT(PLEM_ANSWER_FAULT_ABORTED), CONSTANT(PLEM_ANSWER_PREEMPTED),
     CONSTANT(PLEM_ANSWER_CANCELED), CONSTANT(PLEM_ANSWER_INVALID_SLOT), CONSTANT(PLEM_ANSWER_UNKNOWN_OP),
     CONSTANT(PLEM_ANSWER_STREAMING), CONSTANT(PLEM_ANSWER_STREAM_TIMED_OUT), CONSTANT(PLEM_ANSWER_INVALID_VALUE),
-    CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_STREAM_POSITION),
+    CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_OP_OVERRIDE), CONSTANT(PLEM_STREAM_POSITION),
     CONSTANT(PLEM_STREAM_VELOCITY), CONSTANT(PLEM_STREAM_NONE), CONSTANT(PLEM_STREAM_FOLLOWING),
     CONSTANT(PLEM_STREAM_TIMED_OUT), CONSTANT(PLEM_STREAM_SLOT),
     CONSTANT(PLEM_EVENT_MODE_CHANGED), CONSTANT(PLEM_EVENT_FAULT), CONSTANT(PLEM_EVENT_FAULT_CLEARED),
@@ -729,7 +736,7 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_model", MODEL_FIELDS, sizeof(plem_model)}, {"plem_power", POWER_FIELDS, sizeof(plem_power)},
         {"plem_sim", SIM_FIELDS, sizeof(plem_sim)}, {"plem_settings", SETTINGS_FIELDS, sizeof(plem_settings)},
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
-        {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
+        {"plem_override", OVERRIDE_FIELDS, sizeof(plem_override)}, {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
         {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},

@@ -134,6 +134,8 @@ typedef struct {
     int64_t latency_ns;              /* that sample's stamp to the cycle that first used it */
     int32_t state;                   /* enum plem_stream_state */
     int32_t pad1;
+    double speed_override;           /* the factor in force */
+    double override_target;          /* the factor asked for */
 } plem_stream_block;
 
 /* ---- the simulated arm -------------------------------------------------------------------------------- */
@@ -223,6 +225,7 @@ enum plem_mode { PLEM_IDLE = 0, PLEM_HOLD = 1, PLEM_TRAJECTORY = 2, PLEM_FREE_DR
 enum plem_op {
     PLEM_OP_SET_MODE = 1, PLEM_OP_START = 2, PLEM_OP_STOP = 3, PLEM_OP_RESET = 4,
     PLEM_OP_STREAM = 5,              /* follow the stream block's samples (cycles: the timeout) */
+    PLEM_OP_OVERRIDE = 6,            /* the speed override asked for (value, 0..1) */
 };
 
 /* Answers to requests (the outcome ring): a stage and, for refusals and ends, a code with its numbers. */
@@ -291,6 +294,8 @@ typedef struct {
     double stopped_velocity;         /* start: rad/s below which a joint counts as stopped */
     double path[PLEM_MAX_JOINTS];    /* rad; inf leaves a joint unchecked */
     double goal_tolerance[PLEM_MAX_JOINTS];
+    double peaks[3][PLEM_MAX_JOINTS]; /* start: the motion's largest |velocity|, |acceleration|, |jerk| (own time) */
+    double value;                    /* override: the factor */
     int64_t cycles;                  /* stream: cycles without a sample before it stops */
 } plem_command;
 
@@ -351,9 +356,10 @@ typedef struct {
     double damping[PLEM_MAX_JOINTS];  /* free drive, N·m·s/rad */
 } plem_settings;
 
-/* Where a new motion starts: the held position, or a running motion (a slab slot, or the core's stop) from a
- * cycle on. Its generation changes whenever it does; a start planned from another generation is stale. A stream's
- * future is not known, so no start takes one over. */
+/* Where a new motion starts: the held position, or a running motion (a slab slot, or the core's stop) whose own
+ * time is `time` at cycle `start_cycle` and advances by `rate` × dt a cycle. Its generation changes whenever it
+ * does; a start planned from another generation is stale. While `ramping` (the speed override changes) a running
+ * motion's future is not known ahead, nor is a stream's, and no start takes them over. */
 #define PLEM_STOP_SLOT (-2)
 #define PLEM_STREAM_SLOT (-3)
 typedef struct {
@@ -362,8 +368,22 @@ typedef struct {
     int32_t slot;                    /* -1: holding; PLEM_STOP_SLOT: the core's stop; PLEM_STREAM_SLOT; a slab slot */
     int32_t segments;
     int64_t start_cycle;
+    double time;
+    double rate;
+    int32_t ramping;
+    int32_t pad;
     double hold_position[PLEM_MAX_JOINTS];
 } plem_basis;
+
+/* The speed override: a running slab motion's own time advances by `factor` × dt a cycle, the factor moving toward
+ * `target` only as fast as keeps every limit wherever on the motion the arm is (see arm.c). */
+typedef struct {
+    double target;                   /* asked for, 0..1 */
+    double factor;                   /* in force this cycle */
+    double rate;                     /* the factor's rate of change, 1/s */
+    double time;                     /* the running motion's own time at this cycle, s */
+    double peaks[3][PLEM_MAX_JOINTS]; /* the running motion's largest |velocity|, |acceleration|, |jerk| */
+} plem_override;
 
 /* The stream the core follows. */
 typedef struct {
@@ -441,6 +461,7 @@ typedef struct {
     int32_t stop_segments;
     int32_t pad4;
     plem_basis basis;
+    plem_override override;
     plem_stream stream;
     /* rings */
     plem_ring commands_index;
