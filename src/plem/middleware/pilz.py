@@ -15,12 +15,12 @@ from typing import Any
 from plem.errors import MoveItCode, PlanningError
 from plem.middleware.moveit_messages import constraints_empty, goals_from_constraints, pose_from_message, refused
 from plem.planning.goals import JointGoal, NamedGoal, PoseGoal
-from plem.planning.planner import Planner
+from plem.planning.planner import ITEM_IDS, Planner
 from plem.planning.poses import Pose
 from plem.planning.sequence import Circular, Item, Joint, Linear
 
 #: Pilz's planner ids.
-PILZ_IDS = ("PTP", "LIN", "CIRC")
+PILZ_IDS = tuple(ITEM_IDS.values())
 #: The pipeline names a Pilz request may give.
 PIPELINES = ("", "pilz_industrial_motion_planner")
 

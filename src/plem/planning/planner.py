@@ -47,8 +47,8 @@ from plem.planning.scene import PlanningScene
 from plem.planning.sequence import Circular, Item, Joint, Linear, ToolLimits
 from plem.planning.tool_paths import Kinematics, Sample, build_path
 
-#: Pilz's planner id of a sequence of one item of each kind.
-PILZ_IDS = {Joint: "PTP", Linear: "LIN", Circular: "CIRC"}
+#: Pilz's planner id of each kind of item (a sequence of one item is named by it).
+ITEM_IDS = {Joint: "PTP", Linear: "LIN", Circular: "CIRC"}
 #: Planning attempts when the dense re-check finds a contact the planner's coarser checks missed.
 ATTEMPTS = 3
 #: Distinct collision-free IK solutions gathered as the goal set of a pose goal.
@@ -281,7 +281,7 @@ class Planner:
                            np.array([sample.stop for sample in samples]),
                            np.array([sample.cartesian for sample in samples]), limits, tool, self.cycle_time_s)
         kinds = {type(item) for item in items}
-        name = PILZ_IDS[kinds.pop()] if len(items) == 1 else "sequence"
+        name = ITEM_IDS[kinds.pop()] if len(items) == 1 else "sequence"
         return self._checked(to_trajectory(motion), arm_states, options, began, name)
 
     # -- the scene ----------------------------------------------------------------------------------------
