@@ -257,3 +257,11 @@ def test_a_cartesian_path_that_turns_the_tool_keeps_it_on_the_line(indy7: Arm) -
     line = np.array(goal.position) - begin
     share = np.clip((points - begin) @ line / (line @ line), 0.0, 1.0)
     assert np.linalg.norm(points - begin - share[:, None] * line, axis=1).max() < 1e-4
+
+
+def test_a_sequence_to_where_the_arm_is_is_a_plan_that_stays(indy7: Arm) -> None:
+    """As a plan to the start state: at rest, for the shortest step a plan has (it once failed on an empty path)."""
+    for items in ([Joint("home")], [Linear(moved(indy7, (0.0, 0.0, 0.0)))]):
+        plan = indy7.planner.sequence(indy7.home, items)
+        assert plan.duration_s < 0.01
+        assert all(point.positions == pytest.approx(tuple(indy7.home)) for point in plan.trajectory.points)

@@ -23,6 +23,7 @@ import pinocchio as pin
 from plem.control.limits import ArmLimits
 from plem.control.spline import Spline
 from plem.control.trajectory import JointTrajectory, TrajectoryPoint
+from plem.planning.parameterisation import MINIMUM_STEP_S
 from plem.planning.retiming import fit_to_limits, smoothing_needs
 from plem.planning.sequence import ToolLimits
 
@@ -51,6 +52,8 @@ def time_path(states: np.ndarray, positions: np.ndarray, rotations: np.ndarray, 
     stops = stops.copy()
     stops[0] = stops[-1] = True
     keep = _knots(states, stops)
+    if len(keep) == 1:  # nothing moves: at rest where the arm is, for the shortest step a plan has
+        keep = np.array([0, 0])
     cartesian = np.array([False, *(bool(cartesian[a + 1:b + 1].any())
                                    for a, b in zip(keep[:-1], keep[1:], strict=True))])
     states, positions, rotations, stops = states[keep], positions[keep], rotations[keep], stops[keep]
@@ -62,6 +65,8 @@ def time_path(states: np.ndarray, positions: np.ndarray, rotations: np.ndarray, 
     for first, last in zip(marks[:-1], marks[1:], strict=True):
         piece = slice(first, last + 1)
         length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(states[piece], axis=0), axis=1))])
+        if length[-1] <= STILL:
+            continue
         cap, change = _caps(length, _derivatives(states[piece], length),
                             _derivatives(np.column_stack([positions[piece], turn[piece]]), length), cartesian[piece],
                             limits, tool)
@@ -69,7 +74,7 @@ def time_path(states: np.ndarray, positions: np.ndarray, rotations: np.ndarray, 
     rest = np.zeros(limits.dof)
     start = (states[0].copy(), rest, rest.copy())
     for _ in range(SLOWING_ROUNDS):
-        times = [np.zeros(1)]
+        times = [np.zeros(1)] if pieces else [np.array([0.0, MINIMUM_STEP_S])]
         for _, _, length, cap, change in pieces:
             times.append(times[-1][-1] + _jerk_limited(length, _pass(length, cap, change), window, cycle_time_s)[1:])
         trajectory = JointTrajectory(limits.joint_names, tuple(
@@ -77,7 +82,7 @@ def time_path(states: np.ndarray, positions: np.ndarray, rotations: np.ndarray, 
                             (0.0,) * limits.dof if stop else None)
             for q, t, stop in zip(states, np.concatenate(times), stops, strict=True)))
         need = smoothing_needs(trajectory, limits, start)
-        if need is None or need.max() <= 1.0:
+        if need is None or need.max(initial=1.0) <= 1.0:
             break
         slower = _spread(need, np.concatenate(times), window)
         for first, last, _, cap, _ in pieces:
