@@ -265,3 +265,13 @@ def test_a_sequence_to_where_the_arm_is_is_a_plan_that_stays(indy7: Arm) -> None
         plan = indy7.planner.sequence(indy7.home, items)
         assert plan.duration_s < 0.01
         assert all(point.positions == pytest.approx(tuple(indy7.home)) for point in plan.trajectory.points)
+
+
+def test_a_long_sequence_is_bounded_by_its_planning_time(indy7: Arm) -> None:
+    """Joint moves are cheap per step but many of them are not: the planning time bounds them too."""
+    swings = [Joint([0.0, 0.0, -1.5, 0.0, -1.5, 0.0]), Joint([2.5, 0.0, -1.5, 0.0, -1.5, 0.0])] * 200
+    began = time.perf_counter()
+    with pytest.raises(PlanningError) as caught:
+        indy7.planner.sequence(indy7.home, swings, options=PlanOptions(timeout_s=0.2))
+    assert caught.value.code == MoveItCode.TIMED_OUT
+    assert time.perf_counter() - began < 2.0

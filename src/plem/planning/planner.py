@@ -263,12 +263,15 @@ class Planner:
             placement=lambda q: self._placement_at(q, tip),
             solve=self._stepper(group, link, options, began, "use fewer or shorter moves"), reachable=reachable,
             joint_target=joint_target, in_root=lambda pose, frame, q: self._in_root(pose, frame, q),
-            sigma=sigma, describe=lambda placement: f"{describe(placement)} in {self.root_link}")
+            sigma=sigma, describe=lambda placement: f"{describe(placement)} in {self.root_link}",
+            checkpoint=lambda: self._within(options, began, "use fewer or shorter moves"))
         samples = build_path(q_start, items, kinematics)
         if self._entry is not None:  # from outside a position range: back into it first (see `_start`)
             samples.insert(0, Sample(self._entry, kinematics.placement(self._entry), -1, stop=True))
         if options.avoid_collisions:
-            for sample in samples:
+            for index, sample in enumerate(samples):
+                if index % CANCEL_CHECK_STATES == 0:
+                    kinematics.checkpoint()
                 if not self.collisions.is_free(sample.q):
                     self._require_free(sample.q, f"the path at item {sample.item} (tool pose "
                                                  f"{kinematics.describe(sample.tool)})", MoveItCode.INVALID_MOTION_PLAN)
@@ -385,20 +388,25 @@ class Planner:
         solver = self._solver(group, link)
 
         def step(target: pin.SE3, seed: np.ndarray) -> np.ndarray | None:
-            self._check_cancelled()
-            if time.perf_counter() - began >= options.timeout_s:
-                raise PlanningError("the Cartesian path took longer than its planning time",
-                                    what=f"a Cartesian path within {options.timeout_s:g} s",
-                                    why=f"solving its steps took longer than {options.timeout_s:g} s",
-                                    how=f"{fewer} or allow more planning time "
-                                        f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
-                                    code=MoveItCode.TIMED_OUT)
+            self._within(options, began, fewer)
             left = began + options.timeout_s - time.perf_counter()
             result = solver.solve(target, seed, timeout_s=max(min(group.settings.timeout_s, left), 1e-4),
                                   stop=self.cancelled)
             return result.positions if result.success else None
 
         return step
+
+    def _within(self, options: PlanOptions, began: float, fewer: str) -> None:
+        """Raises PREEMPTED once the request is cancelled, TIMED_OUT once its planning time is spent (the HOW starts
+        with `fewer`: how to ask for less)."""
+        self._check_cancelled()
+        if time.perf_counter() - began >= options.timeout_s:
+            raise PlanningError("the Cartesian path took longer than its planning time",
+                                what=f"a Cartesian path within {options.timeout_s:g} s",
+                                why=f"solving its steps took longer than {options.timeout_s:g} s",
+                                how=f"{fewer} or allow more planning time "
+                                    f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
+                                code=MoveItCode.TIMED_OUT)
 
     def _sync_scene(self) -> None:
         if self.scene.version != self._scene_version:

@@ -24,7 +24,7 @@ import numpy as np
 import pinocchio as pin
 
 from plem.errors import MoveItCode, PlanningError
-from plem.planning.cartesian import along_line
+from plem.planning.cartesian import MAX_STEPS, along_line
 from plem.planning.poses import Pose
 from plem.planning.sequence import Circular, Item, Joint, Linear
 
@@ -67,7 +67,8 @@ class Kinematics:
     whether a placement is reachable at all (IK from any seed),
     the joint state of a joint item (from the previous state), a pose in a frame (a link's taken at q) as a
     placement in the root frame, the smallest singular value of the tip's Jacobian at
-    q, a collision check, and how to name a placement to the user."""
+    q, how to name a placement to the user, and a checkpoint that raises once the request is cancelled or out of
+    time."""
 
     placement: Callable[[np.ndarray], pin.SE3]
     solve: Callable[[pin.SE3, np.ndarray], np.ndarray | None]
@@ -76,6 +77,7 @@ class Kinematics:
     in_root: Callable[[Pose, str, np.ndarray], pin.SE3]
     sigma: Callable[[np.ndarray], float]
     describe: Callable[[pin.SE3], str]
+    checkpoint: Callable[[], None]
 
 
 def build_path(start: np.ndarray, items: Sequence[Item], kinematics: Kinematics) -> list[Sample]:
@@ -87,7 +89,13 @@ def build_path(start: np.ndarray, items: Sequence[Item], kinematics: Kinematics)
             raise _refused("the last item has a blend radius", what="blend 0 on the last item: the arm stops "
                            "at the end of a sequence", why=f"item {index} has blend {item.blend:g} m",
                            how="set blend=0 (the default) on the last item")
+        kinematics.checkpoint()
         samples.extend(_segment(samples[-1], item, index, kinematics))
+        if len(samples) > MAX_STEPS:
+            raise _refused("the sequence has too many steps", code=MoveItCode.INVALID_GOAL_CONSTRAINTS,
+                           what=f"at most {MAX_STEPS} states along the path (5 mm or 0.02 rad apart)",
+                           why=f"items 0 to {index} already take {len(samples)}",
+                           how="plan the sequence in parts, or with fewer or shorter moves")
         samples[-1].stop = True
         corners.append(len(samples) - 1)
     _check_radii(samples, items, corners)
