@@ -401,8 +401,8 @@ class Planner:
         with `fewer`: how to ask for less)."""
         self._check_cancelled()
         if time.perf_counter() - began >= options.timeout_s:
-            raise PlanningError("the Cartesian path took longer than its planning time",
-                                what=f"a Cartesian path within {options.timeout_s:g} s",
+            raise PlanningError("the path took longer than its planning time",
+                                what=f"a Cartesian path or sequence within {options.timeout_s:g} s",
                                 why=f"solving its steps took longer than {options.timeout_s:g} s",
                                 how=f"{fewer} or allow more planning time "
                                     f"(--planning-time, at most {MAX_PLANNING_TIME_S:g} s)",
