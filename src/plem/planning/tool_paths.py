@@ -246,7 +246,8 @@ def _check_turn(samples: list[Sample], corner: int, index: int, kinematics: Kine
 
 
 def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int, kinematics: Kinematics) -> None:
-    """Replace the states within the blend radius of the corner after item `index` by the blend curve."""
+    """Replace the states within the blend radius of the corner after item `index` by the blend curve, from where
+    the tool crosses the sphere of that radius on the way in to where it crosses it on the way out."""
     radius = items[index].blend
     middle = samples[corner].tool.translation
 
@@ -259,7 +260,9 @@ def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int
     leave = corner + 1
     while leave < len(samples) - 1 and not outside(leave) and not samples[leave].stop:
         leave += 1
-    a, c, b = samples[entry], samples[corner], samples[leave]
+    a = _on_sphere(samples[entry], samples[entry + 1], middle, radius, items[index], kinematics)
+    b = _on_sphere(samples[leave], samples[leave - 1], middle, radius, items[index + 1], kinematics)
+    c = samples[corner]
     tool_space = not isinstance(items[index], Joint) and not isinstance(items[index + 1], Joint)
     if tool_space:
         curve = _bezier(a.tool.translation, c.tool.translation, b.tool.translation)
@@ -275,7 +278,27 @@ def _blend(samples: list[Sample], corner: int, items: Sequence[Item], index: int
         cartesian = not (isinstance(items[index], Joint) and isinstance(items[index + 1], Joint))
         blended = [Sample(q, kinematics.placement(q), index, cartesian=cartesian)
                    for q in joints(np.arange(1, count) / count)]
-    samples[entry + 1:leave] = blended
+    ends = (samples[entry], samples[leave])
+    samples[entry + 1:leave] = [sample for sample in (a, *blended, b) if all(sample is not end for end in ends)]
+
+
+def _on_sphere(outer: Sample, inner: Sample, middle: np.ndarray, radius: float, item: Item,
+               kinematics: Kinematics) -> Sample:
+    """The state between `outer` (at least `radius` from the corner `middle`) and `inner` (closer) where the tool is
+    `radius` from it: on the straight tool step for a Cartesian move, on the joint step for a joint move. `outer`
+    itself when it is that close already (a corner's stop)."""
+    p, d = outer.tool.translation - middle, inner.tool.translation - outer.tool.translation
+    if float(np.linalg.norm(p)) <= radius or not float(d @ d) > 0.0:
+        return outer
+    # |p + s d| = radius, the root in (0, 1]: the step enters the sphere
+    half, constant = float(p @ d) / float(d @ d), (float(p @ p) - radius**2) / float(d @ d)
+    share = float(np.clip(-half - np.sqrt(max(half**2 - constant, 0.0)), 0.0, 1.0))
+    if isinstance(item, Joint):
+        q = outer.q + share * (inner.q - outer.q)
+        return Sample(q, kinematics.placement(q), outer.item, cartesian=outer.cartesian)
+    placement = along_line(outer.tool, inner.tool, share)
+    solved = kinematics.solve(placement, outer.q)
+    return outer if solved is None else Sample(solved, placement, outer.item, cartesian=outer.cartesian)
 
 
 def _bezier(a: np.ndarray, c: np.ndarray, b: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
