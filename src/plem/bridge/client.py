@@ -18,11 +18,13 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Generic, Protocol, TypeVar
 
 from plem.bridge.planning import PlannerLink, PlanningCalls
+from plem.bridge.streaming import StreamingCalls
 from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.state import JointState
+from plem.control.streaming import StreamBlock, stream_block_name
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.core import arguments
 from plem.errors import CommandRejected, PlemError
@@ -128,6 +130,8 @@ class RemoteHandle:
         self.id = request_id
         self.description = description
         self.accepted = False
+        #: What the driver said on accepting the command (a stream's session), or None.
+        self.accepted_result: Any = None
         self.reply: dict[str, Any] | None = None
 
     @property
@@ -162,7 +166,7 @@ class RemoteHandle:
         return result_from_json(reply["result"])
 
 
-class RobotClient(PlanningCalls):
+class RobotClient(PlanningCalls, StreamingCalls):
     """A connection to one robot's shared memory (see `connect`), and through it to its planner."""
 
     def __init__(self, channels: RobotChannels) -> None:
@@ -177,6 +181,7 @@ class RobotClient(PlanningCalls):
         self._frames = FrameReader()
         self._handles: dict[str, RemoteHandle] = {}
         self._lock = threading.RLock()
+        self._stream_view: StreamBlock | None = None
 
     def _new_planner_link(self) -> PlannerLink:
         """The robot's planner process, on its socket."""
@@ -190,6 +195,8 @@ class RobotClient(PlanningCalls):
         with self._lock:
             self._disconnect()
         self._close_planner()
+        if self._stream_view is not None:
+            self._stream_view.close()
         self.channels.close()
 
     def __enter__(self) -> RobotClient:
@@ -269,6 +276,26 @@ class RobotClient(PlanningCalls):
         self.state()  # the liveness check
         record = self.channels.rings["stats"].newest()
         return None if record is None else json.loads(record)
+
+    # -- streaming and the speed override ------------------------------------------------------------
+    def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:
+        return self.limits, self.joint_names
+
+    def _stream_block(self) -> StreamBlock:
+        """The driver's stream block, mapped on first use (owner-only: this user's or root's driver)."""
+        if self._stream_view is None:
+            self._stream_view = StreamBlock.attach(stream_block_name(self.robot_id), self.dof)
+        return self._stream_view
+
+    def _open_stream(self, timeout_s: float) -> tuple[int, RemoteHandle]:
+        self._stream_block()
+        handle = self._send("stream", {"timeout": timeout_s}, accept_within=ACCEPT_TIMEOUT_S)
+        if handle.reply is not None:   # answered at once: refused, or ended already
+            handle.wait(0)
+        return int(handle.accepted_result["session"]), handle
+
+    def _request_speed_override(self, factor: float) -> RemoteHandle:
+        return self._send("speed_override", {"factor": factor})
 
     # -- commands ----------------------------------------------------------------------------------
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
@@ -408,6 +435,7 @@ class RobotClient(PlanningCalls):
             return
         if reply["stage"] == "accepted":
             handle.accepted = True
+            handle.accepted_result = reply.get("result")
         else:
             handle.reply = reply
             del self._handles[handle.id]

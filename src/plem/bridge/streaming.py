@@ -14,7 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from plem.control.limits import ArmLimits
-from plem.control.streaming import DEFAULT_TIMEOUT_S, MAX_TIMEOUT_S, StreamBlock, StreamStatus
+from plem.control.streaming import DEFAULT_TIMEOUT_S, StreamBlock, StreamStatus, override_factor, stream_timeout
 from plem.core import arguments
 from plem.errors import CommandRejected
 
@@ -83,11 +83,7 @@ class StreamingCalls:
         return self._stream_block().status()
 
     def _sample(self, kind: str, values: np.ndarray, timeout: float) -> int:
-        timeout = arguments.seconds(timeout, "timeout")
-        if not 0.0 < timeout <= MAX_TIMEOUT_S:
-            raise CommandRejected("the stream timeout is out of range", what=f"0 < timeout ≤ {MAX_TIMEOUT_S:g} s",
-                                  why=f"got {timeout:g} s",
-                                  how=f"pass a timeout of e.g. {DEFAULT_TIMEOUT_S:g} s, and send samples faster")
+        timeout = stream_timeout(timeout)
         opened = self._stream
         if opened is None or opened[1].done or opened[2] != timeout:
             session, handle = self._open_stream(timeout)
@@ -125,11 +121,7 @@ class StreamingCalls:
         it again resumes. Streams are capped at this share of each joint's velocity limit. Returns once the core
         took the factor; `speed_override` tells the factor in force.
         """
-        factor = arguments.real(factor, "factor")
-        if not 0.0 <= factor <= 1.0:
-            raise CommandRejected("the speed override is out of range", what="a factor from 0 to 1",
-                                  why=f"got {factor:g}", how="pass e.g. 0.5 for half speed, 0 to pause, 1 to resume")
-        self._request_speed_override(factor).wait(arguments.seconds(timeout, "timeout"))
+        self._request_speed_override(override_factor(factor)).wait(arguments.seconds(timeout, "timeout"))
 
     @property
     def speed_override(self) -> float:

@@ -18,6 +18,8 @@ import numpy as np
 
 from plem.control.compiled import CONSTANTS as C
 from plem.control.compiled import STREAM_BLOCK
+from plem.ipc import request_bounds as bounds
+from plem.ipc.segment import SharedSegment
 
 #: Samples the core takes: joint positions (rad) or joint velocities (rad/s).
 KINDS = {"position": C["PLEM_STREAM_POSITION"], "velocity": C["PLEM_STREAM_VELOCITY"]}
@@ -29,6 +31,21 @@ MAX_TIMEOUT_S = 5.0
 _STATES = {C["PLEM_STREAM_NONE"]: "none", C["PLEM_STREAM_FOLLOWING"]: "following",
            C["PLEM_STREAM_TIMED_OUT"]: "timed out"}
 _MASK = (1 << 64) - 1
+
+
+def stream_timeout(value: object) -> float:
+    """A stream's timeout (s), checked: above 0 and at most MAX_TIMEOUT_S."""
+    return bounds.number(value, "the stream timeout", 0.0, MAX_TIMEOUT_S, low_open=True)
+
+
+def override_factor(value: object) -> float:
+    """A speed override, checked: from 0 (stopped on the path) to 1 (as planned)."""
+    return bounds.number(value, "the speed override", 0.0, 1.0)
+
+
+def stream_block_name(robot_id: str) -> str:
+    """The shared-memory name of a robot's stream block (owner-only, as its motion slab)."""
+    return f"/{robot_id}_stream"
 
 
 def checksum(session: int, count: int, kind: int, stamp_ns: int, targets: np.ndarray) -> int:
@@ -56,9 +73,10 @@ class StreamStatus:
 class StreamBlock:
     """One robot's stream block: in the RT driver's shared memory, or private to an in-process robot."""
 
-    def __init__(self, buffer: memoryview | np.ndarray, dof: int) -> None:
+    def __init__(self, buffer: memoryview | np.ndarray, dof: int, segment: SharedSegment | None = None) -> None:
         #: The block as the compiled core takes it.
         self.buffer = buffer
+        self._segment = segment
         self.dof = dof
         self._view = np.ndarray((1,), STREAM_BLOCK, buffer)[0]
         self._lock = threading.Lock()
@@ -68,6 +86,29 @@ class StreamBlock:
     def private(cls, dof: int) -> StreamBlock:
         """A block in this process's own memory."""
         return cls(np.zeros(1, STREAM_BLOCK), dof)
+
+    @classmethod
+    def create(cls, name: str, dof: int) -> StreamBlock:
+        """The RT driver's block in shared memory, readable and writable by its own user only."""
+        segment = SharedSegment.create(name, STREAM_BLOCK.itemsize, mode=0o600)
+        return cls(segment.buffer, dof, segment)
+
+    @classmethod
+    def attach(cls, name: str, dof: int) -> StreamBlock:
+        """A client's view of a driver's block, to write samples into."""
+        segment = SharedSegment.open(name, writable=True)
+        return cls(segment.buffer, dof, segment)
+
+    def close(self) -> None:
+        """Unmap a shared block (the name stays for others)."""
+        if self._segment is not None:
+            self._segment.close()
+
+    def remove(self) -> None:
+        """The driver's clean exit: unmap and unlink a shared block."""
+        if self._segment is not None:
+            self._segment.close()
+            SharedSegment.unlink(self._segment.name)
 
     def write(self, session: int, kind: str, targets: Sequence[float] | np.ndarray) -> int:
         """Write one sample of stream `session`; returns its number. Targets are checked by the caller."""

@@ -1,4 +1,5 @@
-"""All shared memory of one robot: the state segment, its rings and the motion slab, created by the RT driver.
+"""All shared memory of one robot: the state segment, its rings, the motion slab and the stream block, created by
+the RT driver.
 
 Every name starts with the robot_id, so robots on one host never share anything. The state segment
 guards the set: creating it refuses a live driver and replaces a stale one, after which leftover rings
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 
 from plem.control.events import FAULT_HISTORY, FAULT_KINDS, Event, EventLog
 from plem.control.limits import ArmLimits
+from plem.control.streaming import StreamBlock, stream_block_name
 from plem.ipc.motion_slab import MotionSlab
 from plem.ipc.records import event_record, raw_record_length
 from plem.ipc.ring import SlotRing
@@ -49,9 +51,9 @@ RAW_SLOTS = 4096
 
 
 def channel_names(robot_id: str) -> dict[str, str]:
-    """The shared-memory names of a robot: its state segment, each ring and the motion slab."""
+    """The shared-memory names of a robot: its state segment, each ring, the motion slab and the stream block."""
     return {"state": state_segment_name(robot_id), **{ring: f"/{robot_id}_{ring}" for ring in RINGS},
-            "motions": f"/{robot_id}_motions"}
+            "motions": f"/{robot_id}_motions", "stream": stream_block_name(robot_id)}
 
 
 def _shape(ring: str, dof: int) -> RingShape:
@@ -62,11 +64,12 @@ class RobotChannels:
     """The state segment and rings of one robot, as the driver (`create`) or a client (`attach`) maps them."""
 
     def __init__(self, robot_id: str, state: StateSegment, rings: dict[str, SlotRing],
-                 motions: MotionSlab | None = None) -> None:
+                 motions: MotionSlab | None = None, stream: StreamBlock | None = None) -> None:
         self.robot_id = robot_id
         self.state = state
         self.rings = rings
         self.motions = motions
+        self.stream = stream
 
     @property
     def names(self) -> dict[str, str]:
@@ -90,12 +93,16 @@ class RobotChannels:
                                               mode=0o600 if private else mode, group=None if private else group)
             SharedSegment.unlink(names["motions"])
             motions = MotionSlab.create(names["motions"], limits.dof)
+            SharedSegment.unlink(names["stream"])
+            stream = StreamBlock.create(names["stream"], limits.dof)
         except BaseException:
             for created in rings.values():
                 created.remove()
+            for name in ("motions", "stream"):
+                SharedSegment.unlink(names[name])
             state.remove()
             raise
-        return cls(robot_id, state, rings, motions)
+        return cls(robot_id, state, rings, motions, stream)
 
     def publish_events(self, log: EventLog) -> None:
         """The driver's side: write every later event of `log` into the events ring, faults also into faults."""
@@ -141,6 +148,8 @@ class RobotChannels:
             ring.close()
         if self.motions is not None:
             self.motions.close()
+        if self.stream is not None:
+            self.stream.close()
         self.state.close()
 
     def remove(self) -> None:
@@ -149,4 +158,6 @@ class RobotChannels:
             ring.remove()
         if self.motions is not None:
             self.motions.remove()
+        if self.stream is not None:
+            self.stream.remove()
         self.state.remove()

@@ -22,6 +22,7 @@ import numpy as np
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.spline import JointNamesRejected
+from plem.control.streaming import DEFAULT_TIMEOUT_S, override_factor, stream_timeout
 from plem.control.trajectory import (
     ErrorCode,
     JointTrajectory,
@@ -40,6 +41,8 @@ OPERATIONS: dict[str, tuple[str, ...]] = {
     "set_mode": ("mode",),
     "reset_fault": (),
     "stop": ("goal",),
+    "stream": ("timeout",),
+    "speed_override": ("factor",),
 }
 MOTIONS = ("move_joints", "execute_trajectory")
 TOLERANCE_KEYS = ("path", "goal", "goal_time", "stopped_velocity_tolerance")
@@ -152,6 +155,10 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
         checked = {"mode": mode}
     elif op == "stop" and args.get("goal") is not None:
         checked = {"goal": bounds.request_id(args["goal"])}
+    elif op == "stream":
+        checked = {"timeout": stream_timeout(args.get("timeout", DEFAULT_TIMEOUT_S))}
+    elif op == "speed_override":
+        checked = {"factor": override_factor(args.get("factor"))}
     return CheckedRequest(request_id, op, checked)
 
 

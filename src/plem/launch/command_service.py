@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from plem.control.commands import PLAN_ATTEMPTS, preemption_lead
+from plem.control.commands import PLAN_ATTEMPTS, UNKNOWN_WAIT_S, preemption_lead, unknown_future
 from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
@@ -67,6 +67,8 @@ POLL_S = 0.0005
 MAX_IN_FLIGHT = 16
 RESTART_HOW = "check the robot with `plem state`; restart it with `plem launch` if its loop stopped"
 COUNTERS_PERIOD_S = 0.1
+#: How often a plan asks again where it starts while the running motion's future is not known ahead.
+UNKNOWN_POLL_S = 0.01
 _log = logging.getLogger("plem.command_service")
 
 
@@ -285,6 +287,8 @@ class CommandService:
             record["mode"] = request.args["mode"].name.lower()
         elif request.op == "stop" and "goal" in request.args:
             record["goal"] = client.goals[request.args["goal"]]
+        elif request.op in ("stream", "speed_override"):
+            record.update(request.args)
         self._commands[token] = _Command(client, request.id, counted=counted)
         client.in_flight += counted
         try:
@@ -303,9 +307,7 @@ class CommandService:
         label = "move_joints" if request.op == "move_joints" else "trajectory"
         planning_s = 0.0
         for attempt in range(PLAN_ATTEMPTS):
-            prepared = next(self._tokens)
-            self._write_intake({"op": "prepare", "token": prepared, "lead_s": preemption_lead(attempt, planning_s)})
-            start = np.array(self._await(prepared)["start"], dtype=float)
+            prepared, start = self._prepare(preemption_lead(attempt, planning_s))
             began = time.monotonic()
             motion, note = plan((start[0], start[1], start[2]))
             planning_s = time.monotonic() - began
@@ -330,6 +332,20 @@ class CommandService:
                               why=f"the state changed during {PLAN_ATTEMPTS} planning attempts",
                               how="retry, or stop the robot first")
 
+    def _prepare(self, lead_s: float) -> tuple[int, np.ndarray]:
+        """Where a motion planned now starts, as the driver prepared it (its token, and the state); asked again while
+        the running motion's future is not known ahead, for at most UNKNOWN_WAIT_S."""
+        deadline = time.monotonic() + UNKNOWN_WAIT_S
+        while True:
+            prepared = next(self._tokens)
+            self._write_intake({"op": "prepare", "token": prepared, "lead_s": lead_s})
+            answer = self._await(prepared)
+            if answer.get("start") is not None:
+                return prepared, np.array(answer["start"], dtype=float)
+            if time.monotonic() > deadline:
+                raise unknown_future(str(answer.get("unknown", "")))
+            self._pause(UNKNOWN_POLL_S)
+
     def _planner(self, request: CheckedRequest) -> Callable[[StartState], tuple[PolynomialMotion, str]]:
         """What plans the request's motion from a start state: the motion, and how it differs from the request."""
         limits, args = self.limits, request.args
@@ -350,6 +366,13 @@ class CommandService:
         while not done():
             if time.monotonic() > deadline:
                 raise silent
+            self._pump()
+            time.sleep(POLL_S)
+
+    def _pause(self, seconds: float) -> None:
+        """Pass the driver's answers on for `seconds`."""
+        until = time.monotonic() + seconds
+        while time.monotonic() < until:
             self._pump()
             time.sleep(POLL_S)
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import threading
 import time
 from collections import OrderedDict
@@ -53,6 +52,7 @@ class _Pending:
     handle: CommandHandle
     slot: int | None = None
     accepted_sent: bool = False
+    stream: bool = False   # a stream: its acceptance carries its session
 
 
 @dataclass
@@ -126,6 +126,10 @@ class DriverService:
             self._pending[token] = _Pending(robot.request_mode(Mode.parse(command["mode"])))
         elif op == "reset_fault":
             self._pending[token] = _Pending(robot.request_reset())
+        elif op == "stream":
+            self._pending[token] = _Pending(robot.request_stream(float(command["timeout"])), stream=True)
+        elif op == "speed_override":
+            self._pending[token] = _Pending(robot.request_speed_override(float(command["factor"])))
         elif op == "stop":
             goal = command.get("goal")
             target = None if goal is None else self._pending.get(int(goal))
@@ -140,13 +144,12 @@ class DriverService:
     def _prepare(self, token: int, lead_s: float) -> None:
         """Tell the command service where a new motion starts: the held position, or the running motion ahead."""
         runtime = self.robot.runtime
-        dof = self.robot.limits.dof
         basis = runtime.basis
-        if basis.motion is None:
-            activation, start = None, np.stack([basis.hold_position, np.zeros(dof), np.zeros(dof)])
-        else:   # a start that no longer matches when the motion changed meanwhile is refused as stale, then replanned
-            activation = runtime.cycle_count + max(2, math.ceil(lead_s / runtime.dt))
-            start = np.stack(basis.motion.state_at((activation - basis.motion_start_cycle) * runtime.dt))
+        found = basis.start(runtime.cycle_count, lead_s, runtime.dt)
+        if found is None:   # the command service asks again until it is known, or gives up with the reason
+            self._write(token, "prepared", start=None, unknown=basis.unknown)
+            return
+        activation, start = found[0], np.stack(found[1])
         self._prepared[token] = (basis, activation, start)
         while len(self._prepared) > PREPARED_KEPT:
             self._prepared.popitem(last=False)
@@ -186,7 +189,7 @@ class DriverService:
                 continue
             if not pending.accepted_sent and handle.is_accepted:
                 self.counters.accepted += 1
-                self._write(token, "accepted")
+                self._write(token, "accepted", result={"session": handle.token} if pending.stream else None)
                 pending.accepted_sent = True
             if handle.done:
                 failed = handle.error is not None

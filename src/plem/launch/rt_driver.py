@@ -22,6 +22,7 @@ from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
 from plem.control.realtime import keep_threads_scheduled
 from plem.control.state import StateBlock
+from plem.control.streaming import StreamBlock
 from plem.errors import PlemError
 from plem.fieldbus.bus import IBus
 from plem.ipc.channels import RobotChannels
@@ -60,6 +61,7 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
                  .with_loop_settings(max_consecutive_overruns=plan.max_consecutive_overruns)
                  .with_state_block(state_block).with_motion_slab(lambda: _slab(channels[0]))
                  .with_raw_ring(lambda: channels[0].rings["rt_raw"])
+                 .with_stream_block(lambda: _stream(channels[0]))
                  .build())
     except BaseException as error:
         for created in channels:
@@ -87,6 +89,12 @@ def _slab(channels: RobotChannels) -> MotionSlab:
     if channels.motions is None:
         raise ValueError("the driver's channels have no motion slab (RobotChannels.create makes one)")
     return channels.motions
+
+
+def _stream(channels: RobotChannels) -> StreamBlock:
+    if channels.stream is None:
+        raise ValueError("the driver's channels have no stream block (RobotChannels.create makes one)")
+    return channels.stream
 
 
 @dataclass

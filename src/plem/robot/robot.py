@@ -46,7 +46,7 @@ from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
-from plem.control.streaming import StreamBlock
+from plem.control.streaming import StreamBlock, override_factor, stream_timeout
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
 from plem.core import arguments
 from plem.description.drives import drive_parameters
@@ -410,14 +410,23 @@ class Robot(PlanningCalls, StreamingCalls):
     def _stream_block(self) -> StreamBlock:
         return self.runtime.stream
 
+    def request_stream(self, timeout_s: float) -> CommandHandle:
+        """Ask the core to follow the stream block, without waiting; the handle's token is the stream's session."""
+        return self._send(StartStream(max(1, round(stream_timeout(timeout_s) / self.runtime.dt)),
+                                      CommandHandle("stream", self._pump)))
+
+    def request_speed_override(self, factor: float) -> CommandHandle:
+        """Ask for a speed override (see `set_speed_override`) without waiting."""
+        return self._send(SetSpeedOverride(override_factor(factor),
+                                           CommandHandle("set_speed_override()", self._pump)))
+
     def _open_stream(self, timeout_s: float) -> tuple[int, CommandHandle]:
-        handle = self._send(StartStream(max(1, round(timeout_s / self.runtime.dt)),
-                                        CommandHandle("stream", self._pump)))
+        handle = self.request_stream(timeout_s)
         handle.wait_accepted(ACCEPT_TIMEOUT_S)
         return handle.token, handle
 
     def _request_speed_override(self, factor: float) -> CommandHandle:
-        return self._send(SetSpeedOverride(factor, CommandHandle("set_speed_override()", self._pump)))
+        return self.request_speed_override(factor)
 
     def wait_until_idle(self, timeout: float = 30.0) -> None:
         """Block until no motion (user or internal stop) is running."""
@@ -449,6 +458,7 @@ class RobotBuilder:
     state_block: Callable[[ArmLimits], StateBlock] | None = None
     motion_slab: Callable[[], MotionSlab] | None = None
     raw_ring: Callable[[], SlotRing] | None = None
+    stream_block: Callable[[], StreamBlock] | None = None
     runtime_settings: RuntimeSettings = field(default_factory=RuntimeSettings)
     loop_settings: dict[str, Any] = field(default_factory=dict)
 
@@ -483,6 +493,12 @@ class RobotBuilder:
         """Write every cycle's rt_raw record into the ring `make()` returns (the RT driver's shared memory); called
         after the state block is made."""
         self.raw_ring = make
+        return self
+
+    def with_stream_block(self, make: Callable[[], StreamBlock]) -> RobotBuilder:
+        """Take streamed samples from the block `make()` returns (the RT driver's shared one) instead of a private
+        one; called after the state block is made."""
+        self.stream_block = make
         return self
 
     def with_counts_per_radian(self, counts: Sequence[float]) -> RobotBuilder:
@@ -539,7 +555,8 @@ class RobotBuilder:
         runtime = ArmRuntime(bus, setup, limits, np.array(offsets, dtype=np.int64),
                              FreeDriveController(dynamics, limits, setup.cycle_time_s), self.runtime_settings,
                              state_block, slab=self.motion_slab() if self.motion_slab else None,
-                             raw_ring=self.raw_ring() if self.raw_ring else None, max_consecutive_overruns=limit)
+                             raw_ring=self.raw_ring() if self.raw_ring else None, max_consecutive_overruns=limit,
+                             stream=self.stream_block() if self.stream_block else None)
         loop: CycleLoop | CoreThread
         if runtime.python_bus:   # served at its own pace by a thread of this process
             loop = CycleLoop(runtime.cycle, loop_settings,
