@@ -20,6 +20,7 @@ from rosbags.rosbag2 import Reader
 from plem.cli.app import run
 from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
+from plem.ipc.records import raw_record_length
 from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
 from plem.middleware.raw_cdr import RawEncoder, raw_dof, raw_dtype, raw_field
 from plem.middleware.types import library
@@ -63,7 +64,7 @@ def mode_of(index: int) -> Mode:
 
 def feed_samples(recorder: Recorder, now: list[int], indexes: range, start: int = START, raw: bool = True) -> None:
     """1 kHz rt_raw from `start` (commanded 0.01 rad ahead of measured) with joint_states, stats and `EVENTS`."""
-    encoder, values = RawEncoder(6), np.zeros(43)
+    encoder, values = RawEncoder(6), np.zeros(raw_record_length(6))
     for index in indexes:
         stamp = now[0] = start + index * 1_000_000
         values[0], values[2], values[5] = cycle_of(index), mode_of(index), 20_000 + index % 100 * 10
@@ -120,7 +121,7 @@ def info_json(path: Path, capsys: pytest.CaptureFixture[str]) -> dict:
 
 def killed_segment(destination: Path, cycles: int) -> None:
     """A segment as a killed recorder leaves it: its flushed chunks and no metadata.yaml."""
-    encoder, values = RawEncoder(6), np.zeros(43)
+    encoder, values = RawEncoder(6), np.zeros(raw_record_length(6))
     writer = SegmentWriter(destination.parent / ".writing" / destination.name,
                            [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], STORE)
     for cycle in range(cycles):
@@ -209,7 +210,7 @@ def test_cycles_are_not_compared_across_a_deleted_segment(tmp_path: Path, capsys
 
 def open_segment(directory: Path, cycles: int) -> SegmentWriter:
     """A segment a live writer holds open, with `cycles` rt_raw messages flushed into it."""
-    encoder, values = RawEncoder(6), np.zeros(43)
+    encoder, values = RawEncoder(6), np.zeros(raw_record_length(6))
     writer = SegmentWriter(directory, [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], STORE)
     for cycle in range(cycles):
         values[0] = cycle
@@ -352,7 +353,7 @@ def test_the_default_robot_is_the_one_whose_last_message_is_latest(tmp_path: Pat
     recorder = Recorder(RecordingSettings(tmp_path / "arm2", segment_s=60.0), "arm2", MONITOR_TOPICS, STORE,
                         clock=lambda: START)
     stamps = START + np.arange(40_000, dtype=np.int64) * 1_000_000       # one segment from 0 s to 40 s
-    recorder.record([Messages("rt_raw", stamps, raw_payloads(np.zeros((40_000, 43)), stamps, 6))])
+    recorder.record([Messages("rt_raw", stamps, raw_payloads(np.zeros((40_000, raw_record_length(6))), stamps, 6))])
     recorder.close()
     chosen, warnings = pick_robot(find_bags(tmp_path), None, tmp_path, "plotting")
     assert chosen.robot_id == "arm2"

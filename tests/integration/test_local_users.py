@@ -27,6 +27,7 @@ import pytest
 from plem.control.limits import ArmLimits
 from plem.core.files import write_atomic
 from plem.ipc.channels import RobotChannels, channel_names
+from plem.ipc.records import raw_record_length
 from plem.ipc.segment import SegmentError, SharedSegment, segment_path
 from plem.ipc.state_segment import StateSegment, state_segment_name
 from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
@@ -379,7 +380,7 @@ def test_a_repaired_segment_keeps_the_access_of_the_killed_one(tmp_path: Path, p
                            access=FileAccess(group))
     encoder = RawEncoder(6)
     for cycle in range(10):
-        writer.append("/arm/rt_raw", S + cycle, encoder.encode(np.full(43, float(cycle)), S + cycle))
+        writer.append("/arm/rt_raw", S + cycle, encoder.encode(np.full(raw_record_length(6), float(cycle)), S + cycle))
     writer.flush()
     writer.abandon()                                                    # killed: no metadata.yaml
     assert repair(segment).repaired

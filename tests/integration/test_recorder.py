@@ -19,6 +19,7 @@ from rosbags.rosbag2 import Reader
 from plem.cli.app import run
 from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
+from plem.ipc.records import raw_record_length
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import RawEncoder
 from plem.middleware.types import library
@@ -59,7 +60,7 @@ def make(tmp_path: Path, clock: Clock, disk: Disk, **settings: float) -> Recorde
 
 def feed(recorder: Recorder, clock: Clock, cycles: range, period_ns: int = 1_000_000) -> None:
     """rt_raw for `cycles`, one per period from START; the clock follows the data."""
-    encoder, record = RawEncoder(6), np.zeros(43)
+    encoder, record = RawEncoder(6), np.zeros(raw_record_length(6))
     for cycle in cycles:
         record[0], stamp = cycle, START + cycle * period_ns
         clock.now = stamp
@@ -207,7 +208,7 @@ class Samples:
 
     def __init__(self, recorder: Recorder, clock: Clock) -> None:
         self.recorder, self.clock, self.cycle = recorder, clock, 0
-        self.encoder, self.record = RawEncoder(6), np.zeros(43)
+        self.encoder, self.record = RawEncoder(6), np.zeros(raw_record_length(6))
 
     def next(self) -> None:
         stamp = self.clock.now = START + self.cycle * 1_000_000

@@ -20,9 +20,10 @@ WRITER = """
     import sys, time, numpy as np
     from pathlib import Path
     from plem.middleware.types import library
+    from plem.ipc.records import raw_record_length
     from plem.middleware.raw_cdr import RawEncoder
     from plem.recording.segment import SegmentWriter
-    encoder, record = RawEncoder(6), np.zeros(43)
+    encoder, record = RawEncoder(6), np.zeros(raw_record_length(6))
     segment = SegmentWriter(Path(sys.argv[1]), [("/r/rt_raw", "plem_msgs/msg/RtRaw")], library().store,
                             sys.argv[2])
     cycle = 0

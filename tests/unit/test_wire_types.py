@@ -210,14 +210,14 @@ def test_fast_rt_raw_encoder_matches_both_serializers(dof: int) -> None:
     from plem.middleware.raw_cdr import RawEncoder
 
     rng = np.random.default_rng(dof)
-    record = np.concatenate([[2**40 + 7, 123_456_789_012, 4, 1, 0, 2.0**33, 250_000], rng.normal(size=6 * dof)])
+    record = np.concatenate([[2**40 + 7, 123_456_789_012, 4, 1, 0, 2.0**33, 250_000], rng.normal(size=6 * dof), [0.25]])
     wall_ns = 1_795_000_000_987_654_321
-    rows = record[7:].reshape(6, dof).tolist()
+    rows = record[7:-1].reshape(6, dof).tolist()
     plain = {"header": {"stamp": {"sec": wall_ns // 10**9, "nanosec": wall_ns % 10**9}, "frame_id": ""},
              "cycle": 2**40 + 7, "monotonic_ns": 123_456_789_012, "mode": 4, "faulted": True,
              "drives_enabled": False, "latency_ns": 0xFFFFFFFF, "compute_ns": 250_000,
              **dict(zip(("position", "velocity", "effort", "command_position", "command_velocity",
-                         "command_acceleration"), rows, strict=False))}
+                         "command_acceleration"), rows, strict=False)), "speed_override": 0.25}
     encoded = RawEncoder(dof).encode(record, wall_ns)
     assert encoded == to_plem("plem_msgs/msg/RtRaw", plain).serialize()
     assert encoded == reference_bytes("plem_msgs/msg/RtRaw", plain)

@@ -2,7 +2,7 @@
 
 An rt_raw sample is one float64 record: the state block's header scalars (cycle, time, mode, fault,
 drives enabled), this cycle's wake-up latency and the previous cycle's compute time, then the state
-block's joint rows. Events and statistics are rare and travel as JSON.
+block's joint rows, then the speed override in force. Events and statistics are rare and travel as JSON.
 """
 
 from __future__ import annotations
@@ -21,6 +21,11 @@ RAW_SCALARS = ("cycle", "monotonic_ns", "mode", "faulted", "drives_enabled", "la
 
 def raw_record_length(dof: int) -> int:
     """Float64 values in one rt_raw record of an arm with `dof` joints."""
+    return raw_override_column(dof) + 1
+
+
+def raw_override_column(dof: int) -> int:
+    """Where an rt_raw record of an arm with `dof` joints holds the speed override: after the joint rows."""
     return len(RAW_SCALARS) + len(ROWS) * dof
 
 
@@ -35,15 +40,18 @@ class RawSample(JointState):
 
     latency_ns: int
     compute_ns: int
+    speed_override: float
 
     @classmethod
     def from_record(cls, record: np.ndarray, dof: int) -> RawSample:
         """The sample in one rt_raw record of an arm with `dof` joints; the joint rows are views into it."""
+        column = raw_override_column(dof)
         position, velocity, effort, command_position, command_velocity, command_acceleration = (
-            record[len(RAW_SCALARS):].reshape(len(ROWS), dof))
+            record[len(RAW_SCALARS):column].reshape(len(ROWS), dof))
         cycle, stamp, mode, faulted, enabled, latency, compute = raw_scalars(record)
         return cls(cycle, stamp, Mode(mode), bool(faulted), bool(enabled), position, velocity, effort,
-                   command_position, command_velocity, command_acceleration, latency, compute)
+                   command_position, command_velocity, command_acceleration, latency, compute,
+                   float(record[column]))
 
 
 def event_record(event: Event, max_bytes: int = 1024) -> bytes:

@@ -17,15 +17,16 @@ from types import MappingProxyType
 import numpy as np
 
 from plem.control.state import ROWS
-from plem.ipc.records import RAW_SCALARS, raw_scalars
+from plem.ipc.records import RAW_SCALARS, raw_override_column, raw_scalars
 
 #: CDR little-endian encapsulation (XCDR1), the 4 bytes in front of every ROS 2 payload.
 ENCAPSULATION = b"\x00\x01\x00\x00"
 _UINT32_MAX = 0xFFFFFFFF
 
 
-def _layout(dof: int) -> str:
-    """struct format of RtRaw's body, alignment counted from after the encapsulation as CDR does."""
+def _layout(dof: int, override: bool = True) -> str:
+    """struct format of RtRaw's body, alignment counted from after the encapsulation as CDR does (without the
+    trailing speed_override for RtRaw as plem recorded it before it had one)."""
     # header.stamp (int32 sec, uint32 nanosec), header.frame_id "" (length 1, NUL, 3 padding bytes),
     # cycle, monotonic_ns, mode, faulted, drives_enabled, 1 padding byte, latency_ns, compute_ns.
     layout = "<iII1s3xQqBBBxII"
@@ -34,7 +35,16 @@ def _layout(dof: int) -> str:
         padding = (8 - (offset + 4) % 8) % 8
         layout += f"I{padding}x{dof}d"
         offset += 4 + padding + 8 * dof
+    if override:
+        layout += f"{(8 - offset % 8) % 8}xd"
     return layout
+
+
+def raw_sizes(dof: int) -> tuple[int, int]:
+    """The payload size of an RtRaw of `dof` joints (encapsulation included), and its size in bags recorded before
+    RtRaw had a speed_override; readers take both."""
+    return (len(ENCAPSULATION) + struct.calcsize(_layout(dof)),
+            len(ENCAPSULATION) + struct.calcsize(_layout(dof, override=False)))
 
 
 class RawEncoder:
@@ -47,19 +57,21 @@ class RawEncoder:
     def encode(self, record: np.ndarray, wall_ns: int) -> bytes:
         """RtRaw of one ring record, stamped `wall_ns` (ns since the epoch)."""
         cycle, monotonic_ns, mode, faulted, enabled, latency, compute = raw_scalars(record)
-        rows = record[len(RAW_SCALARS):].tolist()
+        rows = record[len(RAW_SCALARS):len(RAW_SCALARS) + len(ROWS) * self.dof].tolist()
         values: list[float | int] = []
         for index in range(len(ROWS)):
             values.append(self.dof)
             values.extend(rows[index * self.dof:(index + 1) * self.dof])
         return ENCAPSULATION + self._struct.pack(
             wall_ns // 1_000_000_000, wall_ns % 1_000_000_000, 1, b"\0", cycle, monotonic_ns, mode, bool(faulted),
-            bool(enabled), min(latency, _UINT32_MAX), min(compute, _UINT32_MAX), *values)
+            bool(enabled), min(latency, _UINT32_MAX), min(compute, _UINT32_MAX), *values,
+            float(record[raw_override_column(self.dof)]))
 
 
 _NUMPY_CODES = {"i": "<i4", "I": "<u4", "Q": "<u8", "q": "<i8", "B": "u1", "d": "<f8"}
 _RAW_FIELDS = ("sec", "nanosec", "frame_id_length", "frame_id", "cycle", "monotonic_ns", "mode", "faulted",
-               "drives_enabled", "latency_ns", "compute_ns", *(name for row in ROWS for name in (f"{row}_length", row)))
+               "drives_enabled", "latency_ns", "compute_ns", *(name for row in ROWS for name in (f"{row}_length", row)),
+               "speed_override")
 
 
 @cache
@@ -76,7 +88,7 @@ def _raw_layout(dof: int) -> tuple[Mapping[str, tuple[np.dtype, int]], int]:
         if code == "s":
             field = np.dtype(f"S{count}")
         else:
-            field = np.dtype((_NUMPY_CODES[code], (count,))) if code == "d" else np.dtype(_NUMPY_CODES[code])
+            field = np.dtype((_NUMPY_CODES[code], (count,))) if count_text else np.dtype(_NUMPY_CODES[code])
         fields[next(names)] = (field, offset)
         offset += field.itemsize
     return MappingProxyType(fields), offset

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from plem.control.state import ROWS
-from plem.ipc.records import RAW_SCALARS
+from plem.ipc.records import RAW_SCALARS, raw_override_column
 from plem.middleware.raw_cdr import ENCAPSULATION, raw_dtype
 
 _UINT32_MAX = 0xFFFFFFFF
@@ -38,6 +38,7 @@ def raw_payloads(records: np.ndarray, wall_ns: np.ndarray, dof: int) -> np.ndarr
         start = len(RAW_SCALARS) + index * dof
         out[f"{row}_length"] = dof
         out[row] = records[:, start:start + dof]
+    out["speed_override"] = records[:, raw_override_column(dof)]
     data = out.view(np.uint8).reshape(len(records), out.dtype.itemsize)
     data[:, :len(ENCAPSULATION)] = np.frombuffer(ENCAPSULATION, np.uint8)
     return data

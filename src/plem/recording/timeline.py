@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from plem.middleware.monitor_feed import DESCRIPTION_TYPE, MONITOR_TOPICS
-from plem.middleware.raw_cdr import raw_dof, raw_dtype, raw_field
+from plem.middleware.raw_cdr import raw_dof, raw_field, raw_sizes
 from plem.recording.archive import iso_time
 from plem.recording.summary import (
     CYCLE_END,
@@ -134,7 +134,7 @@ def timeline_of(robot_id: str, segments: list[SegmentInfo], start_ns: int | None
                 continue
             left -= len(inside)
             dof = raw_dof(payloads.message(int(inside[0]))) if dof is None else dof
-            if np.any(payloads.sizes[inside] != raw_dtype(dof).itemsize):
+            if np.any(~np.isin(payloads.sizes[inside], raw_sizes(dof))):
                 raise BagError(f"rt_raw in {segment.name} does not have {dof} joints throughout",
                                what=f"RtRaw messages of one arm ({dof} joints, as the first one)",
                                why=f"messages of another size in {segment.name}",

@@ -361,7 +361,7 @@ static int take_raw(Core *core, PyObject *raw, int dof) {
     uint32_t version, slot_bytes, slots, flags;
     memcpy(&version, base + 8, 4), memcpy(&slot_bytes, base + 12, 4), memcpy(&slots, base + 16, 4);
     memcpy(&flags, base + 20, 4);
-    Py_ssize_t record = (7 + 6 * (Py_ssize_t)dof) * (Py_ssize_t)sizeof(double);
+    Py_ssize_t record = (8 + 6 * (Py_ssize_t)dof) * (Py_ssize_t)sizeof(double);
     if (memcmp(base, "PLEMRING", 8) != 0 || version != 1 || flags != 0 || slots == 0 || slot_bytes < record
         || 64 + (Py_ssize_t)slots * (16 + (Py_ssize_t)slot_bytes) > core->raw.view.len) {
         PyErr_SetString(PyExc_ValueError, "raw ring: not a drop-oldest plem ring with room for this arm's record");
@@ -449,7 +449,8 @@ static PyObject *core_record_raw(Core *core, PyObject *args) {
     if (!PyArg_ParseTuple(args, "LL", &latency, &compute)) return NULL;
     if (!core_ready(core)) return NULL;
     if (core->raw.held)
-        plem_raw_write(&core->raw_view, &core->block, ((plem_arm *)core->arm.view.buf)->settings.dof, latency, compute);
+        plem_raw_write(&core->raw_view, &core->block, ((plem_arm *)core->arm.view.buf)->settings.dof, latency, compute,
+                       ((plem_arm *)core->arm.view.buf)->override.factor);
     Py_RETURN_NONE;
 }
 

@@ -540,8 +540,8 @@ typedef struct {
 } plem_raw_ring;
 
 void plem_series_add(plem_series *series, int64_t value_ns);
-/* One rt_raw record from the state block the cycle just published, with its timing. */
+/* One rt_raw record from the state block the cycle just published, with its timing and the speed override. */
 void plem_raw_write(plem_raw_ring *ring, const plem_state_block *block, int dof, int64_t latency_ns,
-                    int64_t compute_ns);
+                    int64_t compute_ns, double speed_override);
 
 #endif

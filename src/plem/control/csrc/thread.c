@@ -26,7 +26,8 @@ void plem_series_add(plem_series *s, int64_t value) {
     atomic_store_explicit((_Atomic int64_t *)&s->count, s->count + 1, memory_order_release);
 }
 
-void plem_raw_write(plem_raw_ring *ring, const plem_state_block *block, int dof, int64_t latency, int64_t compute) {
+void plem_raw_write(plem_raw_ring *ring, const plem_state_block *block, int dof, int64_t latency, int64_t compute,
+                    double speed_override) {
     _Atomic int64_t *head = (_Atomic int64_t *)(ring->base + RING_HOT_OFFSET);
     int64_t n = atomic_load_explicit(head, memory_order_relaxed), i = n % ring->slots;
     uint8_t *slot = ring->base + RING_SLOTS_OFFSET + i * (RING_SLOT_HEADER + ring->slot_bytes);
@@ -38,6 +39,7 @@ void plem_raw_write(plem_raw_ring *ring, const plem_state_block *block, int dof,
     record[5] = (double)latency;
     record[6] = (double)compute;
     memcpy(record + RAW_SCALARS, block->values, 6 * (size_t)dof * sizeof(double));
+    record[RAW_SCALARS + 6 * dof] = speed_override;
     *(uint32_t *)(slot + 8) = (uint32_t)ring->slot_bytes;
     atomic_store_explicit(sequence, (uint64_t)(2 * n + 2), memory_order_release);
     atomic_store_explicit(head, n + 1, memory_order_release);
@@ -82,7 +84,8 @@ void *plem_loop_run(void *argument) {
         plem_sleep_until(deadline);
         int64_t woke = plem_now_ns();
         plem_arm_cycle(arm, &loop->bus, loop->slab, loop->block, loop->stream);
-        if (loop->raw) plem_raw_write(loop->raw, loop->block, dof, woke - deadline, previous_compute);
+        if (loop->raw)
+            plem_raw_write(loop->raw, loop->block, dof, woke - deadline, previous_compute, arm->override.factor);
         int64_t done = plem_now_ns();
         /* compute: the cycle's own work; the time on the wire is the master's to report */
         previous_compute = done - woke - (loop->bus.master ? loop->bus.master->wire_ns : 0);
