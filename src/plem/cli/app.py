@@ -57,6 +57,8 @@ COMMANDS: dict[str, CommandSource] = {
     "state": CommandSource("plem.cli.robot", "state"),
     "move": CommandSource("plem.cli.motion", "move"),
     "plan": CommandSource("plem.cli.motion", "plan"),
+    "jog": CommandSource("plem.cli.streaming", "jog", lambda module: module.JOG_SETTINGS),
+    "speed": CommandSource("plem.cli.streaming", "speed"),
     "scene": CommandSource("plem.cli.scene"),
     "mode": CommandSource("plem.cli.robot", "mode"),
     "reset": CommandSource("plem.cli.robot", "reset"),

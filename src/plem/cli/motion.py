@@ -52,7 +52,7 @@ def move(to: ToOption = None, to_pose: ToPoseOption = None, frame: FrameOption =
         if to_pose is None and not _planner_runs(client):
             if to is None:
                 raise _no_target()
-            _hold(client)
+            hold_drives(client)
             target = _joint_target(client, to)
             result = guard.run(lambda: client.move_joints(target, speed_scale), timeout)
             stdout.print(f"{client.robot_id}: {result.message} (no planner runs: moved straight in joint space, "
@@ -131,7 +131,7 @@ def _plan(client: RobotClient, to: str | None, to_pose: Pose7 | None, frame: str
     if path and to_pose is None:
         raise UsageError(f"--{path} needs --to-pose", what="a tool pose to move to along a straight line",
                          why=f"--{path} was given with --to", how="give --to-pose x y z qx qy qz qw")
-    _hold(client)
+    hold_drives(client)
     if to_pose is not None:
         pose = Pose.of(list(to_pose))
         if path == "cartesian":
@@ -145,7 +145,7 @@ def _plan(client: RobotClient, to: str | None, to_pose: Pose7 | None, frame: str
     return client.plan(to if named else _joint_target(client, to), options=options)
 
 
-def _hold(client: RobotClient) -> None:
+def hold_drives(client: RobotClient) -> None:
     """Enable the drives and hold when they are off (idle or free drive), as moving needs."""
     from plem.control.modes import Mode
 
