@@ -15,7 +15,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 from plem.bridge.planning import PlannerLink, PlanningCalls
 from plem.bridge.streaming import StreamingCalls
@@ -35,6 +35,7 @@ from plem.ipc.records import RawSample, event_from_record
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
 from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json, tolerances_json
 from plem.ipc.ring import RingReader
+from plem.ipc.robot_description import read_description
 
 DEFAULT_ROBOT_ID = "indy"
 POLL_S = 0.0005
@@ -57,6 +58,9 @@ class Stamped(Protocol):
         """When the record was made (CLOCK_MONOTONIC, ns)."""
         ...
 
+
+if TYPE_CHECKING:
+    from plem.control.kinematics import ArmDynamics
 
 T = TypeVar("T", bound=Stamped)
 
@@ -286,6 +290,14 @@ class RobotClient(PlanningCalls, StreamingCalls):
         if self._stream_view is None:
             self._stream_view = StreamBlock.attach(stream_block_name(self.robot_id), self.dof)
         return self._stream_view
+
+    def _stream_dynamics(self) -> ArmDynamics:
+        """The arm's kinematics, from the URDF its launch shares (pinocchio is imported here, on first use)."""
+        from plem.control.kinematics import ArmDynamics
+        return ArmDynamics(read_description(self.robot_id).urdf, self.joint_names)
+
+    def _stream_cycle_time(self) -> float:
+        return self.cycle_time_s
 
     def _open_stream(self, timeout_s: float) -> tuple[int, RemoteHandle]:
         self._stream_block()

@@ -4,19 +4,26 @@
 reads every cycle, so a sample reaches the loop within a cycle of being written, whatever runs in the caller's
 process. The first sample of a stream (and the first after one ended) asks the robot to follow the block; the
 stream ends when its samples stop for its timeout (the arm comes to rest), on `stop()`, or on a fault.
+`servo_pose` and `speed_tool` stream the joint targets of Cartesian servo steps (see cartesian_streaming).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from plem.control.limits import ArmLimits
+from plem.control.state import JointState
 from plem.control.streaming import DEFAULT_TIMEOUT_S, StreamBlock, StreamStatus, override_factor, stream_timeout
 from plem.core import arguments
 from plem.errors import CommandRejected
+
+if TYPE_CHECKING:   # pinocchio is imported by the first Cartesian call, not by every client
+    from plem.bridge.cartesian_streaming import CartesianStep, CartesianStreamer, ServoStatus, TwistFunction
+    from plem.control.kinematics import ArmDynamics
+    from plem.planning.poses import Pose
 
 
 class StreamHandle(Protocol):
@@ -34,6 +41,8 @@ class StreamingCalls:
     """Streamed targets and the speed override; subclasses provide the block, the limits and the two requests."""
 
     _stream: tuple[int, StreamHandle, float] | None = None   # the open stream: session, handle, timeout
+    _last_sample: tuple[int, int, str, np.ndarray] | None = None   # the last sample: session, number, kind, values
+    _cartesian: CartesianStreamer | None = None
 
     # -- what a subclass provides --------------------------------------------------------------------
     def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:
@@ -41,6 +50,18 @@ class StreamingCalls:
         raise NotImplementedError
 
     def _stream_block(self) -> StreamBlock:
+        raise NotImplementedError
+
+    def _stream_dynamics(self) -> ArmDynamics:
+        """The arm's kinematics (built when Cartesian streaming first needs them)."""
+        raise NotImplementedError
+
+    def _stream_cycle_time(self) -> float:
+        """The loop's cycle time (s)."""
+        raise NotImplementedError
+
+    def live_state(self) -> JointState:
+        """The latest cycle's state."""
         raise NotImplementedError
 
     def _open_stream(self, timeout_s: float) -> tuple[int, StreamHandle]:
@@ -83,12 +104,76 @@ class StreamingCalls:
         return self._stream_block().status()
 
     def _sample(self, kind: str, values: np.ndarray, timeout: float) -> int:
+        return self._write_sample(kind, values, timeout)[1]
+
+    def _write_sample(self, kind: str, values: np.ndarray, timeout: float) -> tuple[int, int]:
+        """Write one sample, opening a stream first when none is open (or its timeout differs): its session and
+        number."""
         timeout = stream_timeout(timeout)
         opened = self._stream
         if opened is None or opened[1].done or opened[2] != timeout:
             session, handle = self._open_stream(timeout)
             opened = self._stream = (session, handle, timeout)
-        return self._stream_block().write(opened[0], kind, values)
+        count = self._stream_block().write(opened[0], kind, values)
+        self._last_sample = (opened[0], count, kind, values)
+        return opened[0], count
+
+    # -- Cartesian streaming ---------------------------------------------------------------------------
+    def speed_tool(self, twist: Sequence[float] | np.ndarray, frame: str = "base",
+                   timeout: float = DEFAULT_TIMEOUT_S) -> CartesianStep:
+        """Stream a tool twist (vx, vy, vz in m/s, then wx, wy, wz in rad/s) in the base or the tool frame's axes.
+
+        Each call moves the joint target by one Cartesian servo step over the time since the previous call (on the
+        loop's clock, at most `timeout`), slowed near singularities and joint limits; the step's scale and reason
+        come back and `servo_status()` keeps them. Without a new call for `timeout` s the arm comes to rest.
+        """
+        from plem.bridge.cartesian_streaming import base_twist, twist_frame, twist_values
+        velocity, axes = twist_values(twist), twist_frame(frame)
+        return self._cartesian_sample(lambda servo, q, dt: base_twist(servo, q, velocity, axes), timeout)
+
+    def servo_pose(self, pose: Pose | Sequence[float], timeout: float = DEFAULT_TIMEOUT_S) -> CartesianStep:
+        """Stream a tool pose target in the base frame (a `Pose`, as `move_to` takes, or x y z [qx qy qz qw]).
+
+        Each call moves the joint target one Cartesian servo step toward it, at most the servo's tool speeds over
+        the time since the previous call, along a straight line, slowed as `speed_tool` is; call it again (with
+        the same or a new pose) until the tool is there.
+        """
+        from plem.bridge.cartesian_streaming import pose_placement
+        target = pose_placement(pose)
+        return self._cartesian_sample(lambda servo, q, dt: servo.approach_twist(servo.tool_pose(q), target, dt),
+                                      timeout)
+
+    def servo_status(self) -> ServoStatus:
+        """The core's stream status with the last Cartesian step's target, scale, reason and singular value."""
+        from plem.bridge.cartesian_streaming import ServoStatus
+        return ServoStatus(self.stream_status(), None if self._cartesian is None else self._cartesian.last)
+
+    def _cartesian_sample(self, asked: TwistFunction, timeout: float) -> CartesianStep:
+        """Run one servo step from the reference and stream its joint target."""
+        timeout = stream_timeout(timeout)
+        streamer = self._cartesian_streamer()
+        state = self.live_state()
+        servo_step, reason, period = streamer.step(state, self._followed_target(), timeout, asked)
+        session, sample = self._write_sample("position", servo_step.q, timeout)
+        return streamer.streamed(sample, session, servo_step, reason, period, state.cycle)
+
+    def _cartesian_streamer(self) -> CartesianStreamer:
+        if self._cartesian is None:
+            from plem.bridge.cartesian_streaming import CartesianStreamer
+            self._cartesian = CartesianStreamer(self._stream_dynamics(), self._stream_arm()[0],
+                                                self._stream_cycle_time())
+        return self._cartesian
+
+    def _followed_target(self) -> tuple[int, np.ndarray] | None:
+        """The session and last position target of the open stream, while the core follows it or is yet to take
+        its first sample; None when the stream ended, comes to rest, or its last sample was a velocity."""
+        last, opened = self._last_sample, self._stream
+        if last is None or opened is None or opened[1].done or last[0] != opened[0] or last[2] != "position":
+            return None
+        status = self.stream_status()
+        if status.session == last[0] and status.state != "following":
+            return None
+        return last[0], last[3]
 
     def _joint_values(self, values: Sequence[float] | np.ndarray, name: str) -> np.ndarray:
         limits, names = self._stream_arm()

@@ -410,6 +410,12 @@ class Robot(PlanningCalls, StreamingCalls):
     def _stream_block(self) -> StreamBlock:
         return self.runtime.stream
 
+    def _stream_dynamics(self) -> ArmDynamics:
+        return self.dynamics
+
+    def _stream_cycle_time(self) -> float:
+        return self.runtime.dt
+
     def request_stream(self, timeout_s: float) -> CommandHandle:
         """Ask the core to follow the stream block, without waiting; the handle's token is the stream's session."""
         return self._send(StartStream(max(1, round(stream_timeout(timeout_s) / self.runtime.dt)),
