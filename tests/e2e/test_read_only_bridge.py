@@ -20,6 +20,7 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.qos import DEFAULT
+from plem.middleware.servo import JOINT_JOG, SPEED_SLIDER
 from tests.conftest import fresh_domain
 from tests.e2e.launched import Launch, clean_environment, launched, new_robot_id, wait_until
 from tests.e2e.ros_peer import TRAJECTORY, RosPeer, shifted, wait_for
@@ -123,3 +124,21 @@ def test_commands_find_no_server_and_nothing_moves(robot: Launch, peer: RosPeer,
     assert EventKind.MOTION_STARTED not in kinds and EventKind.COMMAND_REJECTED not in kinds
     assert client.state().mode is Mode.HOLD
 
+
+
+def test_speed_scaling_is_published_and_jogging_and_the_speed_slider_are_not_served(
+        robot: Launch, peer: RosPeer, client: RobotClient) -> None:
+    """The speed override in force is state, so it is published; the jog topic and the speed slider are commands."""
+    ns = f"/{robot.robot_id}"
+    scaling = peer.subscribe("speed_scaling_state_broadcaster/speed_scaling", "std_msgs/msg/Float64")
+    assert wait_for(lambda: any(m.data == 100.0 for m in scaling.take()), 10)
+    slider = peer.node.client(f"{ns}/io_and_status_controller/set_speed_slider", SPEED_SLIDER)
+    jog = peer.node.publisher(f"{ns}/servo_node/delta_joint_cmds", JOINT_JOG, DEFAULT)
+    assert not wait_for(lambda: slider.ready or jog.subscribers > 0, ABSENCE_WAIT_S)
+    assert client.set_mode("hold") is Mode.HOLD
+    start = client.state().position.copy()
+    with pytest.raises(TimeoutError):
+        slider.call(1.0, speed_slider_fraction=0.2)
+    jog.publish(peer.library.new(JOINT_JOG, joint_names=["joint0"], velocities=[0.3]))
+    assert not wait_until(lambda: not np.allclose(client.state().position, start, atol=1e-4), 1.0), "the arm moved"
+    assert client.stream_status().override_target == 1.0

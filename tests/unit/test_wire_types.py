@@ -15,14 +15,17 @@ from tests.wire_values import ACTION_PARTS, LIB, Filler, constants_of, fields_of
 
 FJT = "control_msgs/action/FollowJointTrajectory"
 SET_MODE = "plem_msgs/action/SetMode"
+SPEED_SLIDER = "ur_msgs/srv/SetSpeedSliderFraction"
 SERVICE_PARTS = [f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS if "_Re" in part] + [
-    "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response"]
+    "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response", f"{SPEED_SLIDER}_Request",
+    f"{SPEED_SLIDER}_Response"]
 PLEM_MSGS = [f"plem_msgs/msg/{name}" for name in ("RtRaw", "RtEvent", "RtMonitorStats", "TimingStats", "QueueStats")]
 #: Every type plem publishes or accepts on the wire.
 WIRE_TYPES = [
     "sensor_msgs/msg/JointState", "std_msgs/msg/String", *PLEM_MSGS, "trajectory_msgs/msg/JointTrajectory",
     *(f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS),
     "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response", "action_msgs/msg/GoalStatusArray",
+    "control_msgs/msg/JointJog", "std_msgs/msg/Float64", f"{SPEED_SLIDER}_Request", f"{SPEED_SLIDER}_Response",
 ]
 SEEDS = range(5)  # seeds 0 and 3: every sequence empty; others: empty and non-empty mixed
 
@@ -125,6 +128,10 @@ UPSTREAM = {
         ("joint_name", "string"), ("component", "uint16"), ("position", "float64"), ("velocity", "float64"),
         ("acceleration", "float64")],
     "action_msgs/srv/CancelGoal_Request": [("goal_info", "action_msgs/msg/GoalInfo")],
+    "control_msgs/msg/JointJog": [("header", "std_msgs/msg/Header"), ("joint_names", "string[]"),
+                                  ("displacements", "float64[]"), ("velocities", "float64[]"), ("duration", "float64")],
+    f"{SPEED_SLIDER}_Request": [("speed_slider_fraction", "float64")],
+    f"{SPEED_SLIDER}_Response": [("success", "bool")],
     "action_msgs/srv/CancelGoal_Response": [
         ("return_code", "int8"), ("goals_canceling", "action_msgs/msg/GoalInfo[]")],
 }

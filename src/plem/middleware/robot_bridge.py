@@ -6,8 +6,10 @@ It publishes the arm's frames on /tf and /tf_static as robot_state_publisher wou
 robot_description_semantic (latched; the latter when the package has an SRDF), rt_raw (every cycle),
 rt_events and rt_monitor_stats (10 Hz) and the trajectory controller's controller_state. It serves the
 controller manager's services, the trajectory controller's topic and action under the name controllers.yaml
-gives it, and the wim_rt_driver/set_mode action. A read-only bridge (`commands=False`) creates none of these
-command endpoints (nor the controller manager), so nothing on the network can command the arm through it.
+gives it, the wim_rt_driver/set_mode action, moveit_servo's joint jog topic and UR's speed slider service
+(`plem.middleware.servo`), and publishes the speed override as UR's speed_scaling. A read-only bridge
+(`commands=False`) creates none of these command endpoints (nor the controller manager), so nothing on the
+network can command the arm through it.
 It only reads shared memory and sends commands to the robot's command service through `RobotClient`, so
 nothing it does (or a slow subscriber does to it) can delay the loop; what it could not keep up with is
 counted in rt_monitor_stats.
@@ -19,6 +21,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from cyclonedds.util import duration
@@ -43,12 +46,14 @@ from plem.middleware.node import Node, Subscription
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
 from plem.middleware.parameters import ParameterServices, ParameterValue
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW, TF, TF_STATIC
+from plem.middleware.servo import SCALING_NODE, SERVO_NODE, SLIDER_NODE, ServoEndpoints, SpeedScalingPublisher
 from plem.middleware.transforms import TreeTransforms, tf_message
 from plem.recording.status import read_status
 
 _log = logging.getLogger("plem.bridge")
 _trajectory_log = logging.getLogger("plem.bridge.trajectory")
 _manager_log = logging.getLogger("plem.bridge.controller_manager")
+_servo_log = logging.getLogger("plem.bridge.servo_node")
 #: FollowJointTrajectory codes of goals refused before they ran (the driver reports aborts of running ones).
 REFUSAL_CODES = (int(ErrorCode.INVALID_GOAL), int(ErrorCode.INVALID_JOINTS))
 #: Where a parameter is changed, said when `ros2 param set` is refused.
@@ -106,6 +111,7 @@ class RobotBridge:
     follow: ActionServer
     set_mode: ActionServer
     manager: ControllerManager
+    servo: ServoEndpoints
     parameter_services: list[ParameterServices]
 
     def __init__(self, client: RobotClient, node: Node, description: str, joint_state_rate: float,
@@ -131,6 +137,8 @@ class RobotBridge:
         self.tf = node.publisher("/tf", "tf2_msgs/msg/TFMessage", TF)
         self.tf_static = node.publisher("/tf_static", "tf2_msgs/msg/TFMessage", TF_STATIC)
         self.tf_static.publish(tf_message(self.library, self.frames.static(), time.time_ns()))
+        self.speed_scaling = SpeedScalingPublisher(node, ns, client)
+        self.speed_scaling.publish(self.speed_scaling.factor())   # maps the stream block before commands are served
         for controller in controllers.unsupported:
             _log.warning("controllers.yaml declares %s of type %s, which plem does not run; it is listed as "
                          "unconfigured", controller.name, controller.type)
@@ -169,8 +177,11 @@ class RobotBridge:
         free_drive = controllers.by_role("free_drive")
         if free_drive is not None:
             graph.add(ns, free_drive.name)
+        graph.add(ns, SCALING_NODE, self.speed_scaling.publisher)
         if self.commands:
             manager = graph.add(ns, "controller_manager", *self.manager.services)
+            servo = graph.add(ns, SERVO_NODE, self.servo.joint_jog)
+            graph.add(ns, SLIDER_NODE, self.servo.speed_slider)
             trajectory.endpoints += [self.trajectories, self.follow]
             driver.endpoints.append(self.set_mode)
             self.parameter_services = [ParameterServices(self.node, f"{ns}/{graph_node.name}",
@@ -180,7 +191,7 @@ class RobotBridge:
                 graph_node.endpoints.append(parameters)
                 for server in parameters.services:
                     server.requests.max_bytes = REQUEST_BYTES
-            for logger, graph_node in ((_manager_log, manager), (_trajectory_log, trajectory)):
+            for logger, graph_node in ((_manager_log, manager), (_trajectory_log, trajectory), (_servo_log, servo)):
                 handler = RosoutHandler(graph, graph_node)
                 logger.addHandler(handler)
                 self._handlers.append((logger, handler))
@@ -210,8 +221,12 @@ class RobotBridge:
         self.follow = ActionServer(node, f"{trajectory}/follow_joint_trajectory", FJT, self._on_goal)
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
-        for server in (*self.follow.services, *self.set_mode.services, *self.manager.services):
+        self.servo = ServoEndpoints(node, ns, client, partial(self.report_refusal, logger=_servo_log),
+                                    self.manager.accepts_trajectories)
+        for server in (*self.follow.services, *self.set_mode.services, *self.manager.services,
+                       self.servo.speed_slider):
             server.requests.max_bytes = REQUEST_BYTES
+        self.servo.joint_jog.max_bytes = REQUEST_BYTES
         self.trajectories.max_bytes = self.follow.send_goal.requests.max_bytes = trajectory_bytes(client.dof)
 
     def close(self) -> None:
@@ -240,11 +255,13 @@ class RobotBridge:
                                               joint_names=message.name, interface_values=values))
         moving = self.frames.moving(dict(zip(message.name, message.position, strict=True)))
         self.tf.publish(tf_message(self.library, moving, wall_ns))
-        self._controller_state(message)
+        factor = self.speed_scaling.factor()
+        self.speed_scaling.publish(factor)
+        self._controller_state(message, factor)
 
-    def _controller_state(self, message: Any) -> None:
+    def _controller_state(self, message: Any, speed_scaling: float) -> None:
         """control_msgs/JointTrajectoryControllerState: the command as reference and output, the measurement as
-        feedback, and their difference."""
+        feedback, their difference, and the speed override in force as the speed scaling factor."""
         try:
             state = self.client.state()
         except DriverGone:
@@ -262,7 +279,7 @@ class RobotBridge:
         self.controller_state.publish(new(
             "control_msgs/msg/JointTrajectoryControllerState", header=message.header, joint_names=message.name,
             reference=reference, feedback=feedback, error=error,
-            output=new(point, positions=state.command_position.tolist()), speed_scaling_factor=1.0))
+            output=new(point, positions=state.command_position.tolist()), speed_scaling_factor=speed_scaling))
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
         """Publish on rt_events."""
@@ -284,9 +301,9 @@ class RobotBridge:
         read-only), so nothing a command costs delays what the main thread publishes."""
         parameters = [server for node in self.parameter_services for server in node.services]
         waitset = self.node.waitset([self.trajectories, *self.follow.services, *self.set_mode.services,
-                                     *self.manager.services, *parameters])
+                                     *self.manager.services, *self.servo.waitables, *parameters])
         handlers = [self._take_trajectories, self.follow.spin_once, self.set_mode.spin_once, self.manager.spin_once,
-                    *(node.spin_once for node in self.parameter_services)]
+                    self.servo.spin_once, *(node.spin_once for node in self.parameter_services)]
         timeout = duration(seconds=period)
         while not stop.is_set():
             waitset.wait(timeout)
@@ -304,10 +321,10 @@ class RobotBridge:
         return _Reported(rejected_trajectory(refused) if refused else
                          start_trajectory(self.client, self.library, goal), self)
 
-    def report_refusal(self, source: str, text: str) -> None:
-        """A ROS command refused: a WARNING on /rosout (under the trajectory controller's node) and a
-        command_rejected entry on rt_events."""
-        _trajectory_log.warning("%s refused: %s", source, text)
+    def report_refusal(self, source: str, text: str, logger: logging.Logger = _trajectory_log) -> None:
+        """A ROS command refused: a WARNING on /rosout (under the node of `logger`, by default the trajectory
+        controller's) and a command_rejected entry on rt_events."""
+        logger.warning("%s refused: %s", source, text)
         header = self.library.new("std_msgs/msg/Header", stamp=self.library.stamp())
         state = self._mode_name()
         self.publishers["rt_events"].publish(self.library.new(

@@ -1,0 +1,167 @@
+"""Streaming and the speed override on ROS 2: moveit_servo's joint jog topic and UR's speed scaling interfaces.
+
+- `/{robot_id}/servo_node/delta_joint_cmds` (control_msgs/msg/JointJog), as moveit_servo's `~/delta_joint_cmds`:
+  each message is one sample of a joint velocity stream (`RobotClient.speed_joints`). `velocities` are rad/s;
+  without them, `displacements` over `duration` s give the velocity, and the stream then lasts `duration` after
+  the message instead of the stream's 0.1 s timeout. Joints not named stay at rest. A velocity above a joint's
+  limit scales the whole command down to it (moveit_servo does the same), with a warning.
+- `/{robot_id}/speed_scaling_state_broadcaster/speed_scaling` (std_msgs/msg/Float64): the speed override in
+  force, in percent, as UR's speed_scaling_state_broadcaster publishes it.
+- `/{robot_id}/io_and_status_controller/set_speed_slider` (ur_msgs/srv/SetSpeedSliderFraction): sets the speed
+  override, from 0 to 1 (UR's takes 0.01 to 1; plem's 0 stops every motion on its path).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from plem.bridge.client import RobotClient
+from plem.control.streaming import DEFAULT_TIMEOUT_S, MAX_TIMEOUT_S
+from plem.errors import CommandRejected, PlemError
+from plem.middleware.node import Node, Publisher, ServiceServer, Subscription
+from plem.middleware.qos import DEFAULT
+
+_log = logging.getLogger("plem.bridge.servo_node")
+
+JOINT_JOG = "control_msgs/msg/JointJog"
+SPEED_SLIDER = "ur_msgs/srv/SetSpeedSliderFraction"
+#: The nodes these endpoints belong to, named as moveit_servo and UR's ROS 2 driver name theirs.
+SERVO_NODE = "servo_node"
+SCALING_NODE = "speed_scaling_state_broadcaster"
+SLIDER_NODE = "io_and_status_controller"
+#: How often a repeated refusal or warning of a stream is logged (a stream repeats it every sample).
+REPORT_PERIOD_S = 1.0
+
+
+class Reports:
+    """Refusals and warnings of one stream, each said again at most every REPORT_PERIOD_S unless it changed."""
+
+    def __init__(self, refuse: Callable[[str, str], None]) -> None:
+        self._refuse = refuse
+        self._last: tuple[str, float] = ("", -math.inf)
+
+    def refused(self, source: str, error: PlemError) -> None:
+        """Report a refused sample (on /rosout and rt_events)."""
+        if self._due(error.render()):
+            self._refuse(source, error.render())
+
+    def warn(self, text: str) -> None:
+        """A WARNING on /rosout under the servo node."""
+        if self._due(text):
+            _log.warning("%s", text)
+
+    def _due(self, text: str) -> bool:
+        now = time.monotonic()
+        if text == self._last[0] and now - self._last[1] < REPORT_PERIOD_S:
+            return False
+        self._last = (text, now)
+        return True
+
+
+def jog_velocities(message: Any, joint_names: tuple[str, ...]) -> tuple[np.ndarray, float]:
+    """A JointJog as joint velocities in the robot's joint order (rad/s) and the stream's timeout (s)."""
+    names = list(message.joint_names)
+    unknown = [name for name in names if name not in joint_names]
+    if unknown or len(set(names)) != len(names) or not names:
+        raise CommandRejected("the JointJog names no joint of this robot once each",
+                              what=f"joint_names from {', '.join(joint_names)}, each at most once",
+                              why=f"got {names}", how="name the joints as the robot's joint_states does")
+    given = list(message.velocities) or list(message.displacements)
+    field = "velocities" if message.velocities else "displacements"
+    if len(given) != len(names):
+        raise CommandRejected(f"the JointJog's {field} do not match its joint_names",
+                              what=f"one value in {field} per name in joint_names ({len(names)})",
+                              why=f"got {len(given)}", how="fill velocities (rad/s), or displacements (rad) with "
+                                                           "a duration (s), one per joint named")
+    timeout = DEFAULT_TIMEOUT_S
+    values = np.array(given, dtype=float)
+    if field == "displacements":
+        duration = float(message.duration)
+        if not 0.0 < duration <= MAX_TIMEOUT_S:
+            raise CommandRejected("a JointJog of displacements needs a duration",
+                                  what=f"duration from above 0 to {MAX_TIMEOUT_S:g} s",
+                                  why=f"duration {duration:g}", how="set duration, or send velocities instead")
+        values, timeout = values / duration, max(DEFAULT_TIMEOUT_S, duration)
+    if not np.all(np.isfinite(values)):
+        raise CommandRejected(f"the JointJog's {field} are not all finite", what="finite numbers",
+                              why=f"got {given}", how=f"send finite {field}")
+    velocities = np.zeros(len(joint_names))
+    velocities[[joint_names.index(name) for name in names]] = values
+    return velocities, timeout
+
+
+class ServoEndpoints:
+    """The joint jog topic and the speed slider service of one robot, for a bridge that takes commands."""
+
+    def __init__(self, node: Node, namespace: str, client: RobotClient, refuse: Callable[[str, str], None],
+                 accepts: Callable[[], PlemError | None]) -> None:
+        self.node = node
+        self.client = client
+        self.accepts = accepts
+        self.joint_jog: Subscription[Any] = node.subscription(f"{namespace}/{SERVO_NODE}/delta_joint_cmds",
+                                                              JOINT_JOG, DEFAULT)
+        self.speed_slider = ServiceServer(node, f"{namespace}/{SLIDER_NODE}/set_speed_slider", SPEED_SLIDER)
+        self._reports = Reports(refuse)
+
+    @property
+    def waitables(self) -> tuple[Subscription[Any] | ServiceServer, ...]:
+        """What the bridge's command thread waits on."""
+        return self.joint_jog, self.speed_slider
+
+    def spin_once(self) -> None:
+        """Take the newest joint jog (older ones waiting are superseded) and answer speed slider requests."""
+        messages = self.joint_jog.take()
+        if messages:
+            self._jog(messages[-1])
+        for request in self.speed_slider.take():
+            self._set_speed_slider(request)
+        self.speed_slider.flush()
+
+    def _jog(self, message: Any) -> None:
+        try:
+            refused = self.accepts()
+            if refused is not None:
+                raise refused
+            velocities, timeout = jog_velocities(message, self.client.joint_names)
+            limit = self.client.limits.maximum("velocity")
+            scale = float(np.max(np.abs(velocities) / limit))
+            if scale > 1.0:
+                joint = self.client.joint_names[int(np.argmax(np.abs(velocities) / limit))]
+                self._reports.warn(f"delta_joint_cmds: the command exceeds {joint}'s velocity limit; all its "
+                                   f"velocities were scaled by {1 / scale:.3g} to keep the direction")
+                velocities = velocities / scale
+            self.client.speed_joints(velocities, timeout)
+        except PlemError as error:
+            self._reports.refused("delta_joint_cmds", error)
+
+    def _set_speed_slider(self, request: Any) -> None:
+        try:
+            self.client.set_speed_override(request.speed_slider_fraction)
+        except PlemError as error:
+            self._reports.refused("set_speed_slider", error)
+            self.speed_slider.reply(request, success=False)
+            return
+        self.speed_slider.reply(request, success=True)
+
+
+class SpeedScalingPublisher:
+    """UR's speed_scaling topic: the speed override in force, in percent."""
+
+    def __init__(self, node: Node, namespace: str, client: RobotClient) -> None:
+        self.client = client
+        self.publisher: Publisher[Any] = node.publisher(f"{namespace}/{SCALING_NODE}/speed_scaling",
+                                                        "std_msgs/msg/Float64", DEFAULT)
+
+    def factor(self) -> float:
+        """The speed override in force, from 0 to 1."""
+        return self.client.speed_override
+
+    def publish(self, factor: float) -> None:
+        """Publish `factor` (0 to 1) in percent."""
+        self.publisher.publish(self.publisher.message(data=100.0 * factor))
