@@ -12,8 +12,11 @@ leave each joint lagging by its own amount and the tool off its line while they 
 tool's twist from its last one toward the one asked (for a pose, the servo's approach twist) only as far as keeps
 every joint's target velocity changing by at most half its acceleration limit, that acceleration itself growing
 by at most half the jerk limit; the twist in between stays on the line between the two, so a tool speeding up,
-slowing or stopping keeps its path. The servo's own slowing near singularities and joint limits is applied to the
-twist reached, never delayed.
+slowing or stopping keeps its path (a pose's approach twist, which slows by itself toward the pose, is limited
+only while speeding up, so it does not overshoot). The servo's own slowing near singularities and joint limits is
+applied to the twist reached, never delayed; and a step that lowers the Jacobian's smallest singular value is cut
+so every joint can still brake, at that half of its acceleration limit, before it reaches the servo's stop (joint
+speeds grow without bound toward a singularity, faster than the servo's slowing in σ alone can stop them).
 """
 
 from __future__ import annotations
@@ -36,9 +39,10 @@ from plem.planning.poses import Pose
 
 #: The twist's six values, as messages name them.
 TWIST_VALUES = "vx, vy, vz in m/s, then wx, wy, wz in rad/s"
-#: Why a Cartesian step is slower than asked: the servo's reasons, or its targets speeding up ('acceleration').
+#: Why a Cartesian step is slower than asked: the servo's reasons, or its targets changing speed ('acceleration').
 StepReason = SlowReason | Literal["acceleration"]
-#: The share of each joint's acceleration and jerk limits the targets speed up with (the rest is the follower's).
+#: The share of each joint's acceleration and jerk limits the targets change speed with (the rest is the
+#: follower's).
 RAMP_SHARE = 0.5
 #: The base-frame tool twist a call asks for, from the joint reference (arm order) over the period it covers (s).
 TwistFunction = Callable[[CartesianServo, np.ndarray, float], np.ndarray]
@@ -49,8 +53,8 @@ class CartesianStep:
     """What one Cartesian streaming call streamed: the sample's number and stream session, the joint target, the
     period it covers (s; 0 when it repeats the previous target), the fraction of the asked speed it moves at, why
     that is below 1 ('' when it is not: 'singularity', 'joint limit', 'velocity limit', or 'acceleration' while
-    the targets speed up), the smallest singular
-    value of the tool Jacobian where it started, and the loop cycle it was computed at."""
+    the targets change speed), the smallest singular value of the tool Jacobian where it started, and the loop
+    cycle it was computed at."""
 
     sample: int
     session: int
@@ -130,10 +134,11 @@ class CartesianStreamer:
         self._speeding_up = np.zeros(limits.dof)    # how fast each joint's target speed grew in the last step
 
     def step(self, state: JointState, followed: tuple[int, np.ndarray] | None, timeout_s: float,
-             asked: TwistFunction) -> tuple[ServoStep, StepReason, float]:
+             asked: TwistFunction, ramp_down: bool = True) -> tuple[ServoStep, StepReason, float]:
         """The next target from the reference (`followed`: the session and last position target of the stream the
         core follows, else the command position of `state`), why it is slower than asked, and the period it
-        covers, as the module says."""
+        covers, as the module says; without `ramp_down` only speeding up is limited (a pose's approach twist
+        slows by itself, and must not overshoot)."""
         last = self.last
         if (followed is not None and last is not None and last.session == followed[0]
                 and np.array_equal(last.target, followed[1])):
@@ -149,26 +154,48 @@ class CartesianStreamer:
         reference = followed[1] if followed is not None else state.command_position
         wanted = asked(self.servo, reference, period)
         full = self.servo.twist_step(reference, wanted, period)
-        share = self._reachable_share((full.q - reference) / period, period)
-        step = full if share >= 1.0 else self.servo.twist_step(reference, self._twist + share * (wanted - self._twist),
-                                                                 period)
+        share = self._reachable_share((full.q - reference) / period, period, ramp_down)
+        twist = wanted if share >= 1.0 else self._twist + share * (wanted - self._twist)
+        step = full if share >= 1.0 else self.servo.twist_step(reference, twist, period)
         velocity = (step.q - reference) / period
+        braking = self._braking_share(step, velocity, period)
+        velocity *= braking
+        target = reference + velocity * period
         self._speeding_up = np.abs(velocity - self._velocity) / period
         self._velocity = velocity
-        self._twist = self._tool_twist(reference, step.q, period)
-        if share >= 1.0:
-            return step, step.reason, period
+        self._twist = self._tool_twist(reference, target, period)
         size = float(np.linalg.norm(wanted))
-        scale = min(step.scale, float(np.linalg.norm(self._twist)) / size) if size > 0.0 else step.scale
-        reason: StepReason = "acceleration" if scale < step.scale else step.reason
-        return ServoStep(step.q, scale, step.reason, step.singular_value), reason, period
+        ramped = min(1.0, float(np.linalg.norm(twist)) / size) if size > 0.0 else 1.0
+        scale = ramped * step.scale * braking
+        reason: StepReason = step.reason
+        if braking < 1.0:
+            reason = "singularity"
+        elif ramped < 1.0 and step.scale >= 1.0:   # the servo's own slowing, when there is any, causes it
+            reason = "acceleration"
+        return ServoStep(target, scale, step.reason, step.singular_value), reason, period
 
-    def _reachable_share(self, velocity: np.ndarray, period: float) -> float:
+    def _braking_share(self, step: ServoStep, velocity: np.ndarray, period: float) -> float:
+        """The share of a step that lowers σ (the tool Jacobian's smallest singular value) that can still brake,
+        at the ramp's deceleration, before σ reaches the servo's stop: σ falls about σ̇·t/2 while every joint
+        brakes within t = max |q̇ᵢ| / aᵢ, and both σ̇ and t scale with the share, so the share is the square root
+        of the room over that fall. Joint speeds grow as σ falls, and the servo's own slowing near the stop would
+        leave the joints too fast to stop on their targets."""
+        after = self.servo.twist_step(step.q, np.zeros(6), period).singular_value   # σ where the step ends
+        falling = (step.singular_value - after) / period
+        if falling <= 0.0:
+            return 1.0
+        brake_time = float(np.max(np.abs(velocity) / self._acceleration_limit))
+        room = after - self.servo.settings.stop_singular_value
+        return 0.0 if room <= 0.0 else min(1.0, float(np.sqrt(2.0 * room / (falling * brake_time))))
+
+    def _reachable_share(self, velocity: np.ndarray, period: float, ramp_down: bool) -> float:
         """The largest share (at most 1) of the way from the last step's joint velocities to `velocity` that keeps
-        every joint's change within the ramp's acceleration, itself grown within the ramp's jerk."""
+        every joint's change (only speeding up without `ramp_down`) within the ramp's acceleration, itself grown
+        within the ramp's jerk."""
         acceleration = np.minimum(self._acceleration_limit, self._speeding_up + self._jerk_limit * period)
         allowed = acceleration * period
-        change = np.abs(velocity - self._velocity)
+        change = (np.abs(velocity - self._velocity) if ramp_down
+                  else np.maximum(np.abs(velocity) - np.abs(self._velocity), 0.0))
         over = change > allowed
         return float(np.min(allowed[over] / change[over])) if over.any() else 1.0
 

@@ -141,19 +141,19 @@ class StreamingCalls:
         from plem.bridge.cartesian_streaming import pose_placement
         target = pose_placement(pose)
         return self._cartesian_sample(lambda servo, q, dt: servo.approach_twist(servo.tool_pose(q), target, dt),
-                                      timeout)
+                                      timeout, ramp_down=False)
 
     def servo_status(self) -> ServoStatus:
         """The core's stream status with the last Cartesian step's target, scale, reason and singular value."""
         from plem.bridge.cartesian_streaming import ServoStatus
         return ServoStatus(self.stream_status(), None if self._cartesian is None else self._cartesian.last)
 
-    def _cartesian_sample(self, asked: TwistFunction, timeout: float) -> CartesianStep:
+    def _cartesian_sample(self, asked: TwistFunction, timeout: float, ramp_down: bool = True) -> CartesianStep:
         """Run one servo step from the reference and stream its joint target."""
         timeout = stream_timeout(timeout)
         streamer = self._cartesian_streamer()
         state = self.live_state()
-        servo_step, reason, period = streamer.step(state, self._followed_target(), timeout, asked)
+        servo_step, reason, period = streamer.step(state, self._followed_target(), timeout, asked, ramp_down)
         session, sample = self._write_sample("position", servo_step.q, timeout)
         return streamer.streamed(sample, session, servo_step, reason, period, state.cycle)
 

@@ -1,0 +1,151 @@
+"""Cartesian streaming on the in-process robot: servo_pose and speed_tool step the Cartesian servo and stream its
+joint targets; the tool follows the asked line and the core keeps every limit.
+
+The core's follower feeds forward the targets' velocity from the samples' stamps (the writer's clock), while a
+stepped robot's cycles take no wall time: the samples are paced at 250 Hz of wall time as the robot steps 4 cycles
+per sample, but how closely the commanded tool keeps the line then depends on the machine's load. So here the
+streamed targets are judged against the line, and the commands against the limits and the last target they settle
+on; tests/e2e/test_cartesian_streaming_launched.py judges the commanded tool on the real-time loop.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from plem.bridge.cartesian_streaming import CartesianStep
+from plem.errors import CommandRejected
+from plem.planning.poses import Pose
+from plem.robot import Robot
+from tests.integration.robot_fixtures import Trace, assert_within_limits, simulated_robot
+
+SAMPLE_CYCLES = 4
+SAMPLE_PERIOD_S = 0.004
+#: An Indy7 pose with the elbow bent and the wrist turned down, far from singularities and limits.
+START = [0.0, -0.4, -1.6, 0.0, -1.1, 0.0]
+#: How far a streamed target's tool may leave the asked line (m, rad): the servo integrates the twist to first order,
+#: 0.4 mm per sample at 0.1 m/s, which leaves the line by 0.24 mm over 8 cm on the Indy7 (measured): twice that.
+LINE_TOLERANCE_M = 5e-4
+ANGLE_TOLERANCE_RAD = 2e-3
+
+
+@pytest.fixture
+def robot() -> Robot:
+    robot = simulated_robot()
+    robot.set_mode("hold")
+    robot.move_joints(START).wait(30.0)
+    return robot
+
+
+def paced(robot: Robot, calls: int, call: Callable[[int], CartesianStep]) -> list[CartesianStep]:
+    """`calls` calls at 250 Hz, the robot stepping 4 cycles after each."""
+    steps = []
+    began = time.monotonic()
+    for k in range(calls):
+        steps.append(call(k))
+        robot.step(SAMPLE_CYCLES)
+        time.sleep(max(0.0, began + (k + 1) * SAMPLE_PERIOD_S - time.monotonic()))
+    return steps
+
+
+def tool_poses(robot: Robot, steps: list[CartesianStep]) -> list[pin.SE3]:
+    """The tool's pose at each streamed target."""
+    servo = robot._cartesian_streamer().servo
+    return [servo.tool_pose(step.target) for step in steps]
+
+
+def settled_on_last_target(robot: Robot, steps: list[CartesianStep]) -> None:
+    """The arm, its stream ended (it comes to rest where the follower is), at rest within 0.1 mrad of the last
+    target streamed (the follower is that close once the targets stop)."""
+    robot.step(300)
+    state = robot.state()
+    assert np.allclose(state.command_position, steps[-1].target, atol=1e-4)
+    assert np.all(state.command_velocity == 0.0) and robot.fault_reason == ""
+
+
+def off_line(poses: list[pin.SE3], start: pin.SE3, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Each pose's distance along `direction` from `start`, its distance off that line, and the largest turn."""
+    offsets = np.array([pose.translation - start.translation for pose in poses])
+    along = offsets @ direction
+    across = np.linalg.norm(offsets - np.outer(along, direction), axis=1)
+    turn = max(float(np.linalg.norm(pin.log3(pose.rotation @ start.rotation.T))) for pose in poses)
+    return along, across, turn
+
+
+def test_a_base_frame_twist_moves_the_tool_along_its_line_within_every_limit(robot: Robot) -> None:
+    start = robot._cartesian_streamer().servo.tool_pose(robot.state().command_position)
+    trace = Trace.attach(robot)
+    speed = 0.1
+    steps = paced(robot, 300, lambda k: robot.speed_tool([speed if k < 200 else 0.0, 0, 0, 0, 0, 0]))
+    assert robot.servo_status().following and robot.servo_status().step is steps[-1]
+    assert steps[100].scale == 1.0 and steps[100].reason == ""
+    assert steps[0].reason == "acceleration" and steps[0].scale < 0.1   # the twist is reached gradually
+    along, across, turn = off_line(tool_poses(robot, steps), start, np.array([1.0, 0.0, 0.0]))
+    assert across.max() < LINE_TOLERANCE_M and turn < ANGLE_TOLERANCE_RAD
+    assert 0.07 < along[-1] < 0.1   # 0.8 s at 0.1 m/s, less the speeding up and slowing down
+    assert np.all(np.diff(along) > -1e-9)   # never backwards
+    settled_on_last_target(robot, steps)
+    assert_within_limits(robot, trace.commands())
+
+
+def test_a_tool_frame_twist_moves_the_tool_along_its_own_axis(robot: Robot) -> None:
+    start = robot._cartesian_streamer().servo.tool_pose(robot.state().command_position)
+    trace = Trace.attach(robot)
+    steps = paced(robot, 250, lambda k: robot.speed_tool([0, 0, 0.08 if k < 175 else 0.0, 0, 0, 0], frame="tool"))
+    along, across, turn = off_line(tool_poses(robot, steps), start, start.rotation[:, 2])
+    assert across.max() < LINE_TOLERANCE_M and turn < ANGLE_TOLERANCE_RAD
+    assert along[-1] > 0.04
+    settled_on_last_target(robot, steps)
+    assert_within_limits(robot, trace.commands())
+
+
+def test_servo_pose_brings_the_tool_to_the_pose(robot: Robot) -> None:
+    servo = robot._cartesian_streamer().servo
+    start = servo.tool_pose(robot.state().command_position)
+    goal = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, 0.2) @ start.rotation, start.translation + [0.04, 0.03, -0.05])
+    x, y, z, w = pin.Quaternion(goal.rotation).coeffs()
+    pose = Pose(tuple(goal.translation), (x, y, z, w))
+    trace = Trace.attach(robot)
+    steps = paced(robot, 400, lambda k: robot.servo_pose(pose))
+    settled_on_last_target(robot, steps)
+    reached = servo.tool_pose(robot.state().command_position)
+    assert np.linalg.norm(reached.translation - goal.translation) < 1e-4
+    assert np.linalg.norm(pin.log3(reached.rotation @ goal.rotation.T)) < 1e-3
+    assert_within_limits(robot, trace.commands())
+
+
+def test_streaming_toward_the_elbow_singularity_slows_to_a_stop_and_says_so(robot: Robot) -> None:
+    trace = Trace.attach(robot)
+    steps = paced(robot, 700, lambda k: robot.speed_tool([0.15, 0, 0, 0, 0, 0]))   # outward: the elbow straightens
+    assert steps[100].scale == 1.0 and steps[100].singular_value > 0.1
+    last = steps[-100:]
+    assert all(step.reason == "singularity" and step.scale < 0.01 for step in last)
+    servo = robot._cartesian_streamer().servo
+    crawled = servo.tool_pose(last[-1].target).translation - servo.tool_pose(last[0].target).translation
+    assert np.linalg.norm(crawled) < 1e-3   # under 1 mm in the last 0.4 s: stopped, short of straight
+    assert min(step.singular_value for step in steps) >= 0.04 - 1e-3
+    assert robot.servo_status().step is last[-1]
+    servo = robot._cartesian_streamer().servo
+    commanded = [servo.twist_step(q, np.zeros(6), 0.001).singular_value for q in trace.commands()[::10, 0]]
+    assert min(commanded) > 0.04   # the commanded arm, too, stopped short of the servo's stop
+    settled_on_last_target(robot, steps)
+    assert_within_limits(robot, trace.commands())
+
+
+def test_bad_twists_frames_and_poses_are_refused_before_anything_is_streamed(robot: Robot) -> None:
+    with pytest.raises(CommandRejected, match="twist has 5 values"):
+        robot.speed_tool([0.1, 0, 0, 0, 0])
+    with pytest.raises(CommandRejected, match="finite"):
+        robot.speed_tool([float("nan"), 0, 0, 0, 0, 0])
+    with pytest.raises(CommandRejected, match="twist frame") as refused:
+        robot.speed_tool([0.1, 0, 0, 0, 0, 0], frame="world")
+    assert "frame='base'" in refused.value.how
+    with pytest.raises(CommandRejected, match="x y z"):
+        robot.servo_pose([0.3, 0.1])
+    with pytest.raises(CommandRejected, match="stream timeout"):
+        robot.speed_tool([0.1, 0, 0, 0, 0, 0], timeout=0.0)
+    assert robot._stream is None and robot.servo_status().step is None
