@@ -218,8 +218,25 @@ class SetSpeedOverride:
     handle: CommandHandle
 
 
+@dataclass
+class ArmReaction:
+    """Arm (or, with `remove`, remove) the reaction written into the core's reaction slot `slot`."""
+
+    slot: int
+    handle: CommandHandle
+    remove: bool = False
+
+
+@dataclass
+class SetPayload:
+    """The core's last body becomes `body` (mass, centre of mass, inertia about it: 13 numbers)."""
+
+    body: np.ndarray
+    handle: CommandHandle
+
+
 #: Everything the loop's inbox carries.
-Command = SetMode | StartMotion | StopMotion | ResetFault | StartStream | SetSpeedOverride
+Command = SetMode | StartMotion | StopMotion | ResetFault | StartStream | SetSpeedOverride | ArmReaction | SetPayload
 
 
 def motion_error(result: TrajectoryResult) -> PlemError | None:

@@ -70,7 +70,9 @@ SIM = _checked("plem_sim", [
     ("dof", "<i4"), ("dynamics", "<i4"), ("dt", "<f8"), ("omega", "<f8"), ("follow", "<f8"), ("deceleration", "<f8"),
     ("pad0", "<f8"),
     *((name, "<f8", J) for name in ("counts", "raw_zero", "friction", "effort", "lower", "upper", "max_error",
-                                    "q", "v", "tau", "external", "stop_q", "stop_v")),
+                                    "q", "v", "tau", "external")),
+    ("push", "<f8", 6), ("push_point", "<f8", 3), ("push_body", "<i4"), ("payload_pending", "<i4"),
+    ("payload_body", "<f8", 13), ("stop_q", "<f8", J), ("stop_v", "<f8", J),
     ("spike", "<i8", J), ("stuck", "u1", J), ("latched", "u1", J), ("stopping", "u1", J), ("pad1", "u1", J),
     ("state", "<i4", J), ("statusword", "<u2", J), ("error_code", "<u2", J), ("controlword", "<u2", J),
     ("pad2", "<u2", J),
@@ -88,7 +90,7 @@ _SETTINGS_FIELDS = [
     ("position_margin", "<f8"), ("standstill_velocity", "<f8"), ("command_tolerance", "<f8"),
     ("enable_timeout_cycles", "<i8"), ("counts_per_radian", "<f8", J), ("offsets", "<i8", J),
     *((name, "<f8", J) for name in ("min_position", "max_position", "max_velocity", "max_acceleration", "max_jerk",
-                                    "max_effort", "damping")),
+                                    "max_effort", "damping", "friction", "contact_threshold")),
 ]
 _BASIS_FIELDS = [("sequence", "<u8"), ("generation", "<u8"), ("slot", "<i4"), ("segments", "<i4"),
                  ("start_cycle", "<i8"), ("time", "<f8"), ("rate", "<f8"), ("ramping", "<i4"), ("pad", "<i4"),
@@ -96,17 +98,18 @@ _BASIS_FIELDS = [("sequence", "<u8"), ("generation", "<u8"), ("slot", "<i4"), ("
 _OVERRIDE_FIELDS = [("target", "<f8"), ("factor", "<f8"), ("rate", "<f8"), ("time", "<f8"), ("peaks", "<f8", (3, J))]
 _STREAM_FIELDS = [("session", "<u8"), ("timeout_cycles", "<i8"), ("last_cycle", "<i8"), ("last_count", "<u8"),
                   ("last_stamp", "<i8"), ("feed_until", "<i8"), ("kind", "<i4"), ("timed_out", "<i4"),
-                  ("target", "<f8", J), ("feed", "<f8", J)]
+                  ("internal", "<i4"), ("pad", "<i4"), ("target", "<f8", J), ("feed", "<f8", J)]
 _STREAM_BLOCK_FIELDS = [("sequence", "<u8"), ("session", "<u8"), ("count", "<u8"), ("kind", "<i8"),
                         ("stamp_ns", "<i8"), ("checksum", "<u8"), ("pad0", "<u8", 2), ("target", "<f8", J),
                         ("used_session", "<u8"), ("used_count", "<u8"), ("used_cycle", "<i8"), ("latency_ns", "<i8"),
-                        ("state", "<i4"), ("pad1", "<i4"), ("speed_override", "<f8"), ("override_target", "<f8")]
+                        ("state", "<i4"), ("pad1", "<i4"), ("speed_override", "<f8"), ("override_target", "<f8"),
+                        ("external", "<f8", J), ("wrench", "<f8", 6)]
 _RING_FIELDS = [("head", "<u8"), ("pad0", "<u8", 7), ("tail", "<u8"), ("pad1", "<u8", 7), ("dropped", "<u8"),
                 ("pad2", "<u8", 7)]
 _COMMAND_FIELDS = [("token", "<u8"), ("op", "<i4"), ("mode", "<i4"), ("slot", "<i4"), ("segments", "<i4"),
                    ("basis", "<u8"), ("activation", "<i8"), ("goal", "<u8"), ("has_path", "<i4"), ("has_goal", "<i4"),
                    ("goal_time", "<f8"), ("stopped_velocity", "<f8"), ("path", "<f8", J), ("goal_tolerance", "<f8", J),
-                   ("peaks", "<f8", (3, J)), ("value", "<f8"), ("cycles", "<i8")]
+                   ("peaks", "<f8", (3, J)), ("value", "<f8"), ("body", "<f8", 13), ("cycles", "<i8")]
 _OUTCOME_FIELDS = [("token", "<u8"), ("cycle", "<i8"), ("stage", "<i4"), ("answer", "<i4"), ("mode", "<i4"),
                    ("detail", "<i4"), ("joint", "<i4"), ("pad", "<i4"), ("values", "<f8", 2)]
 _EVENT_FIELDS = [("cycle", "<i8"), ("monotonic_ns", "<i8"), ("token", "<u8"), ("kind", "<i4"), ("cause", "<i4"),
@@ -117,6 +120,12 @@ SETTINGS = _checked("plem_settings", _SETTINGS_FIELDS)
 BASIS = _checked("plem_basis", _BASIS_FIELDS)
 OVERRIDE = _checked("plem_override", _OVERRIDE_FIELDS)
 STREAM = _checked("plem_stream", _STREAM_FIELDS)
+TERM = _checked("plem_term", [("op", "<i4"), ("measure", "<i4"), ("index", "<i4"), ("pad", "<i4"),
+                              ("threshold", "<f8")])
+#: One reaction slot of the core (plem.control.reactions writes them).
+REACTION = _checked("plem_reaction", [("token", "<u8"), ("motion", "<u8"), ("armed", "<i4"), ("terms", "<i4"),
+                                      ("action", "<i4"), ("once", "<i4"), ("was_true", "<i4"), ("pad", "<i4"),
+                                      ("target", "<f8", J), ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"])])
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
 RING = _checked("plem_ring", _RING_FIELDS)
@@ -141,7 +150,8 @@ ARM = _checked("plem_arm", [
     ("pending_enable_sent", "<i4"), ("pad3", "<i4"),
     ("stop_knots", "<f8", STOP_SEGMENTS + 1), ("stop_coefficients", "<f8", STOP_SEGMENTS * ORDER * J),
     ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("override", OVERRIDE),
-    ("stream", STREAM),
+    ("stream", STREAM), ("feeling", "<i4"), ("pad5", "<i4"), ("external", "<f8", J), ("wrench", "<f8", 6),
+    ("reactions", REACTION, CONSTANTS["PLEM_REACTIONS"]),
     ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),
     ("outcomes_index", RING), ("outcomes", OUTCOME, CONSTANTS["PLEM_OUTCOME_SLOTS"]),
     ("events_index", RING), ("events", EVENT, CONSTANTS["PLEM_EVENT_SLOTS"]),

@@ -28,6 +28,7 @@ class EventKind(StrEnum):
     COMMAND_REJECTED = "command_rejected"
     OVERRUN = "overrun"
     WARNING = "warning"
+    REACTION = "reaction"
 
 
 #: Kinds kept in the fault history besides the general log.

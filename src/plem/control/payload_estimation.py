@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from plem.control.kinematics import ArmDynamics, link_frame
 from plem.control.limits import ArmLimits
-from plem.control.payload import Payload
+from plem.control.payload import Payload, combined_body
 from plem.errors import ConfigError, PlemError
 
 #: Length (m) that makes the unknowns comparable: the fit weighs an error of 1 kg in the mass as one of 1 kg at
@@ -179,3 +179,14 @@ def estimation_poses(dynamics: ArmDynamics, limits: ArmLimits, start_q: np.ndarr
         y = regressors.pop(best)
         normal = normal + y.T @ y
     return chosen
+
+
+def last_body_with(model: pin.Model, payload: Payload) -> np.ndarray:
+    """The compiled core's last body (mass, centre of mass, inertia about it, 13 numbers in the last joint's frame)
+    from the description's own inertials with `payload`, given at the flange, rigidly added; what the core's model
+    and the simulated arm take when a payload is set."""
+    last = model.inertias[model.njoints - 1]
+    mass, com, inertia = combined_body(float(last.mass), np.asarray(last.lever), np.asarray(last.inertia),
+                                       payload_in_joint_frame(model, payload, flange_link(model)))
+    body: np.ndarray = np.concatenate([[mass], com, inertia.reshape(9)])
+    return body

@@ -20,11 +20,13 @@ import numpy as np
 
 from plem.control import compiled
 from plem.control.commands import (
+    ArmReaction,
     Command,
     CommandHandle,
     PlanBasis,
     ResetFault,
     SetMode,
+    SetPayload,
     SetSpeedOverride,
     StartMotion,
     StartStream,
@@ -39,9 +41,10 @@ from plem.control.limits import ArmLimits
 from plem.control.loop import OverrunWindow
 from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
+from plem.control.reactions import ACTION_NAMES, Action, Condition, write_reaction
 from plem.control.state import StateBlock
 from plem.control.streaming import StreamBlock
-from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult
+from plem.control.trajectory import ErrorCode, TrajectoryOutcome, TrajectoryResult
 from plem.control.wording import CAUSES, Reported, Wording
 from plem.errors import CommandRejected
 from plem.fieldbus.bus import BusSetup, DriveState, IBus, SteppedBus
@@ -61,7 +64,7 @@ _LOGGED_REFUSALS = frozenset({C["PLEM_ANSWER_NOT_HOLDING"], C["PLEM_ANSWER_MODE_
                               C["PLEM_ANSWER_UNKNOWN_OP"]})
 _MOTION_ENDS = {C["PLEM_ANSWER_SUCCEEDED"], C["PLEM_ANSWER_GOAL_VIOLATED"], C["PLEM_ANSWER_PATH_VIOLATED"],
                 C["PLEM_ANSWER_FAULT_ABORTED"], C["PLEM_ANSWER_PREEMPTED"], C["PLEM_ANSWER_CANCELED"],
-                C["PLEM_ANSWER_STREAM_TIMED_OUT"]}
+                C["PLEM_ANSWER_STREAM_TIMED_OUT"], C["PLEM_ANSWER_REACTED"]}
 #: Why a running motion's future is not known ahead, by the basis's slot: a plan cannot take it over yet.
 _UNKNOWN_FUTURE = {C["PLEM_STREAM_SLOT"]: "a stream runs"}
 _OUTSIDE_FAULTS = {"overrun": C["PLEM_CAUSE_OVERRUN"], "internal_error": C["PLEM_CAUSE_INTERNAL_ERROR"]}
@@ -83,6 +86,18 @@ class RuntimeSettings:
     enable_timeout_s: float = 1.0             # drives must reach operation enabled within this
     standstill_velocity: float = 0.05         # rad/s below which the arm counts as standing still
     command_tolerance: float = 1e-6           # relative slack for commanded derivatives (rounding)
+    contact_share: float = 0.25               # estimated external torque, as a share of each joint's effort limit,
+                                              # past which the arm stops (the contact stop); inf: off
+
+
+@dataclass(frozen=True)
+class ReactionRecord:
+    """What Python keeps of an armed reaction, to word what it did."""
+
+    slot: int
+    text: str
+    action: str
+    motion: int
 
 
 @dataclass
@@ -144,6 +159,9 @@ class ArmRuntime:
         self._tokens = itertools.count(1)
         self._submitting = threading.Lock()
         self._busy_slots: set[int] = set()
+        #: Reactions by their token, and the core's slots written but not yet answered.
+        self.reactions: dict[int, ReactionRecord] = {}
+        self._arming: set[int] = set()
         self.work = arm["work"][:, :dof]   # position, velocity, effort, command position/velocity/acceleration
         self._io = {name: arm[f"io_{name}"][:dof] for name in _BUS_INPUTS + _BUS_OUTPUTS}
         self._basis = arm["basis"]
@@ -164,6 +182,19 @@ class ArmRuntime:
         for kind in ("velocity", "acceleration", "jerk", "effort"):
             settings[f"max_{kind}"][:dof] = limits.maximum(kind)
         settings["damping"][:dof] = free_drive.damping
+        settings["friction"][:dof], settings["contact_threshold"][:dof] = self._contact_model()
+
+    def _contact_model(self) -> tuple[np.ndarray, np.ndarray]:
+        """Viscous friction the model's effort includes, and the contact stop's threshold per joint: off (inf) where
+        the measured effort is not a joint torque the model can explain (a simulated arm without dynamics, drives
+        whose torque unit is unknown, joints without an effort limit)."""
+        dof = self.setup.dof
+        simulated = getattr(self.bus, "simulated_arm", None)
+        friction = np.zeros(dof) if simulated is None else np.array(simulated["friction"][0][:dof])
+        effort = self.limits.maximum("effort") * self.settings.contact_share
+        known = (simulated is None or bool(simulated["dynamics"][0])) \
+            and getattr(self.bus, "free_drive_refusal", None) is None
+        return friction, np.where(np.isfinite(effort) & known, effort, math.inf)
 
     # -- state -------------------------------------------------------------------------------------
     @property
@@ -354,6 +385,11 @@ class ArmRuntime:
             record["op"], record["cycles"] = C["PLEM_OP_STREAM"], command.timeout_cycles
         elif isinstance(command, SetSpeedOverride):
             record["op"], record["value"] = C["PLEM_OP_OVERRIDE"], command.factor
+        elif isinstance(command, ArmReaction):
+            record["op"] = C["PLEM_OP_UNREACT"] if command.remove else C["PLEM_OP_REACT"]
+            record["slot"] = command.slot
+        elif isinstance(command, SetPayload):
+            record["op"], record["body"] = C["PLEM_OP_PAYLOAD"], command.body
         else:
             record["op"] = C["PLEM_OP_START"]
             slot, segments = command.slot, command.segments
@@ -387,6 +423,24 @@ class ArmRuntime:
                                   how="wait for a motion to finish, or stop() first")
         self._busy_slots.add(free[0])
         return free[0]
+
+    def write_reaction(self, condition: Condition, action: Action, motion: int = 0, once: bool = False) -> int:
+        """Write a reaction into a free slot of the core (not yet armed: submit ArmReaction with the slot); its
+        token. Bound to `motion` (a motion's token), it ends with that motion."""
+        with self._submitting:
+            slots = self.arm[0]["reactions"]
+            free = [k for k in range(len(slots)) if not slots[k]["armed"] and k not in self._arming]
+            if not free:
+                raise CommandRejected("too many reactions", what=f"at most {len(slots)} armed at once",
+                                      why="every reaction slot of the core is in use",
+                                      how="remove reactions that are no longer needed (their handle's remove())")
+            token = next(self._tokens)
+            write_reaction(slots[free[0]], token, condition, action, self.joint_names, motion, once)
+            self._arming.add(free[0])
+            for old in [t for t, r in self.reactions.items() if r.slot == free[0]]:   # the slot's last reaction
+                del self.reactions[old]
+            self.reactions[token] = ReactionRecord(free[0], condition.text, ACTION_NAMES[action.code], motion)
+            return token
 
     # -- reports -----------------------------------------------------------------------------------
     def drain(self) -> None:
@@ -450,9 +504,18 @@ class ArmRuntime:
             emit(EventKind.COMMAND_REJECTED, CAUSES[cause], self._wording.enable_timeout(values).why, mode, cycle)
         elif kind == C["PLEM_EVENT_OVERRUN"]:
             emit(EventKind.OVERRUN, "overrun", self._wording.overruns(values, int(event["detail"]) / 1e3), mode, cycle)
+        elif kind == C["PLEM_EVENT_REACTION"]:
+            emit(EventKind.REACTION, "reaction", self._reacted(token, values), mode, cycle)
         elif kind == C["PLEM_EVENT_WARNING"]:
             emit(EventKind.WARNING, CAUSES[cause], self._wording.brakes_engaged(joint, int(event["detail"]), values),
                  mode, cycle)
+
+    def _reacted(self, token: int, values: tuple[float, ...]) -> str:
+        """What a reaction that fired saw and did, in words."""
+        record = self.reactions.get(token)
+        if record is None:
+            return f"a reaction fired (measured {values[0]:g})"
+        return f"{record.text} (measured {values[0]:.6g}): {record.action}"
 
     def _outside_detail(self, cause: int) -> str:
         """The words for a fault the core cannot word itself: the bus's own account, or an outside fault's text."""
@@ -465,11 +528,26 @@ class ArmRuntime:
         command = request.command if request is not None else None
         label = self._label(token, "motion")
         goal_time = command.tolerances.goal_time if isinstance(command, StartMotion) else 0.0
+        if reported.code == C["PLEM_ANSWER_REACTED"]:
+            return self._reaction_result(reported, token, label)
         result = self._wording.result(reported, label, goal_time, self.fault_reason)
         note = command.note if isinstance(command, StartMotion) else ""
         if note and result.outcome in (TrajectoryOutcome.SUCCEEDED, TrajectoryOutcome.ABORTED):
             result = TrajectoryResult(result.outcome, f"{result.message}; {note}", result.error_code)
         return result
+
+    def _reaction_result(self, reported: Reported, token: int, label: str) -> TrajectoryResult:
+        """How a motion a reaction ended: succeeded when its own `until` condition came true, else replaced."""
+        fired = next((r for r in self.reactions.values() if r.slot == reported.joint), None)
+        text = fired.text if fired is not None else "a reaction's condition"
+        if fired is not None and fired.motion == token:
+            return TrajectoryResult(TrajectoryOutcome.SUCCEEDED, f"{label} stopped by its until condition: {text} "
+                                                                 f"(measured {reported.values[0]:.6g})",
+                                    ErrorCode.SUCCESSFUL)
+        action = fired.action if fired is not None else "its action"
+        return TrajectoryResult(TrajectoryOutcome.PREEMPTED, f"{label} ended by a reaction: {text} (measured "
+                                                             f"{reported.values[0]:.6g}): {action}",
+                                ErrorCode.SUCCESSFUL)
 
     def _on_outcome(self, outcome: np.void) -> None:
         token, stage, code = int(outcome["token"]), int(outcome["stage"]), int(outcome["answer"])
@@ -498,6 +576,8 @@ class ArmRuntime:
 
     def _finished(self, token: int) -> None:
         request = self._pending.pop(token, None)
+        if request is not None and isinstance(request.command, ArmReaction):
+            self._arming.discard(request.command.slot)
         if request is not None and request.slot is not None:
             self._busy_slots.discard(request.slot)
 

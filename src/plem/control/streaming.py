@@ -68,6 +68,8 @@ class StreamStatus:
     latency_ns: int         # that sample's stamp to the cycle that first used it
     speed_override: float   # the factor in force
     override_target: float  # the factor asked for
+    external_torque: np.ndarray  # estimated external torque per joint (N·m), 0 while not estimated
+    wrench: np.ndarray           # the same as a wrench at the flange: force (N) then torque (N·m), base frame
 
 
 class StreamBlock:
@@ -133,4 +135,5 @@ class StreamBlock:
         view = self._view
         return StreamStatus(int(view["used_session"]), _STATES.get(int(view["state"]), "none"),
                             int(view["used_count"]), int(view["used_cycle"]), int(view["latency_ns"]),
-                            float(view["speed_override"]), float(view["override_target"]))
+                            float(view["speed_override"]), float(view["override_target"]),
+                            view["external"][:self.dof].copy(), view["wrench"].copy())

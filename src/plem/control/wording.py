@@ -38,7 +38,8 @@ CAUSES: dict[int, str] = {
     C["PLEM_CAUSE_COMMAND_ACCELERATION"]: "acceleration_limit", C["PLEM_CAUSE_COMMAND_JERK"]: "jerk_limit",
     C["PLEM_CAUSE_OVERRUN"]: "overrun", C["PLEM_CAUSE_INTERNAL_ERROR"]: "internal_error",
     C["PLEM_CAUSE_RESET"]: "reset_fault", C["PLEM_CAUSE_BRAKES_ENGAGED"]: "brakes_engaged",
-    C["PLEM_CAUSE_ENABLE_TIMEOUT"]: "enable_timeout",
+    C["PLEM_CAUSE_ENABLE_TIMEOUT"]: "enable_timeout", C["PLEM_CAUSE_CONTACT"]: "contact",
+    C["PLEM_CAUSE_REACTION"]: "reaction",
 }
 _COMMAND_KINDS = {C["PLEM_CAUSE_COMMAND_POSITION"]: "position", C["PLEM_CAUSE_COMMAND_VELOCITY"]: "velocity",
                   C["PLEM_CAUSE_COMMAND_ACCELERATION"]: "acceleration", C["PLEM_CAUSE_COMMAND_JERK"]: "jerk"}
@@ -84,6 +85,9 @@ class Wording:
             return f"{name} at {v[0]:.4g} rad is outside [{v[1]:.4g}, {v[2]:.4g}] rad"
         if cause == C["PLEM_CAUSE_VELOCITY_LIMIT"]:
             return f"{name} moves at {v[0]:.4g} rad/s, above its limit {v[1]:.4g} rad/s"
+        if cause == C["PLEM_CAUSE_CONTACT"]:
+            return (f"contact: the external torque on {name} is {v[0]:.4g} N·m, past its contact threshold "
+                    f"{v[1]:.4g} N·m; the arm stopped (reset_fault() holds it where it is)")
         if cause == C["PLEM_CAUSE_TRACKING_ERROR"]:
             return f"{name} is {v[0]:.4g} rad from its command (tolerance {v[1]:g} rad)"
         if cause == C["PLEM_CAUSE_INVALID_COMMAND"]:

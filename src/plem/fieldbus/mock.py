@@ -46,7 +46,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -59,6 +59,7 @@ from plem.fieldbus.cia402 import STATUSWORD, decode_statusword
 
 if TYPE_CHECKING:
     from plem.control.kinematics import ArmDynamics
+    from plem.control.payload import Payload
 
 _RUNNING = (DriveState.OPERATION_ENABLED, DriveState.QUICK_STOP_ACTIVE)
 _BOUNDS: dict[str, Callable[[np.ndarray], bool]] = {
@@ -80,6 +81,18 @@ def _joint_array(name: str, values: float | Sequence[float], dof: int, *, bound:
                     what=f"{name}: one {bound} number, or {dof} of them (one per joint)",
                     why=f"got {values!r}",
                     how=f"pass {name} as a number or a list of {dof} {bound} numbers")
+    return array
+
+
+def _vector(name: str, values: Sequence[float]) -> np.ndarray:
+    """Three finite numbers, or a CommandRejected saying so."""
+    try:
+        array = np.array(values, dtype=float)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.shape != (3,) or not np.all(np.isfinite(array)):
+        raise CommandRejected(f"invalid {name} for a push", what=f"{name} as three finite numbers (x, y, z)",
+                              why=f"got {values!r}", how=f"pass e.g. {name}=(0, 0, -20)")
     return array
 
 
@@ -136,6 +149,7 @@ class MockBus:
         self._deceleration = _number("quick_stop_deceleration", quick_stop_deceleration, positive=True)
         self._open = False
         self._dynamics = False
+        self._rigid_body: ArmDynamics | None = None   # the model the simulated arm moves by, once open
         self._start_given = initial_positions is not None
         self._sim = self._new_sim(_joint_array("initial_positions", 0.0 if initial_positions is None
                                                else initial_positions, dof))
@@ -176,6 +190,7 @@ class MockBus:
         self._view["io_mode"][:] = OperationMode.CYCLIC_SYNC_POSITION
         sim["lost_reads"] = -1
         sim["answered"] = 1
+        sim["push_body"] = -1
         self._power = sim["power"]
         compiled.core.power_init(self._power, n)
         return sim
@@ -197,6 +212,7 @@ class MockBus:
             from plem.control.kinematics import ArmDynamics
 
             arm = ArmDynamics(urdf_xml, setup.joint_names)
+        self._rigid_body = arm
         sim = self._new_sim(self._view["q"].copy())
         self._sim = sim
         view = self._view
@@ -367,6 +383,51 @@ class MockBus:
     def clear_external_torque(self) -> None:
         """Remove every external push."""
         self._view["external"][:] = 0.0
+
+    def push(self, link: str, force: Sequence[float] = (0.0, 0.0, 0.0), torque: Sequence[float] = (0.0, 0.0, 0.0),
+             point: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        """Push a link of the URDF: a force (N) at `point` (m, in the link's frame) and a torque (N·m), both in the
+        base frame's axes, applied every cycle through the arm's Jacobian until `release()`; needs dynamics."""
+        frame, placement = self._link(link, "push")
+        wrench = np.array([*_vector("force", force), *_vector("torque", torque)])
+        at = np.asarray(placement.rotation) @ _vector("point", point) + np.asarray(placement.translation)
+        sim = self._sim
+        sim["push"][0][:] = wrench
+        sim["push_point"][0][:] = at
+        sim["push_body"] = frame
+
+    def release(self) -> None:
+        """End a `push`."""
+        self._sim["push_body"] = -1
+        self._sim["push"][0][:] = 0.0
+
+    def mount_payload(self, payload: Payload) -> None:
+        """Add a payload at the flange of the simulated arm (its last body), from its next cycle on; needs
+        dynamics. Payload(0) takes it off."""
+        from plem.control.payload_estimation import last_body_with
+
+        self._link(None, "mount a payload")
+        assert self._rigid_body is not None
+        self._sim["payload_body"][0][:] = last_body_with(self._rigid_body.model, payload)
+        self._sim["payload_pending"] = 1
+
+    def _link(self, link: str | None, action: str) -> tuple[int, Any]:
+        """The compiled model's index of the joint that moves `link`, and the link's placement in its frame."""
+        if self._rigid_body is None or not self._open:
+            raise CommandRejected(f"the simulated arm cannot {action}", what="a simulated arm with dynamics, open",
+                                  why="it has no rigid-body model (no URDF) or is not open",
+                                  how="simulate the arm from its description (plem launch bus:=mock)")
+        model = self._rigid_body.model
+        if link is None:
+            return model.njoints - 2, None
+        import pinocchio as pin
+
+        if not isinstance(link, str) or not model.existFrame(link):
+            links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+            raise CommandRejected("no such link on the simulated arm", what=f"one of {', '.join(links)}",
+                                  why=f"got {link!r}", how="name a link of the URDF")
+        frame = model.frames[model.getFrameId(link)]
+        return int(frame.parentJoint) - 1, frame.placement
 
     # ---- internals --------------------------------------------------------------------------------
 

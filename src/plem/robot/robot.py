@@ -19,15 +19,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from plem.bridge.planning import LocalPlannerLink, PlanningCalls
+from plem.bridge.reactions import ReactionCalls, settle_then_average
 from plem.bridge.streaming import StreamingCalls
 from plem.control.commands import (
     PLAN_ATTEMPTS,
     UNKNOWN_WAIT_S,
+    ArmReaction,
     Command,
     CommandHandle,
     PlanBasis,
     ResetFault,
     SetMode,
+    SetPayload,
     SetSpeedOverride,
     StartMotion,
     StartStream,
@@ -44,6 +47,7 @@ from plem.control.loop import CycleLoop, LoopSettings
 from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
+from plem.control.reactions import Action, Condition, Stop
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.streaming import StreamBlock, override_factor, stream_timeout
@@ -105,7 +109,7 @@ def arm_joint_names(config: SerialArmConfig, urdf: UrdfModel) -> tuple[str, ...]
     return tuple(model.joint_names) if model else tuple(j.name for j in urdf.actuated_joints)
 
 
-class Robot(PlanningCalls, StreamingCalls):
+class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
     """A built arm: bus opened, limits and dynamics loaded, loop ready to run; with an SRDF, plans in this process."""
 
     def __init__(self, config: SerialArmConfig, bus: IBus | SteppedBus, runtime: ArmRuntime,
@@ -339,15 +343,19 @@ class Robot(PlanningCalls, StreamingCalls):
         return self._send(StopMotion(CommandHandle("stop()", self._pump), goal))
 
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
-                    tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
+                    tolerances: TrajectoryTolerances | None = None, until: Condition | None = None) -> CommandHandle:
         """Time-optimal jerk-limited motion to `target` (rad), within every joint limit.
 
-        Returns once the loop accepted the motion; wait on the handle for the result.
+        Returns once the loop accepted the motion; wait on the handle for the result. With `until` (a reaction
+        condition, plem.control.reactions), the motion stops as soon as the condition holds, and succeeds.
         """
         goal = self.limits.check_vector(arguments.reals(target, "target"), "the target")
         speed_scale = arguments.real(speed_scale, "speed_scale")
-        return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(), ""),
-                            tolerances, "move_joints")
+        handle = self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(),
+                                             ""), tolerances, "move_joints")
+        if until is not None:
+            self._arm_reaction(until, Stop(), handle, once=True)
+        return handle
 
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
@@ -402,6 +410,41 @@ class Robot(PlanningCalls, StreamingCalls):
             if time.monotonic() > deadline or not self.running:
                 raise unknown_future(basis.unknown)
             time.sleep(runtime.dt)
+
+    # -- reactions and the payload ------------------------------------------------------------------------
+    def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
+        token = self.runtime.write_reaction(condition, action, motion.token if motion is not None else 0, once)
+        self._send(ArmReaction(self.runtime.reactions[token].slot,
+                               CommandHandle("arm a reaction", self._pump))).wait(ACCEPT_TIMEOUT_S)
+        return token
+
+    def _remove_reaction(self, token: int) -> None:
+        record = self.runtime.reactions.get(token)
+        if record is None:
+            return
+        slot = self.runtime.arm[0]["reactions"][record.slot]
+        if int(slot["token"]) == token and slot["armed"]:
+            self._send(ArmReaction(record.slot, CommandHandle("remove a reaction", self._pump),
+                                   remove=True)).wait(ACCEPT_TIMEOUT_S)
+
+    def _send_payload(self, body: np.ndarray) -> None:
+        self._send(SetPayload(body, CommandHandle("set_payload()", self._pump))).wait(ACCEPT_TIMEOUT_S)
+
+    def _payload_dynamics(self) -> tuple[ArmDynamics, ArmLimits]:
+        return self.dynamics, self.limits
+
+    def _hold_at(self, pose: np.ndarray) -> None:
+        self.move_joints(pose.tolist()).wait(60.0)
+
+    def _mean_state(self, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+        return settle_then_average(self.live_state, self._let_time_pass, seconds, self.runtime.dt)
+
+    def _let_time_pass(self, seconds: float) -> None:
+        """Let `seconds` of the robot's time pass: cycles stepped here when no loop thread runs."""
+        if self.running:
+            time.sleep(seconds)
+        else:
+            self.step(max(1, round(seconds / self.runtime.dt)))
 
     # -- streaming and the speed override ----------------------------------------------------------------
     def _stream_arm(self) -> tuple[ArmLimits, tuple[str, ...]]:

@@ -21,11 +21,10 @@
 #define EFFORT 2
 #define COMMAND 3
 /* The speed override: how fast the factor follows its target (1/s) at most, and its rate's change (1/s²) when no
- * motion bounds it; the share of a joint's acceleration room its rate may take; the gain toward the target (1/s). */
+ * motion bounds it; the share of a joint's acceleration room its rate may take. */
 #define OVERRIDE_RATE 2.0
 #define OVERRIDE_RATE_CHANGE 20.0
 #define OVERRIDE_SHARE 0.9
-#define OVERRIDE_GAIN 8.0
 
 /* The motion slab's layout (plem.ipc.motion_slab): a 64-byte header, then per slot its segment count, final state,
  * knots and coefficients as float64. */
@@ -464,7 +463,7 @@ static void start_stream(plem_arm *arm, const plem_command *c) {
     preempt(arm);
     plem_stream *st = &arm->stream;
     st->session = c->token, st->timeout_cycles = c->cycles, st->last_cycle = arm->cycle, st->last_count = 0;
-    st->last_stamp = 0, st->kind = PLEM_STREAM_VELOCITY, st->timed_out = 0;
+    st->last_stamp = 0, st->kind = PLEM_STREAM_VELOCITY, st->timed_out = 0, st->internal = 0;
     for (int i = 0; i < n; i++) st->target[i] = 0.0, st->feed[i] = 0.0;   /* until the first sample: come to rest */
     arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
     arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
@@ -473,6 +472,19 @@ static void start_stream(plem_arm *arm, const plem_command *c) {
     answer(arm, c->token, PLEM_ACCEPTED, 0, arm->mode, 0, -1, 0, 0);
     set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, c->token, 0);
     emit(arm, PLEM_EVENT_MOTION_STARTED, PLEM_CAUSE_MOTION_STARTED, -1, -1, 1, c->token, INFINITY, 0, 0, 0);
+}
+
+/* The last body's inertials become the command's (the description's own with a payload added, from Python). */
+static void set_payload(plem_arm *arm, const plem_command *c) {
+    const double *body = c->body;
+    for (int i = 0; i < 13; i++)
+        if (!isfinite(body[i])) return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, body[i], 0);
+    if (!(body[0] >= 0.0)) return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, body[0], 0);
+    int last = arm->model.dof - 1;
+    arm->model.mass[last] = body[0];
+    memcpy(arm->model.com[last], body + 1, sizeof arm->model.com[last]);
+    memcpy(arm->model.inertia[last], body + 4, sizeof arm->model.inertia[last]);
+    answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
 }
 
 static void set_override(plem_arm *arm, const plem_command *c) {
@@ -543,6 +555,14 @@ static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c)
     case PLEM_OP_RESET: reset(arm, c); break;
     case PLEM_OP_STREAM: start_stream(arm, c); break;
     case PLEM_OP_OVERRIDE: set_override(arm, c); break;
+    case PLEM_OP_REACT:
+    case PLEM_OP_UNREACT:
+        if (c->slot < 0 || c->slot >= PLEM_REACTIONS)
+            return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, c->slot, 0);
+        arm->reactions[c->slot].armed = c->op == PLEM_OP_REACT, arm->reactions[c->slot].was_true = 0;
+        answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
+        break;
+    case PLEM_OP_PAYLOAD: set_payload(arm, c); break;
     default: reject(arm, c->token, PLEM_ANSWER_UNKNOWN_OP, c->op, -1, 0, 0);
     }
 }
@@ -559,6 +579,133 @@ static void take_commands(plem_arm *arm, const plem_slab *slab) {
             return;
         execute(arm, slab, c);
         atomic_store_explicit((_Atomic uint64_t *)&ring->tail, tail + 1, memory_order_release);
+    }
+}
+
+/* ---- what the arm feels, and reactions ------------------------------------------------------------------------ */
+
+/* The external joint torque: the model's effort for last cycle's command acceleration at the measured state (the
+ * dynamics free drive uses for gravity, plus viscous friction) less the measured effort; and the flange wrench
+ * that explains it. Then the standing contact stop: past its threshold on any joint, the arm faults and stops. */
+static void feel(plem_arm *arm, const plem_slab *slab) {
+    const plem_settings *s = &arm->settings;
+    int n = s->dof;
+    arm->feeling = (arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY) && !arm->pending && can_command(arm);
+    if (!arm->feeling) {
+        memset(arm->external, 0, sizeof arm->external);
+        memset(arm->wrench, 0, sizeof arm->wrench);
+        return;
+    }
+    plem_inverse_dynamics(&arm->model, row(arm, POSITION), row(arm, VELOCITY), row(arm, COMMAND + 2), arm->external);
+    for (int i = 0; i < n; i++)
+        arm->external[i] += s->friction[i] * row(arm, VELOCITY)[i] - row(arm, EFFORT)[i];
+    plem_tool_wrench(&arm->model, row(arm, POSITION), arm->external, arm->wrench);
+    for (int i = 0; i < n; i++)
+        if (fabs(arm->external[i]) > s->contact_threshold[i]) {
+            fault(arm, slab, PLEM_CAUSE_CONTACT, i, 0, arm->external[i], s->contact_threshold[i], 0);
+            return;
+        }
+}
+
+/* One measured quantity of a comparison; NaN when it has no value (an estimate not current, a joint beyond). */
+static double measured(const plem_arm *arm, const plem_term *t) {
+    int n = arm->settings.dof, i = t->index;
+    int joint = i >= 0 && i < n;
+    switch (t->measure) {
+    case PLEM_MEASURE_POSITION: return joint ? arm->work[POSITION][i] : NAN;
+    case PLEM_MEASURE_VELOCITY: return joint ? arm->work[VELOCITY][i] : NAN;
+    case PLEM_MEASURE_EFFORT: return joint ? arm->work[EFFORT][i] : NAN;
+    case PLEM_MEASURE_EXTERNAL_TORQUE: return joint && arm->feeling ? arm->external[i] : NAN;
+    case PLEM_MEASURE_WRENCH: return i >= 0 && i < 6 && arm->feeling ? arm->wrench[i] : NAN;
+    case PLEM_MEASURE_FOLLOWING_ERROR: return joint ? fabs(arm->work[COMMAND][i] - arm->work[POSITION][i]) : NAN;
+    case PLEM_MEASURE_MOTION_TIME:
+        return arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
+    case PLEM_MEASURE_DRIVE_STATE: return joint ? (double)plem_decode_statusword(arm->io_statusword[i]) : NAN;
+    default: return NAN;
+    }
+}
+
+/* A reaction's condition now; a malformed program is false. `first` gets the first comparison's quantity. */
+static int holds(const plem_arm *arm, const plem_reaction *r, double *first) {
+    int stack[PLEM_REACTION_TERMS], depth = 0;
+    *first = NAN;
+    for (int k = 0; k < r->terms && k < PLEM_REACTION_TERMS; k++) {
+        const plem_term *t = &r->term[k];
+        if (t->op == PLEM_TERM_AND || t->op == PLEM_TERM_OR) {
+            if (depth < 2) return 0;
+            depth--;
+            stack[depth - 1] = t->op == PLEM_TERM_AND ? stack[depth - 1] && stack[depth] : stack[depth - 1] || stack[depth];
+        } else if (t->op == PLEM_TERM_NOT) {
+            if (depth < 1) return 0;
+            stack[depth - 1] = !stack[depth - 1];
+        } else {
+            double value = measured(arm, t);
+            if (isnan(*first)) *first = value;
+            stack[depth++] = t->op == PLEM_TERM_ABOVE ? value > t->threshold : t->op == PLEM_TERM_BELOW
+                             ? value < t->threshold : t->op == PLEM_TERM_EQUAL && value == t->threshold;
+        }
+    }
+    return depth == 1 && stack[0];
+}
+
+/* A reaction's move: follow its target from where the command is, as a stream with a fixed target. */
+static void react_move(plem_arm *arm, const plem_reaction *r) {
+    int n = arm->settings.dof;
+    plem_stream *st = &arm->stream;
+    st->session = r->token, st->internal = 1, st->kind = PLEM_STREAM_POSITION, st->timed_out = 0;
+    st->feed_until = 0, st->last_cycle = arm->cycle;
+    for (int i = 0; i < n; i++) st->target[i] = r->target[i], st->feed[i] = 0.0;
+    arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
+    arm->active_token = r->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
+    arm->active_has_path = arm->active_has_goal = 0;
+    rebase(arm);
+    set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, r->token, 0);
+}
+
+static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, double threshold) {
+    plem_reaction *r = &arm->reactions[slot];
+    emit(arm, PLEM_EVENT_REACTION, PLEM_CAUSE_REACTION, -1, slot, r->action, r->token, value, threshold, 0, 0);
+    int enabled = arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY;   /* the drives follow the command */
+    if (r->once || r->motion) r->armed = 0;
+    switch (r->action) {
+    case PLEM_REACT_STOP:
+        if (arm->active && arm->active_token) {
+            end_motion(arm, PLEM_ANSWER_REACTED, slot, value, threshold);
+            start_stop(arm, slab);
+        }
+        break;
+    case PLEM_REACT_HOLD: arm->override.target = 0.0; break;
+    case PLEM_REACT_FREE_DRIVE:
+        if (!enabled) break;
+        if (arm->active && arm->active_token) end_motion(arm, PLEM_ANSWER_REACTED, slot, value, threshold);
+        arm->active = 0;
+        set_io_mode(arm, PLEM_CST);
+        set_mode(arm, PLEM_FREE_DRIVE, PLEM_CAUSE_SET_MODE_FREE_DRIVE, r->token, 0);
+        break;
+    case PLEM_REACT_MOVE:
+        if (!enabled) break;
+        if (arm->active && arm->active_token) end_motion(arm, PLEM_ANSWER_REACTED, slot, value, threshold);
+        react_move(arm, r);
+        break;
+    default: break;
+    }
+}
+
+/* Every armed reaction, on what this cycle measured: an action starts in the cycle its condition rises. */
+static void react(plem_arm *arm, const plem_slab *slab) {
+    for (int slot = 0; slot < PLEM_REACTIONS; slot++) {
+        plem_reaction *r = &arm->reactions[slot];
+        if (!r->armed) continue;
+        if (r->motion && !(arm->active && arm->active_token == r->motion)) {
+            r->armed = 0;   /* its motion ended (or never ran) */
+            continue;
+        }
+        double value;
+        int now = holds(arm, r, &value), rose = now && !r->was_true;
+        r->was_true = now;
+        if (!rose) continue;
+        double threshold = r->terms > 0 ? r->term[0].threshold : 0.0;
+        fire(arm, slab, slot, value, threshold);
     }
 }
 
@@ -662,11 +809,9 @@ static void step_override(plem_arm *arm, int on_motion) {
         room = fmin(room, joint_share * fmax(A - P2 * f * f, 0.0) / P1);
         change = fmin(change, 0.9 * fmax(J - P3 * f * f * f - 3.0 * P2 * f * fabs(r), 0.0) / P1);
     }
-    double bound = room;
-    double wanted = fmin(fmax(OVERRIDE_GAIN * (o->target - f), -bound), bound);
-    double next = fmin(fmax(wanted, r - change * dt), r + change * dt);
+    double next = plem_approach(f, r, o->target, room, change, dt);
     double factor = fmin(fmax(f + (r + next) * dt / 2.0, 0.0), 1.0);
-    if (fabs(o->target - factor) < 1e-9 && fabs(next) < 1e-6) factor = o->target, next = 0.0;
+    if (fabs(o->target - factor) < 1e-12 && fabs(next) < 1e-9) factor = o->target, next = 0.0;
     o->factor = factor, o->rate = next;
 }
 
@@ -741,8 +886,8 @@ static void read_stream(plem_arm *arm, plem_stream_block *block) {
 static void follow_stream(plem_arm *arm, plem_stream_block *block) {
     const plem_settings *s = &arm->settings;
     plem_stream *st = &arm->stream;
-    read_stream(arm, block);
-    if (arm->cycle - st->last_cycle > st->timeout_cycles) st->timed_out = 1;
+    if (!st->internal) read_stream(arm, block);
+    if (!st->internal && arm->cycle - st->last_cycle > st->timeout_cycles) st->timed_out = 1;
     int n = s->dof, position = st->kind == PLEM_STREAM_POSITION && !st->timed_out, at_rest = 1;
     int feeding = position && arm->cycle <= st->feed_until;
     for (int i = 0; i < n; i++) {
@@ -751,8 +896,11 @@ static void follow_stream(plem_arm *arm, plem_stream_block *block) {
                     position ? st->target[i] : NAN, velocity, s->max_velocity[i] * INSIDE * arm->override.factor,
                     s->max_velocity[i] * INSIDE, s->max_acceleration[i] * INSIDE, s->max_jerk[i] * INSIDE,
                     arm->reach[0][i], arm->reach[1][i], s->dt);
-        at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12;
+        at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12
+                   && (!st->internal || fabs(row(arm, COMMAND)[i] - fmin(fmax(st->target[i], arm->reach[0][i]),
+                                                                       arm->reach[1][i])) < 1e-9);
     }
+    if (st->internal && at_rest) return end_motion(arm, PLEM_ANSWER_SUCCEEDED, -1, 0, 0);
     if (st->timed_out && at_rest) {
         memset(row(arm, COMMAND + 1), 0, (size_t)n * sizeof(double));
         memset(row(arm, COMMAND + 2), 0, (size_t)n * sizeof(double));
@@ -768,6 +916,8 @@ static void publish_stream(const plem_arm *arm, plem_stream_block *block) {
                  : PLEM_STREAM_FOLLOWING;
     block->speed_override = arm->override.factor;
     block->override_target = arm->override.target;
+    memcpy(block->external, arm->external, sizeof block->external);
+    memcpy(block->wrench, arm->wrench, sizeof block->wrench);
 }
 
 /* ---- control -------------------------------------------------------------------------------------------------- */
@@ -915,6 +1065,8 @@ void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, p
         }
         if (arm->mode != PLEM_FAULTED) supervise_measurement(arm, slab);
         else if (!arm->braking && can_command(arm)) supervise_fault_hold(arm);
+        if (arm->mode != PLEM_FAULTED) feel(arm, slab);
+        react(arm, slab);
     } else if (arm->communication_ok) {
         arm->communication_ok = 0;
         fault(arm, slab, PLEM_CAUSE_COMMUNICATION_LOST, -1, 0, 0, 0, 0);

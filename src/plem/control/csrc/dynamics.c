@@ -263,3 +263,86 @@ void plem_forward_dynamics(const plem_model *model, const double *q, const doubl
         }
     }
 }
+
+/* ---- kinematics of a point: Jacobians and wrenches ----------------------------------------------------------- */
+
+/* Every joint frame's placement in the base frame at q (arm order). */
+static void world_placements(const plem_model *m, const double *q, placement *W) {
+    for (int k = 0; k < m->dof; k++) {
+        placement X;
+        joint_placement(m, k, q[m->arm_index[k]], &X);
+        int parent = m->parent[k];
+        if (parent < 0) {
+            W[k] = X;
+            continue;
+        }
+        const placement *P = &W[parent];
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++)
+                W[k].R[3 * r + c] = P->R[3 * r] * X.R[c] + P->R[3 * r + 1] * X.R[3 + c] + P->R[3 * r + 2] * X.R[6 + c];
+        rotate(P->R, X.p, W[k].p);
+        for (int i = 0; i < 3; i++) W[k].p[i] += P->p[i];
+    }
+}
+
+void plem_point_jacobian(const plem_model *model, const double *q, int body, const double *point, double *jacobian) {
+    int n = model->dof;
+    placement W[PLEM_MAX_JOINTS];
+    memset(jacobian, 0, 6 * (size_t)n * sizeof(double));
+    if (body < 0 || body >= n) return;
+    world_placements(model, q, W);
+    double p[3];
+    rotate(W[body].R, point, p);
+    for (int i = 0; i < 3; i++) p[i] += W[body].p[i];
+    for (int k = body; k >= 0; k = model->parent[k]) {   /* the joints that move the body: its ancestors */
+        double z[3], lever[3], linear[3];
+        rotate(W[k].R, model->axis[k], z);
+        int column = model->arm_index[k];
+        if (model->kind[k] == PLEM_PRISMATIC) {
+            for (int i = 0; i < 3; i++) jacobian[i * n + column] = z[i];
+            continue;
+        }
+        for (int i = 0; i < 3; i++) lever[i] = p[i] - W[k].p[i];
+        cross(z, lever, linear);
+        for (int i = 0; i < 3; i++) jacobian[i * n + column] = linear[i], jacobian[(3 + i) * n + column] = z[i];
+    }
+}
+
+void plem_wrench_torques(const plem_model *model, const double *q, int body, const double *point,
+                         const double *wrench, double *tau) {
+    int n = model->dof;
+    double J[6 * PLEM_MAX_JOINTS];
+    plem_point_jacobian(model, q, body, point, J);
+    for (int c = 0; c < n; c++) {
+        tau[c] = 0.0;
+        for (int r = 0; r < 6; r++) tau[c] += J[r * n + c] * wrench[r];
+    }
+}
+
+/* The wrench at the origin of the last joint's frame that best explains joint torques `tau`: the damped least
+ * squares (J·Jᵀ + λ²·I)·F = J·τ, solved by Gaussian elimination (6 × 6, symmetric positive definite). */
+void plem_tool_wrench(const plem_model *model, const double *q, const double *tau, double *wrench) {
+    int n = model->dof;
+    double J[6 * PLEM_MAX_JOINTS], A[6][7], origin[3] = {0.0, 0.0, 0.0};
+    plem_point_jacobian(model, q, n - 1, origin, J);
+    for (int r = 0; r < 6; r++) {
+        for (int c = 0; c < 6; c++) {
+            double sum = r == c ? 1e-6 : 0.0;
+            for (int k = 0; k < n; k++) sum += J[r * n + k] * J[c * n + k];
+            A[r][c] = sum;
+        }
+        double b = 0.0;
+        for (int k = 0; k < n; k++) b += J[r * n + k] * tau[k];
+        A[r][6] = b;
+    }
+    for (int c = 0; c < 6; c++)
+        for (int r = c + 1; r < 6; r++) {
+            double f = A[r][c] / A[c][c];
+            for (int k = c; k < 7; k++) A[r][k] -= f * A[c][k];
+        }
+    for (int c = 5; c >= 0; c--) {
+        double x = A[c][6];
+        for (int k = c + 1; k < 6; k++) x -= A[c][k] * wrench[k];
+        wrench[c] = x / A[c][c];
+    }
+}

@@ -26,10 +26,8 @@ static double braking_speed(double d, double A, double J) {
     return -A * A / (2.0 * J) + sqrt(A * A * A * A / (4.0 * J * J) + 2.0 * A * d);
 }
 
-/* The acceleration at the end of the coming cycle that brings velocity v (now accelerating at a) to goal with the
- * quickest jerk-limited ramp; the velocity gained is (a + x)·dt/2 this cycle and max(|x|·dt/2, x²/2J) ramping x
- * back to zero afterwards. */
-static double approach(double v, double a, double goal, double A, double J, double dt) {
+/* The velocity gained is (a + x)·dt/2 this cycle and max(|x|·dt/2, x²/2J) ramping x back to zero afterwards. */
+double plem_approach(double v, double a, double goal, double A, double J, double dt) {
     double rest = goal - v - a * dt / 2.0, x;
     if (!(fabs(rest) > J * dt * dt)) x = rest / dt;
     else x = copysign(J * (sqrt(dt * dt / 4.0 + 2.0 * fabs(rest) / J) - dt / 2.0), rest);
@@ -50,7 +48,7 @@ void plem_follow(double *p, double *v, double *a, double target_position, double
     goal = clamp(goal, -speed, speed);
     goal = fmin(goal, braking_speed(high - ahead, BRAKE * A, BRAKE * J));
     goal = fmax(goal, -braking_speed(ahead - low, BRAKE * A, BRAKE * J));
-    double next = approach(*v, *a, goal, A, J, dt);
+    double next = plem_approach(*v, *a, goal, A, J, dt);
     double velocity = clamp(*v + (*a + next) * dt / 2.0, -max_velocity, max_velocity);
     double position = *p + (*v + velocity) * dt / 2.0 + (*a - next) * dt * dt / 12.0;
     *p = clamp(position, fmin(low, *p), fmax(high, *p));

@@ -573,7 +573,8 @@ static const field SIM_FIELDS[] = {
     FIELD(plem_sim, follow), FIELD(plem_sim, deceleration), FIELD(plem_sim, counts), FIELD(plem_sim, raw_zero),
     FIELD(plem_sim, friction), FIELD(plem_sim, effort), FIELD(plem_sim, lower), FIELD(plem_sim, upper),
     FIELD(plem_sim, max_error), FIELD(plem_sim, q), FIELD(plem_sim, v), FIELD(plem_sim, tau),
-    FIELD(plem_sim, external), FIELD(plem_sim, stop_q), FIELD(plem_sim, stop_v), FIELD(plem_sim, spike),
+    FIELD(plem_sim, external), FIELD(plem_sim, push), FIELD(plem_sim, push_point), FIELD(plem_sim, push_body),
+    FIELD(plem_sim, payload_pending), FIELD(plem_sim, payload_body), FIELD(plem_sim, stop_q), FIELD(plem_sim, stop_v), FIELD(plem_sim, spike),
     FIELD(plem_sim, stuck), FIELD(plem_sim, latched), FIELD(plem_sim, stopping), FIELD(plem_sim, state),
     FIELD(plem_sim, statusword), FIELD(plem_sim, error_code), FIELD(plem_sim, controlword), FIELD(plem_sim, lost),
     FIELD(plem_sim, answered),
@@ -591,7 +592,8 @@ static const field SETTINGS_FIELDS[] = {
     FIELD(plem_settings, command_tolerance), FIELD(plem_settings, enable_timeout_cycles),
     FIELD(plem_settings, counts_per_radian), FIELD(plem_settings, offsets), FIELD(plem_settings, min_position),
     FIELD(plem_settings, max_position), FIELD(plem_settings, max_velocity), FIELD(plem_settings, max_acceleration),
-    FIELD(plem_settings, max_jerk), FIELD(plem_settings, max_effort), FIELD(plem_settings, damping), {NULL, 0, 0}};
+    FIELD(plem_settings, max_jerk), FIELD(plem_settings, max_effort), FIELD(plem_settings, damping),
+    FIELD(plem_settings, friction), FIELD(plem_settings, contact_threshold), {NULL, 0, 0}};
 
 static const field BASIS_FIELDS[] = {
     FIELD(plem_basis, sequence), FIELD(plem_basis, generation), FIELD(plem_basis, slot), FIELD(plem_basis, segments),
@@ -602,10 +604,20 @@ static const field OVERRIDE_FIELDS[] = {
     FIELD(plem_override, target), FIELD(plem_override, factor), FIELD(plem_override, rate), FIELD(plem_override, time),
     FIELD(plem_override, peaks), {NULL, 0, 0}};
 
+static const field TERM_FIELDS[] = {
+    FIELD(plem_term, op), FIELD(plem_term, measure), FIELD(plem_term, index), FIELD(plem_term, threshold),
+    {NULL, 0, 0}};
+
+static const field REACTION_FIELDS[] = {
+    FIELD(plem_reaction, token), FIELD(plem_reaction, motion), FIELD(plem_reaction, armed), FIELD(plem_reaction, terms),
+    FIELD(plem_reaction, action), FIELD(plem_reaction, once), FIELD(plem_reaction, was_true),
+    FIELD(plem_reaction, target), FIELD(plem_reaction, term), {NULL, 0, 0}};
+
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
     FIELD(plem_stream, last_count), FIELD(plem_stream, last_stamp), FIELD(plem_stream, feed_until),
-    FIELD(plem_stream, kind), FIELD(plem_stream, timed_out), FIELD(plem_stream, target), FIELD(plem_stream, feed),
+    FIELD(plem_stream, kind), FIELD(plem_stream, timed_out), FIELD(plem_stream, internal), FIELD(plem_stream, target),
+    FIELD(plem_stream, feed),
     {NULL, 0, 0}};
 
 static const field STREAM_BLOCK_FIELDS[] = {
@@ -613,7 +625,8 @@ static const field STREAM_BLOCK_FIELDS[] = {
     FIELD(plem_stream_block, kind), FIELD(plem_stream_block, stamp_ns), FIELD(plem_stream_block, checksum),
     FIELD(plem_stream_block, target), FIELD(plem_stream_block, used_session), FIELD(plem_stream_block, used_count),
     FIELD(plem_stream_block, used_cycle), FIELD(plem_stream_block, latency_ns), FIELD(plem_stream_block, state),
-    FIELD(plem_stream_block, speed_override), FIELD(plem_stream_block, override_target), {NULL, 0, 0}};
+    FIELD(plem_stream_block, speed_override), FIELD(plem_stream_block, override_target),
+    FIELD(plem_stream_block, external), FIELD(plem_stream_block, wrench), {NULL, 0, 0}};
 
 static const field RING_FIELDS[] = {
     FIELD(plem_ring, head), FIELD(plem_ring, tail), FIELD(plem_ring, dropped), {NULL, 0, 0}};
@@ -623,7 +636,7 @@ static const field COMMAND_FIELDS[] = {
     FIELD(plem_command, segments), FIELD(plem_command, basis), FIELD(plem_command, activation),
     FIELD(plem_command, goal), FIELD(plem_command, has_path), FIELD(plem_command, has_goal),
     FIELD(plem_command, goal_time), FIELD(plem_command, stopped_velocity), FIELD(plem_command, path),
-    FIELD(plem_command, goal_tolerance), FIELD(plem_command, peaks), FIELD(plem_command, value),
+    FIELD(plem_command, goal_tolerance), FIELD(plem_command, peaks), FIELD(plem_command, value), FIELD(plem_command, body),
     FIELD(plem_command, cycles), {NULL, 0, 0}};
 
 static const field OUTCOME_FIELDS[] = {
@@ -654,7 +667,8 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
     FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
     FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, override),
-    FIELD(plem_arm, stream),
+    FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, external), FIELD(plem_arm, wrench),
+    FIELD(plem_arm, reactions),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
     FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};
 
@@ -689,7 +703,16 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_ANSWER_PATH_VIOLATED), CONSTANT(PLEM_ANSWER_FAULT_ABORTED), CONSTANT(PLEM_ANSWER_PREEMPTED),
     CONSTANT(PLEM_ANSWER_CANCELED), CONSTANT(PLEM_ANSWER_INVALID_SLOT), CONSTANT(PLEM_ANSWER_UNKNOWN_OP),
     CONSTANT(PLEM_ANSWER_STREAMING), CONSTANT(PLEM_ANSWER_STREAM_TIMED_OUT), CONSTANT(PLEM_ANSWER_INVALID_VALUE),
-    CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_OP_OVERRIDE), CONSTANT(PLEM_STREAM_POSITION),
+    CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_OP_OVERRIDE), CONSTANT(PLEM_OP_REACT), CONSTANT(PLEM_OP_UNREACT),
+    CONSTANT(PLEM_OP_PAYLOAD), CONSTANT(PLEM_ANSWER_REACTED), CONSTANT(PLEM_EVENT_REACTION),
+    CONSTANT(PLEM_CAUSE_CONTACT), CONSTANT(PLEM_CAUSE_REACTION), CONSTANT(PLEM_REACTIONS),
+    CONSTANT(PLEM_REACTION_TERMS), CONSTANT(PLEM_MEASURE_POSITION), CONSTANT(PLEM_MEASURE_VELOCITY),
+    CONSTANT(PLEM_MEASURE_EFFORT), CONSTANT(PLEM_MEASURE_EXTERNAL_TORQUE), CONSTANT(PLEM_MEASURE_WRENCH),
+    CONSTANT(PLEM_MEASURE_FOLLOWING_ERROR), CONSTANT(PLEM_MEASURE_MOTION_TIME), CONSTANT(PLEM_MEASURE_DRIVE_STATE),
+    CONSTANT(PLEM_TERM_ABOVE), CONSTANT(PLEM_TERM_BELOW), CONSTANT(PLEM_TERM_EQUAL), CONSTANT(PLEM_TERM_AND),
+    CONSTANT(PLEM_TERM_OR), CONSTANT(PLEM_TERM_NOT), CONSTANT(PLEM_REACT_STOP), CONSTANT(PLEM_REACT_HOLD),
+    CONSTANT(PLEM_REACT_FREE_DRIVE), CONSTANT(PLEM_REACT_MOVE), CONSTANT(PLEM_REACT_RECORD),
+    CONSTANT(PLEM_STREAM_POSITION),
     CONSTANT(PLEM_STREAM_VELOCITY), CONSTANT(PLEM_STREAM_NONE), CONSTANT(PLEM_STREAM_FOLLOWING),
     CONSTANT(PLEM_STREAM_TIMED_OUT), CONSTANT(PLEM_STREAM_SLOT),
     CONSTANT(PLEM_EVENT_MODE_CHANGED), CONSTANT(PLEM_EVENT_FAULT), CONSTANT(PLEM_EVENT_FAULT_CLEARED),
@@ -738,6 +761,7 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_sim", SIM_FIELDS, sizeof(plem_sim)}, {"plem_settings", SETTINGS_FIELDS, sizeof(plem_settings)},
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
         {"plem_override", OVERRIDE_FIELDS, sizeof(plem_override)}, {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
+        {"plem_term", TERM_FIELDS, sizeof(plem_term)}, {"plem_reaction", REACTION_FIELDS, sizeof(plem_reaction)},
         {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},

@@ -76,6 +76,14 @@ typedef struct {
 void plem_inverse_dynamics(const plem_model *model, const double *q, const double *v, const double *a, double *tau);
 void plem_gravity(const plem_model *model, const double *q, double *tau);
 void plem_forward_dynamics(const plem_model *model, const double *q, const double *v, const double *tau, double *a);
+/* The Jacobian (6 × dof row-major: linear then angular rows, base frame; columns in arm order) of a point given in
+ * the frame of joint `body` (topological index). */
+void plem_point_jacobian(const plem_model *model, const double *q, int body, const double *point, double *jacobian);
+/* The joint torques of a wrench (force then torque, base frame) applied at a point of joint `body`'s frame. */
+void plem_wrench_torques(const plem_model *model, const double *q, int body, const double *point,
+                         const double *wrench, double *tau);
+/* The wrench (force then torque, base frame) at the last joint's origin that best explains joint torques `tau`. */
+void plem_tool_wrench(const plem_model *model, const double *q, const double *tau, double *wrench);
 
 /* ---- motions ----------------------------------------------------------------------------------------- */
 
@@ -113,6 +121,12 @@ int plem_plan_stop(int dof, const double *p, const double *v, const double *a, c
 void plem_follow(double *p, double *v, double *a, double target_position, double target_velocity, double speed,
                  double max_velocity, double max_acceleration, double max_jerk, double low, double high, double dt);
 
+/* The rate at the end of the coming cycle that brings `value` (now changing at `rate`) to `goal` as fast as
+ * |rate| <= max_rate and |change of rate| <= max_change allow, landing with the rate at zero: deadbeat for the
+ * cycle's trapezoidal integration, so it settles in two cycles instead of buzzing. The follower's inner law (value a
+ * velocity, rate an acceleration), and the speed override's (value the factor). */
+double plem_approach(double value, double rate, double goal, double max_rate, double max_change, double dt);
+
 enum plem_stream_kind { PLEM_STREAM_POSITION = 1, PLEM_STREAM_VELOCITY = 2 };
 enum plem_stream_state { PLEM_STREAM_NONE = 0, PLEM_STREAM_FOLLOWING = 1, PLEM_STREAM_TIMED_OUT = 2 };
 
@@ -136,6 +150,8 @@ typedef struct {
     int32_t pad1;
     double speed_override;           /* the factor in force */
     double override_target;          /* the factor asked for */
+    double external[PLEM_MAX_JOINTS]; /* estimated external joint torque (N·m): the model's effort less the measured */
+    double wrench[6];                /* the same as a wrench at the flange (N, N·m, base frame) */
 } plem_stream_block;
 
 /* ---- the simulated arm -------------------------------------------------------------------------------- */
@@ -163,6 +179,11 @@ typedef struct {
     double v[PLEM_MAX_JOINTS];
     double tau[PLEM_MAX_JOINTS];          /* torque the drives apply */
     double external[PLEM_MAX_JOINTS];     /* pushes, N·m */
+    double push[6];                       /* a wrench (force then torque, base frame) on push_body at push_point */
+    double push_point[3];                 /* in push_body's joint frame, m */
+    int32_t push_body;                    /* topological joint index whose body is pushed; -1: none */
+    int32_t payload_pending;              /* 1: payload_body replaces the last body's inertials at the next step */
+    double payload_body[13];              /* mass, centre of mass (3), inertia about it (9, row-major) */
     double stop_q[PLEM_MAX_JOINTS];       /* quick-stop ramp of each stopping drive */
     double stop_v[PLEM_MAX_JOINTS];
     int64_t spike[PLEM_MAX_JOINTS];       /* counts added to the next reading, once */
@@ -226,6 +247,9 @@ enum plem_op {
     PLEM_OP_SET_MODE = 1, PLEM_OP_START = 2, PLEM_OP_STOP = 3, PLEM_OP_RESET = 4,
     PLEM_OP_STREAM = 5,              /* follow the stream block's samples (cycles: the timeout) */
     PLEM_OP_OVERRIDE = 6,            /* the speed override asked for (value, 0..1) */
+    PLEM_OP_REACT = 7,               /* arm the reaction written into reactions[slot] */
+    PLEM_OP_UNREACT = 8,             /* remove reactions[slot] */
+    PLEM_OP_PAYLOAD = 9,             /* the last body's inertials become body[0..12]: mass, centre of mass, inertia */
 };
 
 /* Answers to requests (the outcome ring): a stage and, for refusals and ends, a code with its numbers. */
@@ -253,6 +277,7 @@ enum plem_answer {
     PLEM_ANSWER_STREAMING,         /* rejected start: a stream runs (stop it first) */
     PLEM_ANSWER_STREAM_TIMED_OUT,  /* stream ended: no sample for (detail) cycles, the arm came to rest */
     PLEM_ANSWER_INVALID_VALUE,     /* rejected: a number outside its range (values[0]) */
+    PLEM_ANSWER_REACTED,           /* motion ended by a reaction (detail: its slot) */
 };
 
 /* What happened in the loop (the event ring). */
@@ -260,6 +285,8 @@ enum plem_event_kind {
     PLEM_EVENT_MODE_CHANGED = 1, PLEM_EVENT_FAULT, PLEM_EVENT_FAULT_CLEARED, PLEM_EVENT_MOTION_STARTED,
     PLEM_EVENT_MOTION_FINISHED, PLEM_EVENT_COMMAND_REJECTED, PLEM_EVENT_WARNING,
     PLEM_EVENT_OVERRUN,              /* a window with overruns: values overruns, skipped, longest run, total; detail ms */
+    PLEM_EVENT_REACTION,             /* a reaction fired: token its own, joint its slot, detail its action, values[0]
+                                        the first measured quantity, values[1] its threshold */
 };
 enum plem_cause {
     /* mode changes */
@@ -272,7 +299,45 @@ enum plem_cause {
     PLEM_CAUSE_COMMAND_JERK, PLEM_CAUSE_OVERRUN, PLEM_CAUSE_INTERNAL_ERROR,
     /* the rest */
     PLEM_CAUSE_RESET, PLEM_CAUSE_BRAKES_ENGAGED, PLEM_CAUSE_ENABLE_TIMEOUT,
+    PLEM_CAUSE_CONTACT,              /* fault: joint's estimated external torque values[0] past its threshold values[1] */
+    PLEM_CAUSE_REACTION,
 };
+
+/* Reactions: conditions over what the core measures, evaluated every cycle, each with an action. A condition is a
+ * program in postfix: comparisons push a truth, AND/OR/NOT combine the top ones. */
+#define PLEM_REACTIONS 16
+#define PLEM_REACTION_TERMS 16
+enum plem_measure {
+    PLEM_MEASURE_POSITION = 1, PLEM_MEASURE_VELOCITY, PLEM_MEASURE_EFFORT, PLEM_MEASURE_EXTERNAL_TORQUE,
+    PLEM_MEASURE_WRENCH, PLEM_MEASURE_FOLLOWING_ERROR, PLEM_MEASURE_MOTION_TIME, PLEM_MEASURE_DRIVE_STATE,
+};
+enum plem_term_op { PLEM_TERM_ABOVE = 1, PLEM_TERM_BELOW, PLEM_TERM_EQUAL, PLEM_TERM_AND, PLEM_TERM_OR, PLEM_TERM_NOT };
+enum plem_reaction_action {
+    PLEM_REACT_STOP = 1,             /* end the running motion with the quickest stop */
+    PLEM_REACT_HOLD,                 /* pause on the path: the speed override's target becomes 0 */
+    PLEM_REACT_FREE_DRIVE,           /* end the running motion and switch to free drive */
+    PLEM_REACT_MOVE,                 /* follow a joint target (target) from where the command is, then hold */
+    PLEM_REACT_RECORD,               /* an event only */
+};
+typedef struct {
+    int32_t op;                      /* enum plem_term_op */
+    int32_t measure;                 /* comparisons: enum plem_measure */
+    int32_t index;                   /* comparisons: the joint, or the wrench component */
+    int32_t pad;
+    double threshold;
+} plem_term;
+typedef struct {
+    uint64_t token;                  /* names the reaction in events */
+    uint64_t motion;                 /* 0: standing until removed; else the motion it belongs to, removed with it */
+    int32_t armed;                   /* the core evaluates it (set by PLEM_OP_REACT, cleared on removal) */
+    int32_t terms;
+    int32_t action;                  /* enum plem_reaction_action */
+    int32_t once;                    /* removed once it fired; else it fires on each rise of its condition */
+    int32_t was_true;
+    int32_t pad;
+    double target[PLEM_MAX_JOINTS];  /* move: the joint target */
+    plem_term term[PLEM_REACTION_TERMS];
+} plem_reaction;
 
 #define PLEM_COMMAND_SLOTS 64
 #define PLEM_OUTCOME_SLOTS 256
@@ -296,6 +361,7 @@ typedef struct {
     double goal_tolerance[PLEM_MAX_JOINTS];
     double peaks[3][PLEM_MAX_JOINTS]; /* start: the motion's largest |velocity|, |acceleration|, |jerk| (own time) */
     double value;                    /* override: the factor */
+    double body[13];                 /* payload: mass, centre of mass (3), inertia about it (9, row-major) */
     int64_t cycles;                  /* stream: cycles without a sample before it stops */
 } plem_command;
 
@@ -354,6 +420,8 @@ typedef struct {
     double max_jerk[PLEM_MAX_JOINTS];
     double max_effort[PLEM_MAX_JOINTS];
     double damping[PLEM_MAX_JOINTS];  /* free drive, N·m·s/rad */
+    double friction[PLEM_MAX_JOINTS]; /* viscous, N·m·s/rad: part of the model's effort the external torque is from */
+    double contact_threshold[PLEM_MAX_JOINTS]; /* N·m of estimated external torque that stops the arm; inf: off */
 } plem_settings;
 
 /* Where a new motion starts: the held position, or a running motion (a slab slot, or the core's stop) whose own
@@ -395,6 +463,8 @@ typedef struct {
     int64_t feed_until;              /* the cycle until which `feed` holds: one sample period after the last */
     int32_t kind;                    /* of the last sample */
     int32_t timed_out;
+    int32_t internal;                /* a reaction's move: the target is fixed, no samples, no timeout */
+    int32_t pad;
     double target[PLEM_MAX_JOINTS];
     double feed[PLEM_MAX_JOINTS];    /* the targets' velocity, from the last two position samples */
 } plem_stream;
@@ -463,6 +533,13 @@ typedef struct {
     plem_basis basis;
     plem_override override;
     plem_stream stream;
+    /* what the arm feels: the model's effort for the command less the measured (estimated when the model's
+     * effort is known: drives enabled, not in free drive) */
+    int32_t feeling;                 /* 1 while the estimate below is current */
+    int32_t pad5;
+    double external[PLEM_MAX_JOINTS];
+    double wrench[6];
+    plem_reaction reactions[PLEM_REACTIONS];
     /* rings */
     plem_ring commands_index;
     plem_command commands[PLEM_COMMAND_SLOTS];

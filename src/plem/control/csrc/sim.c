@@ -159,8 +159,15 @@ static void hard_stop(plem_sim *sim) {
 static void step_dynamics(plem_sim *sim, const joint_roles *r) {
     int n = sim->dof, clamp = r->any_torque, pushed = 0, servo_only = 0;
     double *friction = sim->scratch[FRICTION], *a = sim->scratch[SERVO], *work = sim->scratch[WORK], *tau = sim->tau;
+    double push[PLEM_MAX_JOINTS] = {0};
     targets(sim, r);
-    for (int i = 0; i < n; i++) friction[i] = sim->v[i] * sim->friction[i], pushed |= sim->external[i] != 0.0;
+    if (sim->push_body >= 0 && sim->push_body < n)   /* a wrench on a link, as joint torques at this pose */
+        plem_wrench_torques(&sim->model, sim->q, sim->push_body, sim->push_point, sim->push, push);
+    for (int i = 0; i < n; i++) {
+        friction[i] = sim->v[i] * sim->friction[i];
+        push[i] += sim->external[i];
+        pushed |= push[i] != 0.0;
+    }
     if (r->servoed) {
         int saturated = 0;
         servo_acceleration(sim, r, a);
@@ -179,7 +186,7 @@ static void step_dynamics(plem_sim *sim, const joint_roles *r) {
         if (r->torque[i]) tau[i] = sim->io_torque_offset[i];
         if (clamp) tau[i] = fmax(fmin(tau[i], sim->effort[i]), -sim->effort[i]);
         if (!r->running[i]) tau[i] = 0.0;
-        work[i] = tau[i] - friction[i] + (pushed ? sim->external[i] : 0.0);
+        work[i] = tau[i] - friction[i] + push[i];
     }
     if (!servo_only) plem_forward_dynamics(&sim->model, sim->q, sim->v, work, a);
     if (r->any_held) lock_held(sim, r, work, a);
@@ -202,8 +209,16 @@ static void step_follower(plem_sim *sim, const joint_roles *r) {
     }
 }
 
-/* One cycle under the drives' current states and modes; nothing moves while every drive is off. */
+/* One cycle under the drives' current states and modes; nothing moves while every drive is off. A payload written
+ * since the last cycle is mounted first: the last body's inertials become it. */
 static void advance(plem_sim *sim) {
+    if (sim->payload_pending) {
+        int last = sim->model.dof - 1;
+        sim->model.mass[last] = sim->payload_body[0];
+        memcpy(sim->model.com[last], sim->payload_body + 1, sizeof sim->model.com[last]);
+        memcpy(sim->model.inertia[last], sim->payload_body + 4, sizeof sim->model.inertia[last]);
+        sim->payload_pending = 0;
+    }
     joint_roles roles;
     roles_of(sim, &roles);
     if (!roles.any_running) return;

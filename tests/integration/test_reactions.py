@@ -1,0 +1,132 @@
+"""Reactions evaluated in the core, the contact stop, and the payload, on a simulated arm pushed through its
+simulator (a wrench on a link, through the arm's Jacobian) and carrying a payload on its last link."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plem.control.events import EventKind
+from plem.control.modes import Mode
+from plem.control.payload import Payload
+from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
+from plem.control.trajectory import TrajectoryOutcome
+from plem.errors import PlemError
+from plem.robot import Robot
+from tests.integration.robot_fixtures import simulated_robot
+
+
+@pytest.fixture
+def robot() -> Robot:
+    robot = simulated_robot()
+    robot.set_mode("hold")
+    return robot
+
+
+def _wrench_by_cycle(robot: Robot, cycles: int) -> dict[int, np.ndarray]:
+    """Step `cycles` cycles, keeping the wrench the core estimated in each."""
+    seen = {}
+    for _ in range(cycles):
+        robot.step()
+        seen[robot.runtime.cycle_count - 1] = robot.stream_status().wrench.copy()
+    return seen
+
+
+def test_a_push_fires_a_standing_reaction_in_the_cycle_that_measures_it(robot: Robot) -> None:
+    robot.on(Measure.FORCE_X > 20.0, Record())
+    robot.step(50)
+    assert np.allclose(robot.stream_status().wrench, 0.0, atol=1e-6)
+    robot.bus.push("link6", force=(30.0, 0.0, 0.0))
+    seen = _wrench_by_cycle(robot, 100)
+    first = min(cycle for cycle, wrench in seen.items() if wrench[0] > 20.0)
+    fired = [e for e in robot.events.recent({EventKind.REACTION})]
+    assert len(fired) == 1 and fired[0].cycle == first    # no cycle between measuring it and acting
+    assert "force x > 20 N" in fired[0].reason and "record" in fired[0].reason
+    assert robot.stream_status().wrench[0] == pytest.approx(30.0, abs=0.5)
+    robot.bus.release()
+
+
+def test_until_stops_a_motion_which_succeeds_and_the_arm_holds(robot: Robot) -> None:
+    start = robot.state().position.copy()
+    handle = robot.move_joints(start + 0.8, speed_scale=0.3, until=Measure.FORCE_X > 20.0)
+    robot.step(400)
+    robot.bus.push("link6", force=(40.0, 0.0, 0.0))
+    result = handle.wait(10.0)
+    robot.bus.release()
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED and "until condition: force x > 20 N" in result.message
+    assert robot.mode is Mode.HOLD and robot.fault_reason == ""
+    assert not np.allclose(robot.state().command_position, start + 0.8, atol=1e-3)
+
+
+def test_actions_retract_pause_and_free_drive(robot: Robot) -> None:
+    start = robot.state().position.copy()
+    retract = start.copy()
+    retract[1] -= 0.2
+    reaction = robot.on((Measure.FORCE_X > 20.0) & ~(Measure.FORCE_Y > 100.0), MoveTo(retract.tolist()), once=True)
+    robot.bus.push("link6", force=(30.0, 0.0, 0.0))
+    robot.step(20)
+    robot.bus.release()
+    robot.step(3000)
+    assert np.allclose(robot.state().command_position, retract, atol=1e-9) and robot.mode is Mode.HOLD
+    reaction.remove()
+
+    handle = robot.move_joints(start, speed_scale=0.3)
+    robot.on(Measure.MOTION_TIME > 0.5, Hold(), once=True)
+    robot.step(1500)
+    assert robot.mode is Mode.TRAJECTORY and robot.speed_override == 0.0 and not handle.done
+    robot.set_speed_override(1.0)
+    handle.wait(30.0)
+
+    robot.on(Measure.FORCE_X > 20.0, FreeDrive(), once=True)
+    robot.bus.push("link6", force=(30.0, 0.0, 0.0))
+    robot.step(20)
+    robot.bus.release()
+    assert robot.mode is Mode.FREE_DRIVE
+
+
+def test_the_contact_stop_faults_naming_the_joint_and_a_reset_does_not_move_the_arm(robot: Robot) -> None:
+    robot.move_joints(robot.state().position + 0.5, speed_scale=0.2)
+    robot.step(300)
+    robot.bus.push("link6", force=(150.0, 0.0, 0.0))
+    robot.step(200)
+    assert robot.mode is Mode.FAULT
+    assert "contact: the external torque on joint" in robot.fault_reason and "past its contact threshold" in \
+        robot.fault_reason
+    robot.bus.release()
+    robot.step(1000)
+    before = robot.state().position.copy()
+    robot.reset_fault()
+    robot.step(10)
+    after = robot.state()
+    assert after.mode is Mode.HOLD
+    assert np.allclose(after.command_position, after.position, atol=1e-3)
+    assert np.allclose(after.position, before, atol=1e-3)
+
+
+def test_a_payload_is_estimated_within_5_percent_and_set_payload_explains_its_torque(robot: Robot) -> None:
+    bent = robot.state().position.copy()
+    bent[[1, 2]] = 0.6, 0.8   # the payload's weight across the joints' axes
+    robot.move_joints(bent.tolist()).wait(30.0)
+    robot.bus.mount_payload(Payload(2.5, (0.01, 0.0, 0.06)))
+    robot.step(500)
+    unexplained = np.abs(robot.stream_status().external_torque).max()
+    estimated = robot.estimate_payload(apply=False)
+    assert estimated.mass == pytest.approx(2.5, rel=0.05)
+    assert np.allclose(estimated.com, (0.01, 0.0, 0.06), atol=0.005)
+    robot.set_payload(estimated.mass, estimated.center_of_mass)
+    robot.step(500)
+    assert unexplained > 1.0 and np.abs(robot.stream_status().external_torque).max() < 0.05 * unexplained
+
+
+@pytest.mark.parametrize(("build", "words"), [
+    (lambda r: r.on(Measure.position("elbow") > 1.0, Stop()), "names no joint"),
+    (lambda r: r.on((Measure.FORCE_X > 1.0) and (Measure.FORCE_Y > 1.0), Stop()), "no truth value"),
+    (lambda r: r.on(Measure.FORCE_X > float("nan"), Stop()), "not a finite number"),  # noqa: SIM300 - a condition
+    (lambda r: r.on(Measure.FORCE_X > 1.0, MoveTo([0.0, 0.0])), "one finite position per joint"),
+    (lambda r: r.on(Measure.FORCE_X > 1.0, "stop"), "not a reaction action"),
+    (lambda r: r.set_payload(-1.0), "mass"),
+])
+def test_bad_reactions_and_payloads_are_refused_with_what_why_how(robot: Robot, build, words: str) -> None:
+    with pytest.raises(PlemError) as raised:
+        build(robot)
+    assert words in str(raised.value) and "HOW" in str(raised.value)
