@@ -13,10 +13,12 @@ import pytest
 
 from plem.bridge.client import RobotClient
 from plem.control.events import EventKind
+from plem.control.kinematics import ArmDynamics
 from plem.control.modes import Mode
+from plem.ipc.robot_description import read_description
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.qos import DEFAULT
-from plem.middleware.servo import JOINT_JOG, SPEED_SLIDER
+from plem.middleware.servo import JOINT_JOG, SPEED_SLIDER, TWIST
 from tests.e2e.launched import Launch, launched_robot, wait_until
 from tests.e2e.ros_peer import JOINT_NAMES, TRAJECTORY, RosPeer, wait_for
 
@@ -36,6 +38,7 @@ class Servo:
         ns = f"/{peer.robot_id}"
         self.peer = peer
         self.jog = peer.node.publisher(f"{ns}/servo_node/delta_joint_cmds", JOINT_JOG, DEFAULT)
+        self.twist = peer.node.publisher(f"{ns}/servo_node/delta_twist_cmds", TWIST, DEFAULT)
         self.slider = peer.node.client(f"{ns}/io_and_status_controller/set_speed_slider", SPEED_SLIDER)
         self.scaling = peer.subscribe("speed_scaling_state_broadcaster/speed_scaling", "std_msgs/msg/Float64")
         self.controller_state = peer.subscribe(f"{TRAJECTORY}/controller_state",
@@ -46,10 +49,12 @@ class Servo:
         return self.peer.library.new(JOINT_JOG, joint_names=names, **fields)
 
     def stream(self, message: Any, seconds: float) -> None:
-        """Publish `message` every PERIOD_S for `seconds`, as a teleoperation node does."""
+        """Publish `message` (a JointJog or a TwistStamped) every PERIOD_S for `seconds`, as a teleoperation node
+        does."""
+        publisher = self.twist if type(message).__name__ == "TwistStamped" else self.jog
         began = time.monotonic()
         for tick in range(round(seconds / PERIOD_S)):
-            self.jog.publish(message)
+            publisher.publish(message)
             time.sleep(max(0.0, began + (tick + 1) * PERIOD_S - time.monotonic()))
 
     def rejected(self, cause: str, timeout: float = 5.0) -> Any:
@@ -65,8 +70,8 @@ def servo(robot: Launch) -> Iterator[Servo]:
     peer = RosPeer(robot.robot_id, DiscoverySettings.from_environment(robot.env))
     try:
         endpoints = Servo(peer)
-        assert wait_for(lambda: endpoints.jog.subscribers > 0 and endpoints.slider.ready, 15), \
-            "delta_joint_cmds and set_speed_slider were not discovered"
+        assert wait_for(lambda: endpoints.jog.subscribers > 0 and endpoints.twist.subscribers > 0
+                        and endpoints.slider.ready, 15), "the servo topics and set_speed_slider were not discovered"
         yield endpoints
     finally:
         peer.close()
@@ -74,7 +79,7 @@ def servo(robot: Launch) -> Iterator[Servo]:
 
 def at_rest(client: RobotClient) -> bool:
     state = client.live_state()
-    return state.mode is Mode.HOLD and not state.command_velocity.any()
+    return state.mode is Mode.HOLD and bool(np.all(np.abs(state.command_velocity) < 1e-9))
 
 
 def held(client: RobotClient) -> np.ndarray:
@@ -156,3 +161,35 @@ def test_the_speed_slider_sets_the_override_and_speed_scaling_publishes_it_in_pe
     finally:
         client.set_speed_override(1.0)
     assert wait_for(lambda: any(m.data == pytest.approx(100.0, abs=1e-4) for m in servo.scaling.take()), 10)
+
+
+def tool_position(arm: ArmDynamics, client: RobotClient) -> np.ndarray:
+    return np.array(arm.forward_kinematics(client.live_state().command_position).translation)
+
+
+def test_a_twist_stream_moves_the_tool_along_the_base_axis_it_names(servo: Servo, client: RobotClient) -> None:
+    held(client)
+    client.move_joints(client.channels.state.poses["home"], speed_scale=1.0).wait(30)   # away from singularities
+    assert wait_until(lambda: at_rest(client), 10)
+    arm = ArmDynamics(read_description(client.robot_id).urdf, client.joint_names)
+    start = tool_position(arm, client)
+    twist = servo.peer.library.new(TWIST, header=servo.peer.library.new("std_msgs/msg/Header", frame_id=""))
+    twist.twist.linear.z = -0.05
+    began = time.monotonic()
+    while tool_position(arm, client)[2] > start[2] - 0.02 and time.monotonic() - began < 10:
+        servo.stream(twist, 0.1)
+    assert wait_until(lambda: at_rest(client), 5), "the stream ends once the messages stop"
+    moved = tool_position(arm, client) - start
+    assert moved[2] < -0.02 and np.all(np.abs(moved[:2]) < 0.1 * abs(moved[2])), moved
+    assert client.last_fault() is None
+
+
+def test_a_twist_in_a_frame_other_than_the_base_or_the_tool_is_refused(servo: Servo, client: RobotClient) -> None:
+    start = held(client)
+    servo.events.take()
+    twist = servo.peer.library.new(TWIST, header=servo.peer.library.new("std_msgs/msg/Header", frame_id="camera"))
+    twist.twist.linear.x = 0.05
+    servo.stream(twist, 0.1)
+    event = servo.rejected("delta_twist_cmds")
+    assert event is not None and "a twist in frame 'camera' cannot be followed" in event.reason
+    assert np.array_equal(client.live_state().command_position, start)

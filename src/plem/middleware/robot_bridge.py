@@ -6,8 +6,8 @@ It publishes the arm's frames on /tf and /tf_static as robot_state_publisher wou
 robot_description_semantic (latched; the latter when the package has an SRDF), rt_raw (every cycle),
 rt_events and rt_monitor_stats (10 Hz) and the trajectory controller's controller_state. It serves the
 controller manager's services, the trajectory controller's topic and action under the name controllers.yaml
-gives it, the wim_rt_driver/set_mode action, moveit_servo's joint jog topic and UR's speed slider service
-(`plem.middleware.servo`), and publishes the speed override as UR's speed_scaling. A read-only bridge
+gives it, the wim_rt_driver/set_mode action, moveit_servo's joint jog and twist topics and UR's speed slider
+service (`plem.middleware.servo`), and publishes the speed override as UR's speed_scaling. A read-only bridge
 (`commands=False`) creates none of these command endpoints (nor the controller manager), so nothing on the
 network can command the arm through it.
 It only reads shared memory and sends commands to the robot's command service through `RobotClient`, so
@@ -46,7 +46,14 @@ from plem.middleware.node import Node, Subscription
 from plem.middleware.node_graph import NodeGraph, RosoutHandler
 from plem.middleware.parameters import ParameterServices, ParameterValue
 from plem.middleware.qos import DEFAULT, EVENTS, LATCHED, RT_RAW, TF, TF_STATIC
-from plem.middleware.servo import SCALING_NODE, SERVO_NODE, SLIDER_NODE, ServoEndpoints, SpeedScalingPublisher
+from plem.middleware.servo import (
+    SCALING_NODE,
+    SERVO_NODE,
+    SLIDER_NODE,
+    ServoEndpoints,
+    SpeedScalingPublisher,
+    TwistFrames,
+)
 from plem.middleware.transforms import TreeTransforms, tf_message
 from plem.recording.status import read_status
 
@@ -146,7 +153,7 @@ class RobotBridge:
         if slower is not None:
             _log.warning("%s", slower.render().removeprefix("ERROR: "))
         if commands:
-            self._command_endpoints(hardware)
+            self._command_endpoints(hardware, TwistFrames(description, client.joint_names, self.frames.frame_prefix))
         self.description.publish(self.description.message(data=description))
         if semantic is not None:
             self.semantic = node.publisher(f"{ns}/robot_description_semantic", "std_msgs/msg/String", LATCHED)
@@ -180,7 +187,7 @@ class RobotBridge:
         graph.add(ns, SCALING_NODE, self.speed_scaling.publisher)
         if self.commands:
             manager = graph.add(ns, "controller_manager", *self.manager.services)
-            servo = graph.add(ns, SERVO_NODE, self.servo.joint_jog)
+            servo = graph.add(ns, SERVO_NODE, self.servo.joint_jog, self.servo.twist)
             graph.add(ns, SLIDER_NODE, self.servo.speed_slider)
             trajectory.endpoints += [self.trajectories, self.follow]
             driver.endpoints.append(self.set_mode)
@@ -210,7 +217,7 @@ class RobotBridge:
                     "state_interfaces": list(controller.state_interfaces)}
         return dict(self._parameters.get(name, {}))
 
-    def _command_endpoints(self, hardware: Hardware) -> None:
+    def _command_endpoints(self, hardware: Hardware, frames: TwistFrames) -> None:
         """The controller manager's services, the trajectory controller's topic and action and the set_mode action,
         as ROS 2 names them."""
         client, node, ns = self.client, self.node, self.namespace
@@ -222,11 +229,11 @@ class RobotBridge:
         self.set_mode = ActionServer(node, f"{ns}/wim_rt_driver/set_mode", "plem_msgs/action/SetMode",
                                      lambda goal: start_mode_change(client, goal))
         self.servo = ServoEndpoints(node, ns, client, partial(self.report_refusal, logger=_servo_log),
-                                    self.manager.accepts_trajectories)
+                                    self.manager.accepts_trajectories, frames)
         for server in (*self.follow.services, *self.set_mode.services, *self.manager.services,
                        self.servo.speed_slider):
             server.requests.max_bytes = REQUEST_BYTES
-        self.servo.joint_jog.max_bytes = REQUEST_BYTES
+        self.servo.joint_jog.max_bytes = self.servo.twist.max_bytes = REQUEST_BYTES
         self.trajectories.max_bytes = self.follow.send_goal.requests.max_bytes = trajectory_bytes(client.dof)
 
     def close(self) -> None:
@@ -305,6 +312,7 @@ class RobotBridge:
         handlers = [self._take_trajectories, self.follow.spin_once, self.set_mode.spin_once, self.manager.spin_once,
                     self.servo.spin_once, *(node.spin_once for node in self.parameter_services)]
         timeout = duration(seconds=period)
+        _guarded(self.servo.prepare)
         while not stop.is_set():
             waitset.wait(timeout)
             for handle in handlers:   # each on its own: one failing endpoint never starves the others

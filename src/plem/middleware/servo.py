@@ -5,6 +5,10 @@
   without them, `displacements` over `duration` s give the velocity, and the stream then lasts `duration` after
   the message instead of the stream's 0.1 s timeout. Joints not named stay at rest. A velocity above a joint's
   limit scales the whole command down to it (moveit_servo does the same), with a warning.
+- `/{robot_id}/servo_node/delta_twist_cmds` (geometry_msgs/msg/TwistStamped), as moveit_servo's
+  `~/delta_twist_cmds`: each message is one sample of a tool twist stream (`RobotClient.speed_tool`), in m/s and
+  rad/s, in the axes of `header.frame_id`: the arm's base (its root link, or empty) or its tool (the last frame
+  of the URDF, the one `speed_tool`'s tool frame is), each with or without the frame prefix.
 - `/{robot_id}/speed_scaling_state_broadcaster/speed_scaling` (std_msgs/msg/Float64): the speed override in
   force, in percent, as UR's speed_scaling_state_broadcaster publishes it.
 - `/{robot_id}/io_and_status_controller/set_speed_slider` (ur_msgs/srv/SetSpeedSliderFraction): sets the speed
@@ -16,7 +20,9 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from functools import cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,6 +36,7 @@ from plem.middleware.qos import DEFAULT
 _log = logging.getLogger("plem.bridge.servo_node")
 
 JOINT_JOG = "control_msgs/msg/JointJog"
+TWIST = "geometry_msgs/msg/TwistStamped"
 SPEED_SLIDER = "ur_msgs/srv/SetSpeedSliderFraction"
 #: The nodes these endpoints belong to, named as moveit_servo and UR's ROS 2 driver name theirs.
 SERVO_NODE = "servo_node"
@@ -96,29 +103,80 @@ def jog_velocities(message: Any, joint_names: tuple[str, ...]) -> tuple[np.ndarr
     return velocities, timeout
 
 
+class TwistFrames:
+    """The frames a TwistStamped may be given in: the arm's base and its tool, with or without the frame prefix."""
+
+    def __init__(self, urdf: str, joint_names: Sequence[str], frame_prefix: str) -> None:
+        self._urdf = urdf
+        self._joint_names = tuple(joint_names)
+        self._prefix = frame_prefix
+
+    @cached_property
+    def _names(self) -> tuple[str, str]:
+        """The root link and the tool frame (the kinematics are loaded on the first twist, as the client loads them)."""
+        from plem.control.kinematics import ArmDynamics
+        from plem.description.model import parse_urdf
+
+        roots = parse_urdf(self._urdf, Path("robot_description")).roots()
+        return (roots[0] if roots else ""), ArmDynamics(self._urdf, self._joint_names).tip_frame
+
+    def load(self) -> None:
+        """Load the kinematics now (about a second on a busy machine), so that the first twist is not late."""
+        _ = self._names
+
+    def axes(self, frame_id: str) -> str:
+        """'base' or 'tool', for `speed_tool`, from a header's frame_id."""
+        base, tool = self._names
+        plain = frame_id.removeprefix(self._prefix) if self._prefix else frame_id
+        if plain in ("", base):
+            return "base"
+        if plain == tool:
+            return "tool"
+        prefix = self._prefix
+        raise CommandRejected(f"a twist in frame {frame_id!r} cannot be followed",
+                              what=f"header.frame_id {prefix}{base} (the base; empty too) or {prefix}{tool} (the tool)",
+                              why=f"got {frame_id!r}", how="express the twist in the base or the tool frame")
+
+
+def twist_values(message: Any) -> list[float]:
+    """A TwistStamped as speed_tool's six values: linear (m/s), then angular (rad/s)."""
+    linear, angular = message.twist.linear, message.twist.angular
+    return [linear.x, linear.y, linear.z, angular.x, angular.y, angular.z]
+
+
 class ServoEndpoints:
     """The joint jog topic and the speed slider service of one robot, for a bridge that takes commands."""
 
     def __init__(self, node: Node, namespace: str, client: RobotClient, refuse: Callable[[str, str], None],
-                 accepts: Callable[[], PlemError | None]) -> None:
+                 accepts: Callable[[], PlemError | None], frames: TwistFrames) -> None:
         self.node = node
         self.client = client
         self.accepts = accepts
+        self.frames = frames
         self.joint_jog: Subscription[Any] = node.subscription(f"{namespace}/{SERVO_NODE}/delta_joint_cmds",
                                                               JOINT_JOG, DEFAULT)
+        self.twist: Subscription[Any] = node.subscription(f"{namespace}/{SERVO_NODE}/delta_twist_cmds", TWIST, DEFAULT)
         self.speed_slider = ServiceServer(node, f"{namespace}/{SLIDER_NODE}/set_speed_slider", SPEED_SLIDER)
         self._reports = Reports(refuse)
 
     @property
     def waitables(self) -> tuple[Subscription[Any] | ServiceServer, ...]:
         """What the bridge's command thread waits on."""
-        return self.joint_jog, self.speed_slider
+        return self.joint_jog, self.twist, self.speed_slider
+
+    def prepare(self) -> None:
+        """What the first twist would otherwise wait for: the kinematics of its frames."""
+        self.frames.load()
 
     def spin_once(self) -> None:
-        """Take the newest joint jog (older ones waiting are superseded) and answer speed slider requests."""
+        """Take the newest joint jog and twist (older ones waiting are superseded) and answer speed slider
+        requests."""
         messages = self.joint_jog.take()
         if messages:
             self._jog(messages[-1])
+        twists = self.twist.take()
+        if twists:
+            self._twist(twists[-1])
         for request in self.speed_slider.take():
             self._set_speed_slider(request)
         self.speed_slider.flush()
@@ -139,6 +197,15 @@ class ServoEndpoints:
             self.client.speed_joints(velocities, timeout)
         except PlemError as error:
             self._reports.refused("delta_joint_cmds", error)
+
+    def _twist(self, message: Any) -> None:
+        try:
+            refused = self.accepts()
+            if refused is not None:
+                raise refused
+            self.client.speed_tool(twist_values(message), self.frames.axes(message.header.frame_id))
+        except PlemError as error:
+            self._reports.refused("delta_twist_cmds", error)
 
     def _set_speed_slider(self, request: Any) -> None:
         try:
