@@ -605,7 +605,7 @@ def test_raw_field_matches_rosbags_deserialization(dof: int):
     encoder = RawEncoder(dof)
     payloads, starts, buffer = [], [], bytearray()
     for cycle in range(50):
-        values = rng.normal(size=7 + 6 * dof)
+        values = rng.normal(size=raw_record_length(dof))
         values[:7] = [cycle * 7 + 3, rng.integers(1 << 40), cycle % 5, cycle % 2, 1, rng.integers(1 << 20),
                       rng.integers(1 << 20)]
         payloads.append(encoder.encode(values, int(rng.integers(1 << 60))))
@@ -622,6 +622,8 @@ def test_raw_field_matches_rosbags_deserialization(dof: int):
                                                                              for m in messages])
     for name in ("position", "velocity", "effort", "command_position", "command_velocity", "command_acceleration"):
         np.testing.assert_array_equal(raw_field(data, starts_array, name, dof), [getattr(m, name) for m in messages])
+    np.testing.assert_array_equal(raw_field(data, starts_array, "speed_override", dof),
+                                  [m.speed_override for m in messages])
 
 
 def test_plot_keeps_joints_on_one_path_apart_and_fault_labels_inside_their_panel():

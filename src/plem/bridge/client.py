@@ -17,12 +17,16 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
+import numpy as np
+
 from plem.bridge.planning import PlannerLink, PlanningCalls
+from plem.bridge.reactions import ReactionCalls, settle_then_average
 from plem.bridge.streaming import StreamingCalls
 from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
+from plem.control.reactions import Action, Condition, Stop, reaction_json
 from plem.control.state import JointState
 from plem.control.streaming import StreamBlock, stream_block_name
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
@@ -170,7 +174,29 @@ class RemoteHandle:
         return result_from_json(reply["result"])
 
 
-class RobotClient(PlanningCalls, StreamingCalls):
+class RemoteSimulator:
+    """A launched simulated arm's control interface, through its command service (bus:=mock only)."""
+
+    def __init__(self, client: RobotClient) -> None:
+        self._client = client
+
+    def push(self, link: str, force: Sequence[float] = (0.0, 0.0, 0.0), torque: Sequence[float] = (0.0, 0.0, 0.0),
+             point: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        """Push a link: a force (N) at `point` (m, link frame) and a torque (N·m), base-frame axes, until release()."""
+        self._client._send("simulate", {"action": "push", "link": link, "force": list(force), "torque": list(torque),
+                                        "point": list(point)}).wait(ACCEPT_TIMEOUT_S)
+
+    def release(self) -> None:
+        """End a push."""
+        self._client._send("simulate", {"action": "release"}).wait(ACCEPT_TIMEOUT_S)
+
+    def mount_payload(self, mass: float, center_of_mass: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
+        """Add a point-mass payload at the simulated arm's flange (mass 0 takes it off)."""
+        self._client._send("simulate", {"action": "mount_payload", "mass": mass,
+                                        "center_of_mass": list(center_of_mass)}).wait(ACCEPT_TIMEOUT_S)
+
+
+class RobotClient(PlanningCalls, StreamingCalls, ReactionCalls):
     """A connection to one robot's shared memory (see `connect`), and through it to its planner."""
 
     def __init__(self, channels: RobotChannels) -> None:
@@ -309,16 +335,48 @@ class RobotClient(PlanningCalls, StreamingCalls):
     def _request_speed_override(self, factor: float) -> RemoteHandle:
         return self._send("speed_override", {"factor": factor})
 
+    # -- reactions, the payload and the simulator ----------------------------------------------------------
+    def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
+        handle = self._send("react", {"reaction": reaction_json(condition, action), "once": once,
+                                      "goal": None if motion is None else motion.id}, accept_within=ACCEPT_TIMEOUT_S)
+        return int(handle.accepted_result["reaction"])
+
+    def _remove_reaction(self, token: int) -> None:
+        self._send("unreact", {"reaction": token}).wait(ACCEPT_TIMEOUT_S)
+
+    def _send_payload(self, body: np.ndarray) -> None:
+        self._send("payload", {"body": body.tolist()}).wait(ACCEPT_TIMEOUT_S)
+
+    def _payload_dynamics(self) -> tuple[ArmDynamics, ArmLimits]:
+        return self._stream_dynamics(), self.limits
+
+    def _hold_at(self, pose: np.ndarray) -> None:
+        self.move_joints(pose.tolist()).wait(60.0)
+
+    def _mean_state(self, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+        return settle_then_average(self.live_state, time.sleep, seconds, self.cycle_time_s * 10)
+
+    @property
+    def simulator(self) -> RemoteSimulator:
+        """The simulated arm's control interface (push a link, mount a payload), as `Robot.simulator` gives it
+        in-process; the driver refuses it on a real bus."""
+        return RemoteSimulator(self)
+
     # -- commands ----------------------------------------------------------------------------------
     def move_joints(self, target: Sequence[float], speed_scale: float = 1.0,
-                    tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
+                    tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None,
+                    until: Condition | None = None) -> RemoteHandle:
         """Time-optimal jerk-limited motion to `target` (rad); returns once the driver accepted it.
 
         `speed_scale` in [MIN_SPEED_SCALE, 1] (plem.ipc.request_bounds) scales time: 0.5 takes twice as long.
+        With `until` (plem.control.reactions), the motion stops as soon as the condition holds, and succeeds.
         """
-        return self._send("move_joints", {"target": list(arguments.reals(target, "target")),
-                                          "speed_scale": arguments.real(speed_scale, "speed_scale"),
-                                          "tolerances": _tolerances(tolerances)}, accept_within=ACCEPT_TIMEOUT_S)
+        handle = self._send("move_joints", {"target": list(arguments.reals(target, "target")),
+                                            "speed_scale": arguments.real(speed_scale, "speed_scale"),
+                                            "tolerances": _tolerances(tolerances)}, accept_within=ACCEPT_TIMEOUT_S)
+        if until is not None:
+            self._arm_reaction(until, Stop(), handle, once=True)
+        return handle
 
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:

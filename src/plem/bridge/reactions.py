@@ -10,15 +10,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from plem.control.kinematics import ArmDynamics
 from plem.control.limits import ArmLimits
 from plem.control.payload import Payload
-from plem.control.payload_estimation import estimation_poses, fit_payload, flange_link, last_body_with
 from plem.control.reactions import Action, Condition
+
+if TYPE_CHECKING:   # pinocchio is imported where a payload is set or estimated, not with the client
+    from plem.control.kinematics import ArmDynamics
 
 #: How long estimate_payload lets the arm settle at each pose before averaging its efforts (s), and for how long.
 SETTLE_S = 0.5
@@ -76,6 +77,8 @@ class ReactionCalls:
         """Mount a payload at the flange (mass kg, centre of mass m in the flange link's frame, inertia kg·m² about
         it; None: a point mass). Gravity compensation, the external-torque estimate and the contact stop use it
         from the next cycle on; `set_payload(0)` removes it. Returns the checked Payload."""
+        from plem.control.payload_estimation import last_body_with
+
         payload = Payload(mass, center_of_mass, inertia)  # type: ignore[arg-type]  # Payload checks the shapes
         dynamics, _ = self._payload_dynamics()
         self._send_payload(last_body_with(dynamics.model, payload))
@@ -85,6 +88,8 @@ class ReactionCalls:
         """Hold five poses that turn the wrist, fit the payload's mass and centre of mass from the efforts measured
         there (the model's gravity without payload taken off), return to where the arm was, and (with `apply`) set
         it. The poses are near the start; the arm must be free to turn its wrist there."""
+        from plem.control.payload_estimation import estimation_poses, fit_payload, flange_link, last_body_with
+
         dynamics, limits = self._payload_dynamics()
         link = flange_link(dynamics.model)
         start, _ = self._mean_state(0.0)

@@ -225,3 +225,42 @@ def write_reaction(slot: np.void, token: int, condition: Condition, action: Acti
             row["index"] = _joint(term.index, joint_names, "a reaction's quantity")
         else:
             row["index"] = int(term.index)
+
+
+_ACTIONS: dict[int, type] = {C["PLEM_REACT_STOP"]: Stop, C["PLEM_REACT_HOLD"]: Hold,
+                             C["PLEM_REACT_FREE_DRIVE"]: FreeDrive, C["PLEM_REACT_RECORD"]: Record}
+
+
+def reaction_json(condition: Condition, action: Action) -> dict[str, object]:
+    """A reaction as a request carries it (checked again by `reaction_from_json` where it arrives)."""
+    condition = _condition(condition)
+    return {"terms": [[t.op, t.measure, t.index, t.threshold] for t in condition.terms], "text": condition.text,
+            "action": action.code, "target": list(action.target) if isinstance(action, MoveTo) else None}
+
+
+def reaction_from_json(value: object, max_text: int = 400) -> tuple[Condition, Action]:
+    """The condition and action of a request's reaction, every part checked; CommandRejected names what is wrong."""
+    if not isinstance(value, dict) or not isinstance(value.get("terms"), list) \
+            or not 0 < len(value["terms"]) <= MAX_TERMS:
+        raise CommandRejected("the reaction is malformed", what=f"1 to {MAX_TERMS} terms, an action and a text",
+                              why=f"got {str(value)[:80]}", how="send reactions with robot.on() or until=")
+    terms = []
+    ops = {C[f"PLEM_TERM_{name}"] for name in ("ABOVE", "BELOW", "EQUAL", "AND", "OR", "NOT")}
+    measures = {C[f"PLEM_MEASURE_{name}"] for name in ("POSITION", "VELOCITY", "EFFORT", "EXTERNAL_TORQUE", "WRENCH",
+                                                       "FOLLOWING_ERROR", "MOTION_TIME", "DRIVE_STATE")}
+    for term in value["terms"]:
+        good = isinstance(term, list) and len(term) == 4 and term[0] in ops and isinstance(term[2], (int, str)) \
+            and not isinstance(term[2], bool) and isinstance(term[3], (int, float)) and not isinstance(term[3], bool) \
+            and math.isfinite(term[3]) and (term[1] in measures or (term[1] == 0 and term[0] in ops - {
+                C["PLEM_TERM_ABOVE"], C["PLEM_TERM_BELOW"], C["PLEM_TERM_EQUAL"]}))
+        if not good:
+            raise CommandRejected("a reaction term is malformed", what="[op, measure, joint, finite threshold]",
+                                  why=f"got {str(term)[:80]}", how="send reactions with robot.on() or until=")
+        terms.append(Term(int(term[0]), int(term[1]), term[2], float(term[3])))
+    text = value.get("text")
+    code = value.get("action")
+    if not isinstance(text, str) or len(text) > max_text or code not in ACTION_NAMES:
+        raise CommandRejected("the reaction is malformed", what="a text and an action code",
+                              why=f"text {str(text)[:40]!r}, action {code!r}", how="send reactions with robot.on()")
+    action: Action = MoveTo(list(value.get("target") or [])) if code == C["PLEM_REACT_MOVE"] else _ACTIONS[code]()
+    return Condition(tuple(terms), text), action

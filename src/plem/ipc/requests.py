@@ -21,6 +21,7 @@ import numpy as np
 
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
+from plem.control.reactions import reaction_from_json
 from plem.control.spline import JointNamesRejected
 from plem.control.streaming import DEFAULT_TIMEOUT_S, override_factor, stream_timeout
 from plem.control.trajectory import (
@@ -43,7 +44,12 @@ OPERATIONS: dict[str, tuple[str, ...]] = {
     "stop": ("goal",),
     "stream": ("timeout",),
     "speed_override": ("factor",),
+    "react": ("reaction", "once", "goal"),
+    "unreact": ("reaction",),
+    "payload": ("body",),
+    "simulate": ("action", "link", "force", "torque", "point", "mass", "center_of_mass"),
 }
+SIMULATIONS = ("push", "release", "mount_payload")
 MOTIONS = ("move_joints", "execute_trajectory")
 TOLERANCE_KEYS = ("path", "goal", "goal_time", "stopped_velocity_tolerance")
 REPLY_STAGES = ("accepted", "rejected", "finished", "failed")
@@ -159,7 +165,35 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
         checked = {"timeout": stream_timeout(args.get("timeout", DEFAULT_TIMEOUT_S))}
     elif op == "speed_override":
         checked = {"factor": override_factor(args.get("factor"))}
+    elif op == "react":
+        condition, action = reaction_from_json(args.get("reaction"))
+        checked = {"condition": condition, "action": action, "once": args.get("once") is True,
+                   "goal": None if args.get("goal") is None else bounds.request_id(args["goal"])}
+    elif op == "unreact":
+        checked = {"reaction": int(bounds.number(args.get("reaction"), "the reaction", 1, 2.0**63))}
+    elif op == "payload":
+        checked = {"body": bounds.numbers(args.get("body"), "the payload body", 13)}
+    elif op == "simulate":
+        checked = _simulation(args)
     return CheckedRequest(request_id, op, checked)
+
+
+def _simulation(args: Mapping[str, Any]) -> dict[str, Any]:
+    """A request to the simulated arm (push a link, release it, mount a payload), its numbers checked."""
+    action = args.get("action")
+    if action not in SIMULATIONS:
+        raise _rejected("not a simulator action", what=f"one of {', '.join(SIMULATIONS)}", why=f"got {shown(action)}",
+                        how="use robot.simulator.push(), release() or mount_payload()")
+    checked: dict[str, Any] = {"action": action}
+    if action == "push":
+        checked["link"] = bounds.text(args.get("link"), "link", bounds.MAX_NAME_CHARS)
+        for key in ("force", "torque", "point"):
+            checked[key] = bounds.numbers(args.get(key, [0.0, 0.0, 0.0]), f"the push's {key}", 3)
+    elif action == "mount_payload":
+        checked["mass"] = bounds.number(args.get("mass"), "the payload's mass", 0.0, bounds.MAX_MAGNITUDE)
+        checked["center_of_mass"] = bounds.numbers(args.get("center_of_mass", [0.0, 0.0, 0.0]),
+                                                   "the payload's centre of mass", 3)
+    return checked
 
 
 def tolerances_json(tolerances: TrajectoryTolerances) -> dict[str, Any]:

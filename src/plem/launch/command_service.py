@@ -32,6 +32,7 @@ from plem.control.commands import PLAN_ATTEMPTS, UNKNOWN_WAIT_S, preemption_lead
 from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.polynomial import PolynomialMotion
+from plem.control.reactions import reaction_json
 from plem.errors import CommandRejected, PlemError
 from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import (
@@ -287,7 +288,15 @@ class CommandService:
             record["mode"] = request.args["mode"].name.lower()
         elif request.op == "stop" and "goal" in request.args:
             record["goal"] = client.goals[request.args["goal"]]
-        elif request.op in ("stream", "speed_override"):
+        elif request.op == "react":
+            goal = request.args["goal"]
+            if goal is not None and goal not in client.goals:
+                raise CommandRejected("the motion of this until condition has ended",
+                                      what="a motion still running", why=f"goal {goal} finished",
+                                      how="give until= with the motion, as move_joints(..., until=...) does")
+            record.update(reaction=reaction_json(request.args["condition"], request.args["action"]),
+                          once=request.args["once"], motion=0 if goal is None else client.goals[goal])
+        elif request.op in ("stream", "speed_override", "unreact", "payload", "simulate"):
             record.update(request.args)
         self._commands[token] = _Command(client, request.id, counted=counted)
         client.in_flight += counted

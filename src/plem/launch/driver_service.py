@@ -21,6 +21,8 @@ import numpy as np
 
 from plem.control.commands import CommandHandle, PlanBasis, StartMotion
 from plem.control.modes import Mode
+from plem.control.payload import Payload
+from plem.control.reactions import reaction_from_json
 from plem.control.timing import histogram_summary
 from plem.control.trajectory import TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError
@@ -52,7 +54,7 @@ class _Pending:
     handle: CommandHandle
     slot: int | None = None
     accepted_sent: bool = False
-    stream: bool = False   # a stream: its acceptance carries its session
+    accepted: dict[str, int] | None = None   # what its acceptance carries (a stream's session, a reaction's token)
 
 
 @dataclass
@@ -127,7 +129,28 @@ class DriverService:
         elif op == "reset_fault":
             self._pending[token] = _Pending(robot.request_reset())
         elif op == "stream":
-            self._pending[token] = _Pending(robot.request_stream(float(command["timeout"])), stream=True)
+            handle = robot.request_stream(float(command["timeout"]))
+            self._pending[token] = _Pending(handle, accepted={"session": handle.token})
+        elif op == "react":
+            condition, action = reaction_from_json(command["reaction"])
+            motion = self._pending.get(int(command["motion"])) if command["motion"] else None
+            if command["motion"] and motion is None:
+                raise CommandRejected("the motion of this until condition has ended", what="a motion still running",
+                                      why="it finished before its condition was armed", how="move again")
+            reaction, handle = robot.request_reaction(condition, action, motion.handle.token if motion else 0,
+                                                      bool(command["once"]))
+            self._pending[token] = _Pending(handle, accepted={"reaction": reaction})
+        elif op == "unreact":
+            removal = robot.request_reaction_removal(int(command["reaction"]))
+            if removal is None:
+                self._write(token, "finished")   # fired once, or removed with its motion, already
+                return
+            self._pending[token] = _Pending(removal)
+        elif op == "payload":
+            self._pending[token] = _Pending(robot.request_payload(np.array(command["body"], dtype=float)))
+        elif op == "simulate":
+            self._simulate(command)
+            self._write(token, "finished")
         elif op == "speed_override":
             self._pending[token] = _Pending(robot.request_speed_override(float(command["factor"])))
         elif op == "stop":
@@ -140,6 +163,16 @@ class DriverService:
         else:
             raise ValueError(f"unknown intake operation {op!r}")
         self._answer_pending()
+
+    def _simulate(self, command: dict[str, Any]) -> None:
+        """Push a link of the simulated arm, release it, or mount a payload on it (bus:=mock only)."""
+        simulator = self.robot.simulator
+        if command["action"] == "push":
+            simulator.push(command["link"], command["force"], command["torque"], command["point"])
+        elif command["action"] == "release":
+            simulator.release()
+        else:
+            simulator.mount_payload(Payload(float(command["mass"]), tuple(command["center_of_mass"])))
 
     def _prepare(self, token: int, lead_s: float) -> None:
         """Tell the command service where a new motion starts: the held position, or the running motion ahead."""
@@ -189,7 +222,7 @@ class DriverService:
                 continue
             if not pending.accepted_sent and handle.is_accepted:
                 self.counters.accepted += 1
-                self._write(token, "accepted", result={"session": handle.token} if pending.stream else None)
+                self._write(token, "accepted", result=pending.accepted)
                 pending.accepted_sent = True
             if handle.done:
                 failed = handle.error is not None

@@ -56,6 +56,7 @@ from plem.core import arguments
 from plem.description.drives import drive_parameters
 from plem.errors import CommandRejected, ConfigError, MoveItCode, PlanningError, PlemError, RobotFault
 from plem.fieldbus.bus import BusSetup, IBus, SteppedBus
+from plem.fieldbus.mock import MockBus
 from plem.ipc.motion_slab import MotionSlab
 from plem.ipc.request_bounds import point_count
 from plem.ipc.ring import SlotRing
@@ -412,23 +413,49 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
             time.sleep(runtime.dt)
 
     # -- reactions and the payload ------------------------------------------------------------------------
+    def request_reaction(self, condition: Condition, action: Action, motion: int = 0,
+                         once: bool = False) -> tuple[int, CommandHandle]:
+        """Arm a reaction without waiting (bound to the motion whose core token is `motion`, or standing): its
+        token, and the handle the core answers when it took it."""
+        token = self.runtime.write_reaction(condition, action, motion, once)
+        return token, self._send(ArmReaction(self.runtime.reactions[token].slot,
+                                             CommandHandle("arm a reaction", self._pump)))
+
+    def request_reaction_removal(self, token: int) -> CommandHandle | None:
+        """Disarm reaction `token` without waiting; None when it is no longer armed."""
+        record = self.runtime.reactions.get(token)
+        if record is None:
+            return None
+        slot = self.runtime.arm[0]["reactions"][record.slot]
+        if int(slot["token"]) != token or not slot["armed"]:
+            return None
+        return self._send(ArmReaction(record.slot, CommandHandle("remove a reaction", self._pump), remove=True))
+
+    def request_payload(self, body: np.ndarray) -> CommandHandle:
+        """Give the core's model its last body (13 numbers, see SetPayload) without waiting."""
+        return self._send(SetPayload(body, CommandHandle("set_payload()", self._pump)))
+
+    @property
+    def simulator(self) -> MockBus:
+        """The simulated arm's control interface (push a link, mount a payload); refused on a real bus."""
+        if not isinstance(self.bus, MockBus):
+            raise CommandRejected("this robot has no simulator", what="a simulated arm (bus:=mock)",
+                                  why=f"its bus is {type(self.bus).__name__}",
+                                  how="push and load a simulated arm only: plem launch bus:=mock")
+        return self.bus
+
     def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
-        token = self.runtime.write_reaction(condition, action, motion.token if motion is not None else 0, once)
-        self._send(ArmReaction(self.runtime.reactions[token].slot,
-                               CommandHandle("arm a reaction", self._pump))).wait(ACCEPT_TIMEOUT_S)
+        token, handle = self.request_reaction(condition, action, motion.token if motion is not None else 0, once)
+        handle.wait(ACCEPT_TIMEOUT_S)
         return token
 
     def _remove_reaction(self, token: int) -> None:
-        record = self.runtime.reactions.get(token)
-        if record is None:
-            return
-        slot = self.runtime.arm[0]["reactions"][record.slot]
-        if int(slot["token"]) == token and slot["armed"]:
-            self._send(ArmReaction(record.slot, CommandHandle("remove a reaction", self._pump),
-                                   remove=True)).wait(ACCEPT_TIMEOUT_S)
+        handle = self.request_reaction_removal(token)
+        if handle is not None:
+            handle.wait(ACCEPT_TIMEOUT_S)
 
     def _send_payload(self, body: np.ndarray) -> None:
-        self._send(SetPayload(body, CommandHandle("set_payload()", self._pump))).wait(ACCEPT_TIMEOUT_S)
+        self.request_payload(body).wait(ACCEPT_TIMEOUT_S)
 
     def _payload_dynamics(self) -> tuple[ArmDynamics, ArmLimits]:
         return self.dynamics, self.limits
