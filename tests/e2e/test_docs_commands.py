@@ -45,7 +45,8 @@ DOC_ROBOT_IDS = re.compile(r"\b(indy|arm_left)\b")
 #: Commands that need no arm.
 OFFLINE = {"create-description", "validate", "config"}
 #: Commands that need a running arm.
-ON_ARM = {"state", "view", "move", "plan", "mode", "reset", "topic", "service", "action", "node", "bag", "scene"}
+ON_ARM = {"state", "view", "move", "plan", "mode", "reset", "topic", "service", "action", "node", "bag", "scene",
+          "speed", "jog"}
 #: The launch that starts the arm the ON_ARM commands run against.
 ARM_LAUNCH = "plem launch bus:=mock"
 

@@ -25,7 +25,8 @@ WIRE_TYPES = [
     "sensor_msgs/msg/JointState", "std_msgs/msg/String", *PLEM_MSGS, "trajectory_msgs/msg/JointTrajectory",
     *(f"{action}_{part}" for action in (FJT, SET_MODE) for part in ACTION_PARTS),
     "action_msgs/srv/CancelGoal_Request", "action_msgs/srv/CancelGoal_Response", "action_msgs/msg/GoalStatusArray",
-    "control_msgs/msg/JointJog", "std_msgs/msg/Float64", f"{SPEED_SLIDER}_Request", f"{SPEED_SLIDER}_Response",
+    "control_msgs/msg/JointJog", "geometry_msgs/msg/TwistStamped", "std_msgs/msg/Float64", f"{SPEED_SLIDER}_Request",
+    f"{SPEED_SLIDER}_Response",
 ]
 SEEDS = range(5)  # seeds 0 and 3: every sequence empty; others: empty and non-empty mixed
 
