@@ -1,4 +1,4 @@
-"""Streaming and the speed override on ROS 2: moveit_servo's joint jog topic and UR's speed scaling interfaces.
+"""Streaming and the speed override on ROS 2: moveit_servo's command topics and UR's speed scaling interfaces.
 
 - `/{robot_id}/servo_node/delta_joint_cmds` (control_msgs/msg/JointJog), as moveit_servo's `~/delta_joint_cmds`:
   each message is one sample of a joint velocity stream (`RobotClient.speed_joints`). `velocities` are rad/s;
