@@ -12,8 +12,9 @@ from plem.control.payload import Payload
 from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
 from plem.control.trajectory import TrajectoryOutcome
 from plem.errors import PlemError
-from plem.robot import Robot
-from tests.integration.robot_fixtures import simulated_robot
+from plem.fieldbus.mock import MockBus
+from plem.robot import Indy7V2, Robot
+from tests.integration.robot_fixtures import RAW_ZERO, simulated_robot
 
 
 @pytest.fixture
@@ -130,3 +131,14 @@ def test_bad_reactions_and_payloads_are_refused_with_what_why_how(robot: Robot, 
     with pytest.raises(PlemError) as raised:
         build(robot)
     assert words in str(raised.value) and "HOW" in str(raised.value)
+
+
+def test_a_payload_given_at_build_is_in_the_core_model_from_the_first_cycle() -> None:
+    def built(payload: Payload | None) -> Robot:
+        config = Indy7V2()
+        config.joint_offsets = [-r for r in RAW_ZERO]
+        config.custom_bus = MockBus(6, raw_zero=RAW_ZERO)
+        return Robot.builder(config).with_payload(payload).build()
+
+    plain, loaded = built(None), built(Payload(3.0, (0.0, 0.0, 0.1)))
+    assert loaded.runtime.arm[0]["model"]["mass"][5] == pytest.approx(plain.runtime.arm[0]["model"]["mass"][5] + 3.0)

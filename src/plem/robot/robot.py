@@ -46,6 +46,7 @@ from plem.control.limits import ArmLimits
 from plem.control.loop import CycleLoop, LoopSettings
 from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
+from plem.control.payload import Payload
 from plem.control.polynomial import PolynomialMotion
 from plem.control.reactions import Action, Condition, Stop
 from plem.control.runtime import ArmRuntime, RuntimeSettings
@@ -535,6 +536,7 @@ class RobotBuilder:
     motion_slab: Callable[[], MotionSlab] | None = None
     raw_ring: Callable[[], SlotRing] | None = None
     stream_block: Callable[[], StreamBlock] | None = None
+    payload: Payload | None = None
     runtime_settings: RuntimeSettings = field(default_factory=RuntimeSettings)
     loop_settings: dict[str, Any] = field(default_factory=dict)
 
@@ -569,6 +571,12 @@ class RobotBuilder:
         """Write every cycle's rt_raw record into the ring `make()` returns (the RT driver's shared memory); called
         after the state block is made."""
         self.raw_ring = make
+        return self
+
+    def with_payload(self, payload: Payload | None) -> RobotBuilder:
+        """What the flange carries from the first cycle (None: the profile's, when robot_serial names one with a
+        payload, else nothing)."""
+        self.payload = payload
         return self
 
     def with_stream_block(self, make: Callable[[], StreamBlock]) -> RobotBuilder:
@@ -633,6 +641,13 @@ class RobotBuilder:
                              state_block, slab=self.motion_slab() if self.motion_slab else None,
                              raw_ring=self.raw_ring() if self.raw_ring else None, max_consecutive_overruns=limit,
                              stream=self.stream_block() if self.stream_block else None)
+        payload = self.payload or self._profile_payload(config)
+        if payload is not None:   # before the first cycle, the core's model takes it directly
+            from plem.control.payload_estimation import last_body_with
+
+            body = last_body_with(dynamics.model, payload)
+            model, last = runtime.arm[0]["model"], config.dof - 1
+            model["mass"][last], model["com"][last], model["inertia"][last] = body[0], body[1:4], body[4:]
         loop: CycleLoop | CoreThread
         if runtime.python_bus:   # served at its own pace by a thread of this process
             loop = CycleLoop(runtime.cycle, loop_settings,
@@ -654,6 +669,16 @@ class RobotBuilder:
             raise ConfigError("custom_bus does not implement IBus", what="an object with the IBus methods",
                               why=f"got {type(bus).__name__}", how="pass a MockBus or an IBus implementation")
         return bus
+
+    @staticmethod
+    def _profile_payload(config: SerialArmConfig) -> Payload | None:
+        """The payload of the unit's profile when robot_serial names one that has it."""
+        if not config.robot_serial:
+            return None
+        from plem.robot.profile import RobotProfile
+
+        payload = RobotProfile.load_from_serial(config.robot_serial).payload
+        return None if payload is None else payload.to_payload()
 
     @staticmethod
     def _joint_offsets(config: SerialArmConfig) -> list[int]:

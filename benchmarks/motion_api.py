@@ -1,0 +1,287 @@
+"""The motion API's per-cycle figures: servo_joints command-to-motion latency, reaction latency from a simulated
+contact, and the core's compute time with reactions and a stream, each against a baseline from the same run.
+
+Usage: python benchmarks/motion_api.py [--pairs 15] [--quick] [--only latency,reaction,compute]
+Needs root for SCHED_FIFO (as `plem launch` on a real machine). Windows alternate which side goes first.
+
+latency   One `plem launch bus:=mock robot_id:=bench_api_<hex> bridge:=false record:=false` (Indy7 v2, 1 kHz,
+          SCHED_FIFO 98), driven from this process through `plem.bridge.connect`. A stream window writes 200
+          `servo_joints` samples about 1 ms apart (a small sine on every joint) and, after each, waits until the core
+          reports it used it: the core's own figure is the time from the sample's stamp (taken as it is written) to
+          the cycle that first used it. The baseline window sends 20 small `move_joints` through the command
+          service, the way plem took commands before streaming, and times each from the call to its acceptance
+          (the cycle that started it). Figures in cycles of 1 ms; per pair the ratio of medians, stream / baseline.
+          Target: stream p99 <= 2 cycles.
+reaction  An in-process Indy7 v2 on MockBus with dynamics, its core on its own thread at 1 kHz, SCHED_FIFO 98, during
+          a slow motion. The simulator pushes the flange with 40 N along x; a reaction FORCE_X > 20 → Stop() ends
+          the motion from the core. The baseline is the same condition in a Python thread that polls the core's
+          estimate as fast as it can and calls stop(). Both are timed from the push (the time it was written) to
+          the cycle that ended the motion (the motion-finished event's stamp), so both include the same physical
+          delay before the estimate crosses 20 N; the difference is the reaction's own. The in-core figure that the
+          issue bounds, cycles from the cycle that measured the condition to the action, is checked in every trial
+          (the event is stamped in that very cycle) and by tests/integration/test_reactions.py.
+          Target: in-core reaction <= 1 cycle after the condition is measured.
+compute   The same in-process robot. The measured window: 8 standing reactions of 3 comparisons each (none fires)
+          and a `servo_joints` stream at 500 Hz; the baseline window: the arm holding with no reaction and no
+          stream. The core's own compute time per cycle (its histogram over the window, the simulated arm's
+          dynamics included on both sides), p99 per window. Target: median ratio <= 1.2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import launching
+import numpy as np
+from loop_latency import Percentiles, Snapshot, window_max_us
+
+from plem.bridge import connect
+from plem.control.events import EventKind
+from plem.control.modes import Mode
+from plem.control.reactions import Measure, Record, Stop
+from plem.fieldbus.mock import MockBus
+from plem.robot import Indy7V2, Robot
+
+PRIORITY = 98
+CYCLE_NS = 1_000_000
+
+
+def spread(values: list[float]) -> str:
+    return f"{statistics.median(values):.2f} ({min(values):.2f}-{max(values):.2f})"
+
+
+# -- latency -----------------------------------------------------------------------------------------------------------
+def stream_window(client, start: np.ndarray, samples: int) -> list[float]:
+    """Core-reported latency (cycles) of each of `samples` servo_joints samples."""
+    cycles = []
+    for k in range(samples):
+        target = start + 0.02 * np.sin(k * 0.03)
+        count = client.servo_joints(target, timeout=0.2)
+        deadline = time.monotonic() + 0.05
+        while (status := client.stream_status()).used_count < count and time.monotonic() < deadline:
+            time.sleep(0.0001)
+        if status.used_count >= count:
+            cycles.append(status.latency_ns / CYCLE_NS)
+        time.sleep(0.001)
+    client.stop().wait(5.0)
+    while client.live_state().mode is Mode.TRAJECTORY:
+        time.sleep(0.01)
+    return cycles
+
+
+def command_window(client, start: np.ndarray, moves: int) -> list[float]:
+    """Time (cycles) from a move_joints call to its acceptance by the core."""
+    cycles = []
+    for k in range(moves):
+        began = time.monotonic_ns()
+        handle = client.move_joints(start + (0.01 if k % 2 else 0.0), speed_scale=1.0)
+        cycles.append((time.monotonic_ns() - began) / CYCLE_NS)
+        handle.wait(10.0)
+    return cycles
+
+
+def measure_latency(pairs: int, samples: int, moves: int) -> bool:
+    robot_id = f"bench_api_{os.urandom(3).hex()}"
+    children: list = []
+    env = dict(os.environ)
+    rows = []
+    with tempfile.TemporaryDirectory() as directory:
+        try:
+            launching.launch(robot_id, env, Path(directory) / "launch.log", children, bridge=False, record=False)
+            client = connect(robot_id)
+            launching.first_sample(client, 1.0)
+            client.set_mode("hold")
+            start = client.live_state().command_position.copy()
+            for pair in range(pairs):
+                order = ("stream", "command") if pair % 2 == 0 else ("command", "stream")
+                got = {side: (stream_window(client, start, samples) if side == "stream"
+                              else command_window(client, start, moves)) for side in order}
+                rows.append(got)
+                print(f"pair {pair + 1:2d}: stream p50 {np.median(got['stream']):.2f} p99 "
+                      f"{np.percentile(got['stream'], 99):.2f} max {max(got['stream']):.2f} cycles | move_joints p50 "
+                      f"{np.median(got['command']):.2f} p99 {np.percentile(got['command'], 99):.2f} cycles", flush=True)
+            client.close()
+        finally:
+            launching.stop_all(children)
+    stream = np.concatenate([r["stream"] for r in rows])
+    command = np.concatenate([r["command"] for r in rows])
+    ratios = [float(np.median(r["stream"]) / np.median(r["command"])) for r in rows]
+    met = float(np.percentile(stream, 99)) <= 2.0
+    print(f"\nservo_joints command-to-motion, {len(stream)} samples: p50 {np.median(stream):.2f}, p99 "
+          f"{np.percentile(stream, 99):.2f}, max {stream.max():.2f} cycles of 1 ms")
+    print(f"baseline move_joints call-to-acceptance, {len(command)} commands: p50 {np.median(command):.2f}, p99 "
+          f"{np.percentile(command, 99):.2f} cycles")
+    print(f"ratio of medians stream / baseline per pair: {spread(ratios)}")
+    print(f"target (stream p99 <= 2 cycles): {launching.verdict(met)}")
+    return met
+
+
+# -- an in-process robot on its real-time thread -----------------------------------------------------------------------
+def started_robot() -> Robot:
+    config = Indy7V2(rt_priority=PRIORITY)
+    config.custom_bus = MockBus(config.dof)
+    robot = Robot.builder(config).build()
+    robot.start()
+    robot.set_mode("hold")
+    return robot
+
+
+def ns_of_motion_end(robot: Robot, after_cycle: int, timeout: float) -> int | None:
+    """The stamp of the first motion-finished event after `after_cycle`."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for event in robot.events.recent({EventKind.MOTION_FINISHED}):
+            if event.cycle >= after_cycle:
+                return event.monotonic_ns
+        time.sleep(0.001)
+    return None
+
+
+def reaction_trial(robot: Robot, in_core: bool) -> tuple[float, bool]:
+    """Cycles from a 40 N push to the cycle that ended the motion; and whether the in-core reaction acted in the
+    cycle it measured (its event's value already past the threshold)."""
+    start = robot.state().position.copy()
+    reaction = robot.on(Measure.FORCE_X > 20.0, Stop(), once=True) if in_core else None
+    record = robot.on(Measure.FORCE_X > 20.0, Record(), once=True)
+    handle = robot.move_joints(start + np.where(start > 0, -0.6, 0.6), speed_scale=0.2)
+    time.sleep(0.3)
+    stop = threading.Event()
+    poller = None if in_core else threading.Thread(target=poll_and_stop, args=(robot, stop), daemon=True)
+    if poller is not None:
+        poller.start()
+    cycle, pushed = robot.runtime.cycle_count, time.monotonic_ns()
+    robot.simulator.push("link6", force=(40.0, 0.0, 0.0))
+    ended = ns_of_motion_end(robot, cycle, 5.0)
+    robot.simulator.release()
+    stop.set()
+    if poller is not None:
+        poller.join()
+    handle.wait(10.0) if not handle.done else None
+    fired = [e for e in robot.events.recent({EventKind.REACTION}) if e.cycle >= cycle]
+    same_cycle = bool(fired) and "measured" in fired[0].reason
+    for armed in (reaction, record):
+        if armed is not None:
+            armed.remove()
+    time.sleep(0.5)
+    robot.move_joints(start.tolist()).wait(30.0)
+    return (float("nan") if ended is None else (ended - pushed) / CYCLE_NS), same_cycle
+
+
+def poll_and_stop(robot: Robot, stop: threading.Event) -> None:
+    """What a user does without in-core reactions: watch the estimate from Python and stop."""
+    while not stop.is_set():
+        if robot.stream_status().wrench[0] > 20.0:
+            robot.stop()
+            return
+
+
+def measure_reaction(pairs: int) -> bool:
+    robot = started_robot()
+    rows = []
+    try:
+        for pair in range(pairs):
+            order = (True, False) if pair % 2 == 0 else (False, True)
+            got = {side: reaction_trial(robot, side) for side in order}
+            rows.append(got)
+            print(f"pair {pair + 1:2d}: push to end, in-core reaction {got[True][0]:.2f} cycles | Python poller "
+                  f"{got[False][0]:.2f} cycles", flush=True)
+    finally:
+        robot.shutdown()
+    core = [r[True][0] for r in rows]
+    python = [r[False][0] for r in rows]
+    differences = [p - c for c, p in zip(core, python, strict=True)]
+    print(f"\npush to the cycle that ended the motion: in-core median {spread(core)} cycles, Python poller median "
+          f"{spread(python)} cycles; the poller is later by {spread(differences)} cycles")
+    met = all(r[True][1] for r in rows)
+    print(f"target (the in-core reaction acts in the cycle that measured its condition, every trial): "
+          f"{launching.verdict(met)}")
+    return met
+
+
+# -- compute -----------------------------------------------------------------------------------------------------------
+def compute_window(robot: Robot, seconds: float, busy: bool) -> int:
+    """p99 of the core's compute time (µs) over a window, with 8 reactions and a stream when `busy`."""
+    reactions = []
+    if busy:
+        for joint in range(6):
+            reactions.append(robot.on((Measure.external_torque(joint) > 1000.0) | (Measure.position(joint) > 100.0)
+                                      | (Measure.following_error(joint) > 10.0), Record()))
+        reactions.append(robot.on((Measure.FORCE_Z > 1e4) & (Measure.MOTION_TIME > 0.0), Record()))
+        reactions.append(robot.on((Measure.TORQUE_X > 1e4) | ~(Measure.velocity(0) < 100.0), Record()))
+    start = robot.state().position.copy()
+    stats = robot.loop.stats
+    began = Snapshot.of(stats)
+    end = time.monotonic() + seconds
+    k = 0
+    while time.monotonic() < end:
+        if busy:
+            robot.servo_joints(start + 0.01 * np.sin(k * 0.02), timeout=0.2)
+            k += 1
+        time.sleep(0.002)
+    finished = Snapshot.of(stats)
+    for reaction in reactions:
+        reaction.remove()
+    if busy:
+        robot.stop().wait(5.0)
+        wait_until(lambda: robot.mode is Mode.HOLD, 5.0)
+    compute = finished.compute - began.compute
+    return Percentiles.of(compute, window_max_us(compute, stats.compute.max_ns)).p99
+
+
+def wait_until(condition: Callable[[], bool], timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.005)
+
+
+def measure_compute(pairs: int, seconds: float) -> bool:
+    robot = started_robot()
+    rows = []
+    try:
+        for pair in range(pairs):
+            order = (True, False) if pair % 2 == 0 else (False, True)
+            got = {busy: compute_window(robot, seconds, busy) for busy in order}
+            rows.append(got)
+            print(f"pair {pair + 1:2d}: compute p99 with 8 reactions and a stream {got[True]} µs | holding "
+                  f"{got[False]} µs | ratio {got[True] / got[False]:.2f}", flush=True)
+    finally:
+        robot.shutdown()
+    ratios = [r[True] / r[False] for r in rows]
+    met = statistics.median(ratios) <= 1.2
+    print(f"\ncompute p99 with 8 reactions and a stream / holding: median {spread(ratios)}; µs medians "
+          f"{statistics.median(r[True] for r in rows)} / {statistics.median(r[False] for r in rows)}")
+    print(f"target (median ratio <= 1.2): {launching.verdict(met)}")
+    return met
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pairs", type=int, default=15)
+    parser.add_argument("--quick", action="store_true", help="3 pairs, shorter windows")
+    parser.add_argument("--only", default="latency,reaction,compute")
+    options = parser.parse_args()
+    pairs = 3 if options.quick else options.pairs
+    print(f"# motion API: {launching.begin_run()}")
+    parts = options.only.split(",")
+    met = True
+    if "latency" in parts:
+        print("\n## servo_joints command-to-motion latency")
+        met &= measure_latency(pairs, 60 if options.quick else 200, 6 if options.quick else 20)
+    if "reaction" in parts:
+        print("\n## reaction latency from a simulated contact")
+        met &= measure_reaction(pairs)
+    if "compute" in parts:
+        print("\n## core compute with 8 standing reactions and a stream")
+        met &= measure_compute(pairs, 1.0 if options.quick else 2.0)
+    return 0 if met else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
