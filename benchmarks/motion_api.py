@@ -38,9 +38,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import launching
 import numpy as np
-from loop_latency import Percentiles, Snapshot, window_max_us
 
 from plem.bridge import connect
 from plem.control.events import EventKind
@@ -48,6 +46,9 @@ from plem.control.modes import Mode
 from plem.control.reactions import Measure, Record, Stop
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
+
+import launching
+from loop_latency import Percentiles, Snapshot, window_max_us
 
 PRIORITY = 98
 CYCLE_NS = 1_000_000
