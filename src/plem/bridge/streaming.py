@@ -9,6 +9,7 @@ stream ends when its samples stop for its timeout (the arm comes to rest), on `s
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -106,15 +107,16 @@ class StreamingCalls:
     def _sample(self, kind: str, values: np.ndarray, timeout: float) -> int:
         return self._write_sample(kind, values, timeout)[1]
 
-    def _write_sample(self, kind: str, values: np.ndarray, timeout: float) -> tuple[int, int]:
-        """Write one sample, opening a stream first when none is open (or its timeout differs): its session and
-        number."""
+    def _write_sample(self, kind: str, values: np.ndarray, timeout: float,
+                      stamp_ns: int | None = None) -> tuple[int, int]:
+        """Write one sample (stamped now, or at `stamp_ns`), opening a stream first when none is open (or its
+        timeout differs): its session and number."""
         timeout = stream_timeout(timeout)
         opened = self._stream
         if opened is None or opened[1].done or opened[2] != timeout:
             session, handle = self._open_stream(timeout)
             opened = self._stream = (session, handle, timeout)
-        count = self._stream_block().write(opened[0], kind, values)
+        count = self._stream_block().write(opened[0], kind, values, stamp_ns)
         self._last_sample = (opened[0], count, kind, values)
         return opened[0], count
 
@@ -123,8 +125,8 @@ class StreamingCalls:
                    timeout: float = DEFAULT_TIMEOUT_S) -> CartesianStep:
         """Stream a tool twist (vx, vy, vz in m/s, then wx, wy, wz in rad/s) in the base or the tool frame's axes.
 
-        Each call moves the joint target by one Cartesian servo step over the time since the previous call (on the
-        loop's clock, at most `timeout`), slowed near singularities and joint limits; the step's scale and reason
+        Each call moves the joint target by one Cartesian servo step over the time since the previous call (at most
+        `timeout`), slowed near singularities and joint limits; the step's scale and reason
         come back and `servo_status()` keeps them. Without a new call for `timeout` s the arm comes to rest.
         """
         from plem.bridge.cartesian_streaming import base_twist, twist_frame, twist_values
@@ -141,21 +143,25 @@ class StreamingCalls:
         from plem.bridge.cartesian_streaming import pose_placement
         target = pose_placement(pose)
         return self._cartesian_sample(lambda servo, q, dt: servo.approach_twist(servo.tool_pose(q), target, dt),
-                                      timeout, ramp_down=False)
+                                      timeout, twist_stream=False)
 
     def servo_status(self) -> ServoStatus:
         """The core's stream status with the last Cartesian step's target, scale, reason and singular value."""
         from plem.bridge.cartesian_streaming import ServoStatus
         return ServoStatus(self.stream_status(), None if self._cartesian is None else self._cartesian.last)
 
-    def _cartesian_sample(self, asked: TwistFunction, timeout: float, ramp_down: bool = True) -> CartesianStep:
+    def _cartesian_sample(self, asked: TwistFunction, timeout: float, twist_stream: bool = True) -> CartesianStep:
         """Run one servo step from the reference and stream its joint target."""
         timeout = stream_timeout(timeout)
         streamer = self._cartesian_streamer()
-        state = self.live_state()
-        servo_step, reason, period = streamer.step(state, self._followed_target(), timeout, asked, ramp_down)
-        session, sample = self._write_sample("position", servo_step.q, timeout)
-        return streamer.streamed(sample, session, servo_step, reason, period, state.cycle)
+        state, now_ns = self.live_state(), time.monotonic_ns()
+        servo_step, reason, period = streamer.step(state, self._followed_target(), timeout, now_ns, asked,
+                                                     twist_stream)
+        if period == 0.0 and streamer.last is not None:   # called again at the same instant: nothing new to send
+            return streamer.last
+        # stamped with the instant the target is for, from which the core's follower takes the targets' velocity
+        session, sample = self._write_sample("position", servo_step.q, timeout, now_ns)
+        return streamer.streamed(sample, session, servo_step, reason, period, now_ns)
 
     def _cartesian_streamer(self) -> CartesianStreamer:
         if self._cartesian is None:

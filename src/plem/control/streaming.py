@@ -112,15 +112,16 @@ class StreamBlock:
             self._segment.close()
             SharedSegment.unlink(self._segment.name)
 
-    def write(self, session: int, kind: str, targets: Sequence[float] | np.ndarray) -> int:
-        """Write one sample of stream `session`; returns its number. Targets are checked by the caller."""
+    def write(self, session: int, kind: str, targets: Sequence[float] | np.ndarray, stamp_ns: int | None = None) -> int:
+        """Write one sample of stream `session`, stamped now or at `stamp_ns` (CLOCK_MONOTONIC: the time the
+        targets are for, later than the last sample's); returns its number. Targets are checked by the caller."""
         values = np.zeros(len(self._view["target"]), np.float64)
         values[:self.dof] = targets
         code = KINDS[kind]
         view = self._view
         with self._lock:
             self._count += 1
-            stamp = time.monotonic_ns()
+            stamp = time.monotonic_ns() if stamp_ns is None else stamp_ns
             total = checksum(session, self._count, code, stamp, values[:self.dof])
             sequence = int(view["sequence"])
             view["sequence"] = sequence + 1 if sequence % 2 == 0 else sequence + 2
