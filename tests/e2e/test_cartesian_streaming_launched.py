@@ -21,10 +21,10 @@ from tests.e2e.test_streaming_launched import SAMPLE_PERIOD_S, Recorder, within_
 #: An Indy7 pose with the elbow bent and the wrist turned down, far from singularities and limits.
 START = [0.0, -0.4, -1.6, 0.0, -1.1, 0.0]
 #: How far the commanded tool may leave the asked line (m, rad): each joint's jerk-limited follower lags its
-#: targets by its own amount while the twist changes speed (under 1 mm measured at 0.1 m/s, the targets themselves
-#: within 0.24 mm), with room for samples a loaded machine writes late.
-LINE_TOLERANCE_M = 0.002
-ANGLE_TOLERANCE_RAD = 0.01
+#: targets by its own amount while the twist changes speed and as samples arrive unevenly; measured 0.8 to 1.5 mm
+#: and 3 to 6 mrad at 0.1 m/s on a loaded two-core machine (the targets themselves within 0.25 mm): twice that.
+LINE_TOLERANCE_M = 0.003
+ANGLE_TOLERANCE_RAD = 0.012
 
 
 @pytest.fixture(scope="module")

@@ -126,8 +126,8 @@ class StreamingCalls:
         """Stream a tool twist (vx, vy, vz in m/s, then wx, wy, wz in rad/s) in the base or the tool frame's axes.
 
         Each call moves the joint target by one Cartesian servo step over the time since the previous call (at most
-        `timeout`), slowed near singularities and joint limits; the step's scale and reason
-        come back and `servo_status()` keeps them. Without a new call for `timeout` s the arm comes to rest.
+        `timeout`), slowed near singularities and joint limits; the step's scale and reason come back and
+        `servo_status()` keeps them. Without a new call for `timeout` s the arm comes to rest (docs/motion.md).
         """
         from plem.bridge.cartesian_streaming import base_twist, twist_frame, twist_values
         velocity, axes = twist_values(twist), twist_frame(frame)
