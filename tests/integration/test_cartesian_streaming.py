@@ -159,3 +159,17 @@ def test_bad_twists_frames_and_poses_are_refused_before_anything_is_streamed(rob
     with pytest.raises(CommandRejected, match="stream timeout"):
         robot.speed_tool([0.1, 0, 0, 0, 0, 0], timeout=0.0)
     assert robot._stream is None and robot.servo_status().step is None
+
+
+def test_a_cartesian_step_starts_from_the_last_target_streamed_while_the_stream_runs(robot: Robot) -> None:
+    target = np.array(START) + [0.2, 0.0, 0.0, 0.0, 0.0, 0.0]
+    robot.servo_joints(target)
+    robot.step(4)
+    lagging = robot.state().command_position
+    assert np.abs(lagging - target).max() > 0.1   # the arm is far from the joint target still
+    step = robot.speed_tool([0.05, 0, 0, 0, 0, 0])
+    assert np.abs(step.target - target).max() < 1e-3   # one cycle's step from the joint target, not from the arm
+    robot.step(300)   # the stream ends: the next step starts from the arm, at rest where it stopped
+    at_rest = robot.state().command_position
+    step = robot.speed_tool([0.05, 0, 0, 0, 0, 0])
+    assert np.abs(step.target - at_rest).max() < 1e-3 and step.period_s == robot.runtime.dt
