@@ -166,11 +166,12 @@ class CartesianStreamer:
         reference = followed[1] if followed is not None else state.command_position
         here = self.servo.tool_pose(reference)
         wanted = asked(self.servo, reference, period)
-        full = self.servo.twist_step(reference, wanted, period)
-        share = self._reachable_share((full.q - reference) / period, period, twist_stream)
+        correction = np.zeros(6) if self._line is None else _difference(here, self._line) / period
+        step = self.servo.twist_step(reference, wanted + correction, period)
+        share = self._reachable_share((step.q - reference) / period, period, twist_stream)
         twist = wanted if share >= 1.0 else self._twist + share * (wanted - self._twist)
-        aim = twist if self._line is None else twist + _difference(here, self._line) / period
-        step = full if share >= 1.0 and self._line is None else self.servo.twist_step(reference, aim, period)
+        if share < 1.0:
+            step = self.servo.twist_step(reference, twist + correction, period)
         velocity = (step.q - reference) / period
         braking = self._braking_share(step, velocity, period)
         velocity *= braking
