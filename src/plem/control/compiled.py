@@ -125,7 +125,7 @@ TERM = _checked("plem_term", [("op", "<i4"), ("measure", "<i4"), ("index", "<i4"
 #: One reaction slot of the core (plem.control.reactions writes them).
 REACTION = _checked("plem_reaction", [("token", "<u8"), ("motion", "<u8"), ("armed", "<i4"), ("terms", "<i4"),
                                       ("action", "<i4"), ("once", "<i4"), ("was_true", "<i4"), ("pad", "<i4"),
-                                      ("target", "<f8", J), ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"])])
+                                      ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"]), ("target", "<f8", J)])
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
 RING = _checked("plem_ring", _RING_FIELDS)
@@ -150,7 +150,7 @@ ARM = _checked("plem_arm", [
     ("pending_enable_sent", "<i4"), ("pad3", "<i4"),
     ("stop_knots", "<f8", STOP_SEGMENTS + 1), ("stop_coefficients", "<f8", STOP_SEGMENTS * ORDER * J),
     ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("override", OVERRIDE),
-    ("stream", STREAM), ("feeling", "<i4"), ("pad5", "<i4"), ("external", "<f8", J), ("wrench", "<f8", 6),
+    ("stream", STREAM), ("feeling", "<i4"), ("reacting", "<u4"), ("external", "<f8", J), ("wrench", "<f8", 6),
     ("reactions", REACTION, CONSTANTS["PLEM_REACTIONS"]),
     ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),
     ("outcomes_index", RING), ("outcomes", OUTCOME, CONSTANTS["PLEM_OUTCOME_SLOTS"]),

@@ -185,6 +185,13 @@ static int active_motion(plem_arm *arm, const plem_slab *slab, plem_motion *moti
     return 1;
 }
 
+/* Arm or disarm a reaction slot: its flag (which Python reads) and its bit in the set the cycle walks. */
+static void set_armed(plem_arm *arm, int slot, int armed) {
+    arm->reactions[slot].armed = armed;
+    if (armed) arm->reacting |= 1u << slot;
+    else arm->reacting &= ~(1u << slot);
+}
+
 static int override_ramping(const plem_override *o) { return o->factor != o->target || o->rate != 0.0; }
 
 /* A new basis: plans made from the old one are stale from now on (the seqlock keeps readers from tearing it). */
@@ -559,7 +566,8 @@ static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c)
     case PLEM_OP_UNREACT:
         if (c->slot < 0 || c->slot >= PLEM_REACTIONS)
             return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, c->slot, 0);
-        arm->reactions[c->slot].armed = c->op == PLEM_OP_REACT, arm->reactions[c->slot].was_true = 0;
+        set_armed(arm, c->slot, c->op == PLEM_OP_REACT);
+        arm->reactions[c->slot].was_true = 0;
         answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
         break;
     case PLEM_OP_PAYLOAD: set_payload(arm, c); break;
@@ -666,7 +674,7 @@ static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, d
     plem_reaction *r = &arm->reactions[slot];
     emit(arm, PLEM_EVENT_REACTION, PLEM_CAUSE_REACTION, -1, slot, r->action, r->token, value, threshold, 0, 0);
     int enabled = arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY;   /* the drives follow the command */
-    if (r->once || r->motion) r->armed = 0;
+    if (r->once || r->motion) set_armed(arm, slot, 0);
     switch (r->action) {
     case PLEM_REACT_STOP:
         if (arm->active && arm->active_token) {
@@ -693,11 +701,11 @@ static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, d
 
 /* Every armed reaction, on what this cycle measured: an action starts in the cycle its condition rises. */
 static void react(plem_arm *arm, const plem_slab *slab) {
-    for (int slot = 0; slot < PLEM_REACTIONS; slot++) {
+    for (uint32_t left = arm->reacting; left; left &= left - 1) {   /* the armed slots only: their bits */
+        int slot = __builtin_ctz(left);
         plem_reaction *r = &arm->reactions[slot];
-        if (!r->armed) continue;
         if (r->motion && !(arm->active && arm->active_token == r->motion)) {
-            r->armed = 0;   /* its motion ended (or never ran) */
+            set_armed(arm, slot, 0);   /* its motion ended (or never ran) */
             continue;
         }
         double value;
@@ -856,14 +864,15 @@ static void read_stream(plem_arm *arm, plem_stream_block *block) {
     if (!block) return;
     _Atomic uint64_t *sequence = (_Atomic uint64_t *)&block->sequence;
     uint64_t before = atomic_load_explicit(sequence, memory_order_acquire);
-    if (before & 1) return;
-    uint64_t session = block->session, count = block->count, checksum = block->checksum;
+    uint64_t session = block->session, count = block->count;
+    if ((before & 1) || session != st->session || count == st->last_count) return;   /* nothing new: one line read */
+    uint64_t checksum = block->checksum;
     int64_t kind = block->kind, stamp = block->stamp_ns;
     double target[PLEM_MAX_JOINTS];
     memcpy(target, block->target, (size_t)n * sizeof(double));
     atomic_thread_fence(memory_order_acquire);
-    if (atomic_load_explicit(sequence, memory_order_relaxed) != before || session != st->session
-        || count == st->last_count || checksum != stream_checksum(session, count, kind, stamp, target, n)
+    if (atomic_load_explicit(sequence, memory_order_relaxed) != before
+        || checksum != stream_checksum(session, count, kind, stamp, target, n)
         || (kind != PLEM_STREAM_POSITION && kind != PLEM_STREAM_VELOCITY))
         return;
     for (int i = 0; i < n; i++)

@@ -46,8 +46,12 @@ void plem_follow(double *p, double *v, double *a, double target_position, double
         goal = target_velocity + copysign(toward, error);
     }
     goal = clamp(goal, -speed, speed);
-    goal = fmin(goal, braking_speed(high - ahead, BRAKE * A, BRAKE * J));
-    goal = fmax(goal, -braking_speed(ahead - low, BRAKE * A, BRAKE * J));
+    /* a limit closer than a stop from the wanted speed takes: brake for it (farther, it cannot bind) */
+    double a_brake = BRAKE * A, j_brake = BRAKE * J, w = fabs(goal);
+    double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
+                                                             + w * sqrt(w / j_brake);
+    if (goal > 0.0 && high - ahead < stop) goal = fmin(goal, braking_speed(high - ahead, a_brake, j_brake));
+    if (goal < 0.0 && ahead - low < stop) goal = fmax(goal, -braking_speed(ahead - low, a_brake, j_brake));
     double next = plem_approach(*v, *a, goal, A, J, dt);
     double velocity = clamp(*v + (*a + next) * dt / 2.0, -max_velocity, max_velocity);
     double position = *p + (*v + velocity) * dt / 2.0 + (*a - next) * dt * dt / 12.0;

@@ -611,7 +611,7 @@ static const field TERM_FIELDS[] = {
 static const field REACTION_FIELDS[] = {
     FIELD(plem_reaction, token), FIELD(plem_reaction, motion), FIELD(plem_reaction, armed), FIELD(plem_reaction, terms),
     FIELD(plem_reaction, action), FIELD(plem_reaction, once), FIELD(plem_reaction, was_true),
-    FIELD(plem_reaction, target), FIELD(plem_reaction, term), {NULL, 0, 0}};
+    FIELD(plem_reaction, term), FIELD(plem_reaction, target), {NULL, 0, 0}};
 
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
@@ -667,7 +667,7 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
     FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
     FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, override),
-    FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, external), FIELD(plem_arm, wrench),
+    FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, reacting), FIELD(plem_arm, external), FIELD(plem_arm, wrench),
     FIELD(plem_arm, reactions),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
     FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};

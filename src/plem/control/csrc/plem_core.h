@@ -335,8 +335,8 @@ typedef struct {
     int32_t once;                    /* removed once it fired; else it fires on each rise of its condition */
     int32_t was_true;
     int32_t pad;
+    plem_term term[PLEM_REACTION_TERMS];   /* next to the header: a cycle reads both together */
     double target[PLEM_MAX_JOINTS];  /* move: the joint target */
-    plem_term term[PLEM_REACTION_TERMS];
 } plem_reaction;
 
 #define PLEM_COMMAND_SLOTS 64
@@ -536,7 +536,7 @@ typedef struct {
     /* what the arm feels: the model's effort for the command less the measured (estimated when the model's
      * effort is known: drives enabled, not in free drive) */
     int32_t feeling;                 /* 1 while the estimate below is current */
-    int32_t pad5;
+    uint32_t reacting;               /* bit k set while reactions[k] is armed */
     double external[PLEM_MAX_JOINTS];
     double wrench[6];
     plem_reaction reactions[PLEM_REACTIONS];
