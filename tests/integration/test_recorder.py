@@ -80,11 +80,12 @@ def log_kinds(directory: Path) -> list[str]:
     return [entry["kind"] for entry in read_event_log(directory)]
 
 
-def fault(recorder: Recorder, clock: Clock, cycle: int) -> None:
+def fault(recorder: Recorder, clock: Clock, cycle: int, kind: EventKind = EventKind.FAULT,
+          reason: str = "joint2 drive fault 0x7121") -> None:
     stamp = START + cycle * 1_000_000
     clock.now = stamp
-    event = Event(EventKind.FAULT, "drive_fault", "joint2 drive fault 0x7121", Mode.FAULT, cycle, stamp, 0.0)
-    recorder.rt_event(library().new(MONITOR_TOPICS["rt_events"], kind="fault", cycle=cycle), event, stamp)
+    event = Event(kind, kind.value, reason, Mode.FAULT, cycle, stamp, 0.0)
+    recorder.rt_event(library().new(MONITOR_TOPICS["rt_events"], kind=kind.value, cycle=cycle), event, stamp)
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
@@ -152,6 +153,19 @@ def test_a_fault_keeps_the_window_before_it_against_retention(tmp_path: Path):
     assert 1000 not in cycles, "unkept old segments went"
     keep_marks = sorted(p.name for p in (tmp_path / "arm").glob("*.keep"))
     assert keep_marks == sorted(f"{name}.keep" for name in entry["kept"]) and len(keep_marks) == 2
+
+
+def test_a_reaction_keeps_the_window_before_it_as_a_fault_does(tmp_path: Path):
+    clock, disk = Clock(), Disk()
+    recorder = make(tmp_path, clock, disk, retention_s=1.0, flight_window_s=1.5)
+    feed(recorder, clock, range(3700))
+    fault(recorder, clock, 3700, EventKind.REACTION, "force x > 20 N (measured 23.5): stop")
+    entry = next(e for e in read_event_log(tmp_path / "arm") if e["kind"] == "reaction")
+    assert entry["cycle"] == 3700 and "force x > 20 N" in entry["reason"] and "reaction_time_ns" in entry
+    feed(recorder, clock, range(3701, 9000))
+    recorder.maintain()
+    recorder.close()
+    assert set(range(3700 - 1500, 3700)) <= {cycle for _, _, cycle in recorded(tmp_path / "arm")}
 
 
 def test_the_fault_offset_counts_from_the_segments_earliest_message(tmp_path: Path):

@@ -57,6 +57,10 @@ Clock = Callable[[], int]
 DiskUsage = Callable[[Path], tuple[int, int, int]]
 
 
+#: Events whose flight window the recorder keeps, and the word its log uses for each.
+_KEPT_KINDS = {EventKind.FAULT: "fault", EventKind.REACTION: "reaction"}
+
+
 @dataclass(frozen=True)
 class Messages:
     """Messages of one topic (its short name, rt_raw): stamps (ns, ascending) and equal-size payloads (messages ×
@@ -151,7 +155,7 @@ class Recorder:
         self.record([Messages.one("joint_states", wall_ns, message.serialize())])
 
     def rt_event(self, message: Any, event: Event, wall_ns: int) -> None:
-        """Record an RtEvent; a fault also keeps the segments of the flight window before it."""
+        """Record an RtEvent; a fault or a reaction also keeps the segments of the flight window before it."""
         self.record([Messages.one("rt_events", wall_ns, message.serialize(), event)])
 
     def rt_monitor_stats(self, message: Any, wall_ns: int) -> None:
@@ -185,8 +189,8 @@ class Recorder:
             except OSError as error:
                 self._stop(error)
             for part in here:
-                if part.event is not None and part.event.kind == EventKind.FAULT:
-                    self._keep_fault_window(part.event, int(part.stamps[0]))
+                if part.event is not None and part.event.kind in _KEPT_KINDS:
+                    self._keep_window(part.event, int(part.stamps[0]))
 
     def _append(self, segment: SegmentWriter, batch: list[Messages]) -> None:
         segment.append_groups([(f"{self.namespace}/{messages.name}", messages.stamps, messages.payloads)
@@ -388,9 +392,10 @@ class Recorder:
             self._repair(Path(stopped.interrupted))
 
     # -- the flight recorder ---------------------------------------------------------------------------
-    def _keep_fault_window(self, event: Event, wall_ns: int) -> None:
-        """Put the seconds before a fault on disk, keep their segments, and log the fault's bag position."""
-        reason = f"fault at {iso_time(wall_ns)}: {event.reason}"
+    def _keep_window(self, event: Event, wall_ns: int) -> None:
+        """Put the seconds before a fault (or a reaction) on disk, keep their segments, and log its bag position."""
+        kind = _KEPT_KINDS[event.kind]
+        reason = f"{kind} at {iso_time(wall_ns)}: {event.reason}"
         window_start = wall_ns - round(self.settings.flight_window_s * 1e9)
         kept = []
         for index, segment in enumerate(self.closed):
@@ -411,8 +416,8 @@ class Recorder:
             position = {"segment": self.segment.name, "offset_s": round((wall_ns - start) / 1e9, 3)}
         where = (f"segment {position['segment']} at {position['offset_s']:.3f} s" if position["segment"]
                  else "not recorded (recording stopped)")
-        self.archive.log("fault", f"fault at cycle {event.cycle} ({event.reason}): {where}; kept {', '.join(kept)}",
-                         logging.WARNING, cycle=event.cycle, reason=event.reason, fault_time_ns=wall_ns,
+        self.archive.log(kind, f"{kind} at cycle {event.cycle} ({event.reason}): {where}; kept {', '.join(kept)}",
+                         logging.WARNING, cycle=event.cycle, reason=event.reason, **{f"{kind}_time_ns": wall_ns},
                          time_in_bag=iso_time(wall_ns), **position, kept=kept,
                          window_s=self.settings.flight_window_s)
 
