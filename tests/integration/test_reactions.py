@@ -10,7 +10,7 @@ from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.control.payload import Payload
 from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
-from plem.control.trajectory import TrajectoryOutcome
+from plem.control.trajectory import JointTrajectory, TrajectoryOutcome
 from plem.errors import PlemError
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
@@ -142,3 +142,16 @@ def test_a_payload_given_at_build_is_in_the_core_model_from_the_first_cycle() ->
 
     plain, loaded = built(None), built(Payload(3.0, (0.0, 0.0, 0.1)))
     assert loaded.runtime.arm[0]["model"]["mass"][5] == pytest.approx(plain.runtime.arm[0]["model"]["mass"][5] + 3.0)
+
+
+def test_until_stops_an_executed_trajectory_too(robot: Robot) -> None:
+    start = robot.state().position.copy()
+    trajectory = JointTrajectory.from_lists(list(robot.joint_names), [
+        {"positions": list(start), "time_from_start": 0.0},
+        {"positions": list(start + 0.6), "time_from_start": 4.0}])
+    handle = robot.execute_trajectory(trajectory, until=Measure.FORCE_X > 20.0)
+    robot.step(500)
+    robot.bus.push("link6", force=(40.0, 0.0, 0.0))
+    result = handle.wait(10.0)
+    robot.bus.release()
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED and "until condition" in result.message

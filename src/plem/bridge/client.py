@@ -26,7 +26,7 @@ from plem.control.commands import CommandTimeout
 from plem.control.events import Event, newest_fault
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
-from plem.control.reactions import Action, Condition, Stop, reaction_json
+from plem.control.reactions import Action, Condition, reaction_json
 from plem.control.state import JointState
 from plem.control.streaming import StreamBlock, stream_block_name
 from plem.control.trajectory import JointTrajectory, TrajectoryTolerances
@@ -371,28 +371,27 @@ class RobotClient(PlanningCalls, StreamingCalls, ReactionCalls):
         `speed_scale` in [MIN_SPEED_SCALE, 1] (plem.ipc.request_bounds) scales time: 0.5 takes twice as long.
         With `until` (plem.control.reactions), the motion stops as soon as the condition holds, and succeeds.
         """
-        handle = self._send("move_joints", {"target": list(arguments.reals(target, "target")),
-                                            "speed_scale": arguments.real(speed_scale, "speed_scale"),
-                                            "tolerances": _tolerances(tolerances)}, accept_within=ACCEPT_TIMEOUT_S)
-        if until is not None:
-            self._arm_reaction(until, Stop(), handle, once=True)
-        return handle
+        return self._stop_when(self._send("move_joints", {"target": list(arguments.reals(target, "target")),
+                                                          "speed_scale": arguments.real(speed_scale, "speed_scale"),
+                                                          "tolerances": _tolerances(tolerances)},
+                                          accept_within=ACCEPT_TIMEOUT_S), until)
 
     def execute_trajectory(self, trajectory: JointTrajectory,
-                           tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None) -> RemoteHandle:
+                           tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None,
+                           until: Condition | None = None) -> RemoteHandle:
         """Follow a JointTrajectory (ros2_control spline semantics); returns once the driver accepted it.
 
         A trajectory that would break a limit is re-timed first (about a millisecond per point), so the wait
-        for acceptance grows with the number of points.
+        for acceptance grows with the number of points. `until` as for `move_joints`.
         """
         arguments.instance(trajectory, JointTrajectory, "trajectory", "a JointTrajectory (plem.control.trajectory)")
         points = [{"positions": list(p.positions), "time_from_start": p.time_from_start,
                    **({"velocities": list(p.velocities)} if p.velocities is not None else {}),
                    **({"accelerations": list(p.accelerations)} if p.accelerations is not None else {})}
                   for p in trajectory.points]
-        return self._send("execute_trajectory", {"joint_names": list(trajectory.joint_names), "points": points,
-                                                 "tolerances": _tolerances(tolerances)},
-                          accept_within=ACCEPT_TIMEOUT_S + RETIMING_S_PER_POINT * len(points))
+        request = {"joint_names": list(trajectory.joint_names), "points": points, "tolerances": _tolerances(tolerances)}
+        return self._stop_when(self._send("execute_trajectory", request, accept_within=ACCEPT_TIMEOUT_S
+                                          + RETIMING_S_PER_POINT * len(points)), until)
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""

@@ -48,7 +48,7 @@ from plem.control.modes import Mode
 from plem.control.motion import StartState, plan_point_to_point
 from plem.control.payload import Payload
 from plem.control.polynomial import PolynomialMotion
-from plem.control.reactions import Action, Condition, Stop
+from plem.control.reactions import Action, Condition
 from plem.control.runtime import ArmRuntime, RuntimeSettings
 from plem.control.state import JointState, StateBlock
 from plem.control.streaming import StreamBlock, override_factor, stream_timeout
@@ -353,18 +353,16 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
         """
         goal = self.limits.check_vector(arguments.reals(target, "target"), "the target")
         speed_scale = arguments.real(speed_scale, "speed_scale")
-        handle = self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(),
-                                             ""), tolerances, "move_joints")
-        if until is not None:
-            self._arm_reaction(until, Stop(), handle, once=True)
-        return handle
+        return self._stop_when(self._submit(lambda start: (plan_point_to_point(self.limits, start, goal,
+                                                                               speed_scale).polynomial(), ""),
+                                            tolerances, "move_joints"), until)
 
-    def execute_trajectory(self, trajectory: JointTrajectory,
-                           tolerances: TrajectoryTolerances | None = None) -> CommandHandle:
+    def execute_trajectory(self, trajectory: JointTrajectory, tolerances: TrajectoryTolerances | None = None,
+                           until: Condition | None = None) -> CommandHandle:
         """Follow a JointTrajectory with ros2_control's spline semantics, re-timed where it would break a limit.
 
         Refused up front only for what no timing can fix (see `plem.planning.fit_to_limits`); the result's
-        message says when and how the motion was re-timed.
+        message says when and how the motion was re-timed. `until` as for `move_joints`.
         """
         arguments.instance(trajectory, JointTrajectory, "trajectory", "a JointTrajectory (plem.control.trajectory)")
         point_count(len(trajectory.points))
@@ -374,7 +372,7 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
             timed = fit_to_limits(trajectory, self.limits.reaching(start[0]), start, self.runtime.dt)
             return timed.motion, timed.note()
 
-        return self._submit(plan, tolerances, "trajectory")
+        return self._stop_when(self._submit(plan, tolerances, "trajectory"), until)
 
     def _submit(self, plan: Callable[[StartState], tuple[PolynomialMotion, str]],
                 tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
