@@ -20,7 +20,7 @@ SANITIZED := build/sanitized
 # The core's tests, which call it through its Python face.
 CORE_TESTS := tests/unit/test_core_properties.py tests/unit/test_cia402.py tests/unit/test_polynomial.py \
 	tests/integration/test_mock_bus.py tests/integration/test_runtime.py tests/integration/test_core_thread.py \
-	tests/integration/test_core_master.py
+	tests/integration/test_core_master.py tests/integration/test_streaming.py tests/integration/test_reactions.py
 
 .PHONY: run test test-slow test-sanitized lint clean
 
