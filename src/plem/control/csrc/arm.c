@@ -682,7 +682,9 @@ static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, d
             start_stop(arm, slab);
         }
         break;
-    case PLEM_REACT_HOLD: arm->override.target = 0.0; break;
+    case PLEM_REACT_HOLD:
+        if (enabled) arm->override.target = 0.0;   /* a fault's stop runs at full speed, and a reset resumes at it */
+        break;
     case PLEM_REACT_FREE_DRIVE:
         if (!enabled) break;
         if (arm->active && arm->active_token) end_motion(arm, PLEM_ANSWER_REACTED, slot, value, threshold);
