@@ -366,7 +366,7 @@ def test_shm_group_makes_the_memory_group_readable(group_robot: tuple[Launch, gr
     files = shm_files(launch.robot_id)
     assert [path.name for path in files] == expected_files(launch.robot_id)
     private = {socket_path(launch.robot_id).name, *(name[1:] for ring, name in channel_names(launch.robot_id).items()
-                                                    if ring in (*PRIVATE_RINGS, "motions"))}
+                                                    if ring in (*PRIVATE_RINGS, "motions", "stream"))}
     for path in files:
         status = path.stat()
         if path.name in private:   # the command socket and what only the driver and its command service map

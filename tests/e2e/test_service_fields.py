@@ -14,7 +14,7 @@ import pytest
 
 from plem.cli.app import run
 from plem.cli.ros_messages import to_yaml
-from plem.middleware import controller_manager, moveit, parameters
+from plem.middleware import controller_manager, moveit, parameters, servo
 from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.goals import FJT
 from plem.middleware.graph import Graph
@@ -32,6 +32,7 @@ def served_types() -> set[str]:
     types |= {f"rcl_interfaces/srv/{kind}" for kind in parameters.SERVICES.values()}
     types |= {f"moveit_msgs/srv/{kind}" for kind in moveit.SERVICES.values()}
     types |= {service_type for action in ACTIONS for _, service_type in ActionNames("/a").services(action)}
+    types.add(servo.SPEED_SLIDER)
     return types
 
 
