@@ -22,7 +22,7 @@ from plem.control.events import Event, EventKind
 from plem.control.modes import Mode
 from plem.ipc.records import raw_record_length
 from plem.middleware.monitor_feed import MONITOR_TOPICS, QueueCount
-from plem.middleware.raw_cdr import RawEncoder, raw_dof, raw_dtype, raw_field
+from plem.middleware.raw_cdr import RawEncoder, raw_dof, raw_dtype, raw_field, raw_sizes
 from plem.middleware.types import library
 from plem.recording import plot
 from plem.recording.archive import Archive, iso_time
@@ -644,3 +644,30 @@ def test_plot_keeps_joints_on_one_path_apart_and_fault_labels_inside_their_panel
     [label] = [text for axes in figure.axes for text in axes.texts if text.get_gid() == "fault_label"]
     assert label.get_clip_on() and label.get_clip_box() is not None
     assert label.get_clip_box().bounds == label.axes.bbox.bounds, "clipped to its own panel"
+
+
+def test_bags_recorded_before_rtraw_had_a_speed_override_still_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    """An rt_raw recorded with RtRaw as it was (its definition without speed_override, in the bag): info and plot
+    read it as they read today's."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    text = (Path(__file__).parents[2] / "src/plem/middleware/interfaces/plem_msgs/msg/RtRaw.msg").read_text()
+    old_text = text[:text.index("# The speed override")]
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(old_text, MONITOR_TOPICS["rt_raw"]))
+    robot = tmp_path / "arm"
+    robot.mkdir()
+    writer = SegmentWriter(robot / "arm_2027_01_15-08_00_00", [("/arm/rt_raw", MONITOR_TOPICS["rt_raw"])], store)
+    encoder, values = RawEncoder(6), np.zeros(raw_record_length(6))
+    old_size = raw_sizes(6)[1]
+    for cycle in range(2000):
+        values[0], values[7:13] = cycle, np.arange(6) + cycle / 1000
+        payload = encoder.encode(values, START + cycle * 1_000_000)[:old_size]
+        assert store.deserialize_cdr(payload, MONITOR_TOPICS["rt_raw"]).cycle == cycle
+        writer.append("/arm/rt_raw", START + cycle * 1_000_000, payload)
+    writer.close()
+    assert run(["bag", "info", str(tmp_path)]) == 0
+    assert "rt_raw: 2000 samples" in capsys.readouterr().out
+    out = tmp_path / "arm.png"
+    assert run(["bag", "plot", str(tmp_path), "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
