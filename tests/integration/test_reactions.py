@@ -8,13 +8,14 @@ import pytest
 
 from plem.control.events import EventKind
 from plem.control.modes import Mode
+from plem.control.motion import plan_stop
 from plem.control.payload import Payload
 from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
 from plem.control.trajectory import JointTrajectory, TrajectoryOutcome
 from plem.errors import PlemError
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
-from tests.integration.robot_fixtures import RAW_ZERO, simulated_robot
+from tests.integration.robot_fixtures import RAW_ZERO, Trace, simulated_robot
 
 
 @pytest.fixture
@@ -155,3 +156,23 @@ def test_until_stops_an_executed_trajectory_too(robot: Robot) -> None:
     result = handle.wait(10.0)
     robot.bus.release()
     assert result.outcome is TrajectoryOutcome.SUCCEEDED and "until condition" in result.message
+
+
+def test_the_contact_stop_stops_within_the_quickest_stops_distance(robot: Robot) -> None:
+    """Stated distance: the core's quickest jerk-limited stop from the command at the fault (plan_stop), no more."""
+    trace = Trace.attach(robot)
+    robot.move_joints((robot.state().position + 0.8).tolist(), speed_scale=0.5)
+    robot.step(600)
+    robot.bus.push("link6", force=(150.0, 0.0, 0.0))
+    robot.step(200)
+    robot.bus.release()
+    robot.step(1500)
+    assert robot.mode is Mode.FAULT and "contact" in robot.fault_reason
+    modes, commands = trace.modes, trace.commands()
+    faulted = modes.index(Mode.FAULT)
+    before = commands[faulted - 1]
+    assert np.abs(before[1]).max() > 0.1, "the arm was moving when the contact stopped it"
+    stop = plan_stop(robot.limits, (before[0], before[1], before[2]))
+    travelled = np.abs(commands[-1, 0] - before[0])
+    stated = np.abs(stop.final_positions - before[0])
+    assert np.all(travelled <= stated + 1e-3)
