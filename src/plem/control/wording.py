@@ -87,7 +87,8 @@ class Wording:
             return f"{name} moves at {v[0]:.4g} rad/s, above its limit {v[1]:.4g} rad/s"
         if cause == C["PLEM_CAUSE_CONTACT"]:
             return (f"contact: the external torque on {name} is {v[0]:.4g} N·m, past its contact threshold "
-                    f"{v[1]:.4g} N·m; the arm stopped (reset_fault() holds it where it is)")
+                    f"{v[1]:.4g} N·m; the arm stopped (reset_fault() holds it where it is). A load on the flange "
+                    "that the model does not know pushes too: set it (robot.set_payload(), payload:=)")
         if cause == C["PLEM_CAUSE_TRACKING_ERROR"]:
             return f"{name} is {v[0]:.4g} rad from its command (tolerance {v[1]:g} rad)"
         if cause == C["PLEM_CAUSE_INVALID_COMMAND"]:
