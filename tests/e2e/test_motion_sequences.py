@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,23 +17,16 @@ from plem.control.state import JointState
 from plem.errors import MoveItCode, PlanningError
 from plem.planning.poses import Pose
 from plem.planning.sequence import Joint, Linear, ToolLimits
+from tests.e2e import planner_launch
 from tests.e2e.cli import run_plem
-from tests.e2e.launched import Launch, join_domain, launched_robot, wait_for
+from tests.e2e.launched import Launch, wait_for
 from tests.e2e.test_moveit_services import MoveIt, assert_within_limits, read_back
+
+launch = planner_launch.launch              # the module's launch, and each test in its domain
+same_domain = planner_launch.same_domain
 
 DOWN = (0.0, 1.0, 0.0, 0.0)
 MOTION_S = 30.0
-
-
-@pytest.fixture(scope="module")
-def launch(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    with launched_robot(tmp_path_factory, "record:=false", "planner:=true", ros=True) as running:
-        yield running
-
-
-@pytest.fixture(autouse=True)
-def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, launch: Launch) -> None:
-    join_domain(monkeypatch, launch)
 
 
 @pytest.fixture(scope="module")

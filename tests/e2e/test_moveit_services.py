@@ -26,7 +26,11 @@ from plem.middleware.discovery import DiscoverySettings
 from plem.middleware.node import Node
 from plem.middleware.node_graph import ROSOUT_QOS
 from plem.planning.retiming import fit_to_limits
-from tests.e2e.launched import Launch, join_domain, launched_robot, wait_for
+from tests.e2e import planner_launch
+from tests.e2e.launched import Launch, launched_robot, wait_for
+
+launch = planner_launch.launch              # the module's launch, and each test in its domain
+same_domain = planner_launch.same_domain
 
 JOINTS = tuple(f"joint{index}" for index in range(6))
 #: The SRDF's home state of the built-in Indy7.
@@ -120,17 +124,6 @@ class MoveIt:
 
 
 # -- fixtures ----------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def launch(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    with launched_robot(tmp_path_factory, "record:=false", "planner:=true", ros=True) as running:
-        yield running
-
-
-@pytest.fixture(autouse=True)
-def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, launch: Launch) -> None:
-    join_domain(monkeypatch, launch)
-
-
 @pytest.fixture(scope="module")
 def moveit(launch: Launch) -> Iterator[MoveIt]:
     caller = MoveIt(launch)

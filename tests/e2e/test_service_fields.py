@@ -7,8 +7,6 @@ each call must end in a response or a WHAT/WHY/HOW error, never an internal erro
 from __future__ import annotations
 
 import gc
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -21,7 +19,11 @@ from plem.middleware.graph import Graph
 from plem.middleware.names import ActionNames
 from plem.middleware.node import Node
 from plem.middleware.types import library
-from tests.e2e.launched import Launch, join_domain, launched_robot
+from tests.e2e import planner_launch
+from tests.e2e.launched import Launch
+
+launch = planner_launch.launch              # the module's launch, and each test in its domain
+same_domain = planner_launch.same_domain
 
 ACTIONS = (FJT, "plem_msgs/action/SetMode", moveit.EXECUTE)
 
@@ -34,17 +36,6 @@ def served_types() -> set[str]:
     types |= {service_type for action in ACTIONS for _, service_type in ActionNames("/a").services(action)}
     types.add(servo.SPEED_SLIDER)
     return types
-
-
-@pytest.fixture(scope="module")
-def launch(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Launch]:
-    with launched_robot(tmp_path_factory, "record:=false", "planner:=true", ros=True) as running:
-        yield running
-
-
-@pytest.fixture(autouse=True)
-def same_domain(isolated_environment: Path, monkeypatch: pytest.MonkeyPatch, launch: Launch) -> None:
-    join_domain(monkeypatch, launch)
 
 
 @pytest.fixture(scope="module")
