@@ -461,21 +461,29 @@ static void preempt(plem_arm *arm) {
          0, 0, 0, 0);
 }
 
+/* The follower runs the arm from now on, from the command as it is, toward `target` (positions for `kind`
+ * PLEM_STREAM_POSITION, else velocities); `internal`: a fixed target with no samples and no timeout. */
+static void begin_following(plem_arm *arm, uint64_t token, int kind, const double *target, int internal) {
+    int n = arm->settings.dof;
+    plem_stream *st = &arm->stream;
+    st->session = token, st->last_cycle = arm->cycle, st->last_count = 0, st->last_stamp = 0, st->feed_until = 0;
+    st->kind = kind, st->timed_out = 0, st->internal = internal;
+    for (int i = 0; i < n; i++) st->target[i] = target[i], st->feed[i] = 0.0;
+    arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
+    arm->active_token = token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
+    arm->active_has_path = arm->active_has_goal = 0;
+    rebase(arm);
+}
+
 /* Follow the stream block from now on, from the command as it is (a running motion is taken over where it is). */
 static void start_stream(plem_arm *arm, const plem_command *c) {
-    int n = arm->settings.dof;
+    static const double at_rest[PLEM_MAX_JOINTS] = {0};   /* until the first sample: come to rest */
     if ((arm->mode != PLEM_HOLD && arm->mode != PLEM_TRAJECTORY) || arm->pending)
         return reject(arm, c->token, PLEM_ANSWER_NOT_HOLDING, arm->pending, -1, 0, 0);
     if (c->cycles < 1) return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, (double)c->cycles, 0);
     preempt(arm);
-    plem_stream *st = &arm->stream;
-    st->session = c->token, st->timeout_cycles = c->cycles, st->last_cycle = arm->cycle, st->last_count = 0;
-    st->last_stamp = 0, st->kind = PLEM_STREAM_VELOCITY, st->timed_out = 0, st->internal = 0;
-    for (int i = 0; i < n; i++) st->target[i] = 0.0, st->feed[i] = 0.0;   /* until the first sample: come to rest */
-    arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
-    arm->active_token = c->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
-    arm->active_has_path = arm->active_has_goal = 0;
-    rebase(arm);
+    begin_following(arm, c->token, PLEM_STREAM_VELOCITY, at_rest, 0);
+    arm->stream.timeout_cycles = c->cycles;
     answer(arm, c->token, PLEM_ACCEPTED, 0, arm->mode, 0, -1, 0, 0);
     set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, c->token, 0);
     emit(arm, PLEM_EVENT_MOTION_STARTED, PLEM_CAUSE_MOTION_STARTED, -1, -1, 1, c->token, INFINITY, 0, 0, 0);
@@ -656,20 +664,6 @@ static int holds(const plem_arm *arm, const plem_reaction *r, double *first) {
     return depth == 1 && stack[0];
 }
 
-/* A reaction's move: follow its target from where the command is, as a stream with a fixed target. */
-static void react_move(plem_arm *arm, const plem_reaction *r) {
-    int n = arm->settings.dof;
-    plem_stream *st = &arm->stream;
-    st->session = r->token, st->internal = 1, st->kind = PLEM_STREAM_POSITION, st->timed_out = 0;
-    st->feed_until = 0, st->last_cycle = arm->cycle;
-    for (int i = 0; i < n; i++) st->target[i] = r->target[i], st->feed[i] = 0.0;
-    arm->active = 1, arm->active_ended = 0, arm->active_slot = PLEM_STREAM_SLOT, arm->active_segments = 0;
-    arm->active_token = r->token, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1;
-    arm->active_has_path = arm->active_has_goal = 0;
-    rebase(arm);
-    set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, r->token, 0);
-}
-
 static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, double threshold) {
     plem_reaction *r = &arm->reactions[slot];
     emit(arm, PLEM_EVENT_REACTION, PLEM_CAUSE_REACTION, -1, slot, r->action, r->token, value, threshold, 0, 0);
@@ -695,7 +689,8 @@ static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, d
     case PLEM_REACT_MOVE:
         if (!enabled) break;
         if (arm->active && arm->active_token) end_motion(arm, PLEM_ANSWER_REACTED, slot, value, threshold);
-        react_move(arm, r);
+        begin_following(arm, r->token, PLEM_STREAM_POSITION, r->target, 1);   /* a stream with a fixed target */
+        set_mode(arm, PLEM_TRAJECTORY, PLEM_CAUSE_MOTION_STARTED, r->token, 0);
         break;
     default: break;
     }
