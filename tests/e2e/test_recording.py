@@ -59,6 +59,17 @@ def read_bags(directory: Path) -> dict[str, list[tuple[int, object]]]:
     return topics
 
 
+def periodic_picks(stamps: list[int], period_ns: int) -> list[int]:
+    """The stamps that are each the first to reach the next period, periods restarting after a gap."""
+    picks: list[int] = []
+    next_due = stamps[0]
+    for stamp in stamps:
+        if stamp >= next_due:
+            picks.append(stamp)
+            next_due = next_due + period_ns if next_due + period_ns > stamp else stamp + period_ns
+    return picks
+
+
 def test_every_cycle_is_recorded_and_reads_back_with_embedded_definitions(tmp_path: Path):
     robot_id, bags = new_robot_id(), tmp_path / "bags"
     arguments = ["bus:=mock", f"robot_id:={robot_id}", f"bag_dir:={bags}", "bag_segment_seconds:=2", "bridge:=false"]
@@ -77,7 +88,10 @@ def test_every_cycle_is_recorded_and_reads_back_with_embedded_definitions(tmp_pa
     assert all(later > earlier for (earlier, _), (later, _) in itertools.pairwise(raw)), "stamps strictly increase"
     assert len(segments(bags / robot_id)) >= 3
     seconds = (raw[-1][0] - raw[0][0]) / 1e9                 # the cycles' own time, not the test's
-    assert abs(len(topics["joint_states"]) - 100 * seconds) <= 2, "joint_states at 100 Hz of cycle time"
+    # one joint_states per 10 ms of the cycles' stamps, restarting after a late cycle (never a burst), as the
+    # recorder picks them: a busy machine's late cycles shorten the count, judged from the same stamps
+    assert abs(len(topics["joint_states"]) - len(periodic_picks([stamp for stamp, _ in raw], 10_000_000))) <= 2, \
+        "joint_states at 100 Hz of cycle time"
     assert abs(len(topics["rt_monitor_stats"]) - 10 * seconds) <= max(3.0, 0.05 * 10 * seconds), "stats at 10 Hz"
     assert topics["joint_states"][0][1].name == [f"joint{i}" for i in range(6)]
     kinds = [(message.previous_mode, message.mode) for _, message in topics["rt_events"]]
