@@ -192,8 +192,7 @@ class ArmRuntime:
         simulated = getattr(self.bus, "simulated_arm", None)
         friction = np.zeros(dof) if simulated is None else np.array(simulated["friction"][0][:dof])
         effort = self.limits.maximum("effort") * self.settings.contact_share
-        known = (simulated is None or bool(simulated["dynamics"][0])) \
-            and getattr(self.bus, "free_drive_refusal", None) is None
+        known = simulated is not None and bool(simulated["dynamics"][0])   # drives' efforts: not validated yet
         return friction, np.where(np.isfinite(effort) & known, effort, math.inf)
 
     # -- state -------------------------------------------------------------------------------------
