@@ -190,9 +190,13 @@ class ArmRuntime:
         whose torque unit is unknown, joints without an effort limit)."""
         dof = self.setup.dof
         simulated = getattr(self.bus, "simulated_arm", None)
-        friction = np.zeros(dof) if simulated is None else np.array(simulated["friction"][0][:dof])
+        if simulated is None:
+            friction = np.zeros(dof)
+            known = np.array(getattr(self.bus, "torque_in_newton_metres", None) or [False] * dof, dtype=bool)
+        else:
+            friction = np.array(simulated["friction"][0][:dof])
+            known = np.full(dof, bool(simulated["dynamics"][0]))
         effort = self.limits.maximum("effort") * self.settings.contact_share
-        known = simulated is not None and bool(simulated["dynamics"][0])   # drives' efforts: not validated yet
         return friction, np.where(np.isfinite(effort) & known, effort, math.inf)
 
     # -- state -------------------------------------------------------------------------------------

@@ -602,11 +602,16 @@ static void take_commands(plem_arm *arm, const plem_slab *slab) {
 
 /* The external joint torque: the model's effort for last cycle's command acceleration at the measured state (the
  * dynamics free drive uses for gravity, plus viscous friction) less the measured effort; and the flange wrench
- * that explains it. Then the standing contact stop: past its threshold on any joint, the arm faults and stops. */
+ * that explains it. Then the standing contact stop: past its threshold on any joint, the arm faults and stops.
+ * Not estimated for PLEM_UNSETTLED_S after a stale bus answer: the drives then catch up with a command that jumped,
+ * an acceleration the model's was not. */
 static void feel(plem_arm *arm, const plem_slab *slab) {
     const plem_settings *s = &arm->settings;
     int n = s->dof;
-    arm->feeling = (arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY) && !arm->pending && can_command(arm);
+    int settled = arm->unsettled == 0;
+    if (!settled) arm->unsettled--;
+    arm->feeling = (arm->mode == PLEM_HOLD || arm->mode == PLEM_TRAJECTORY) && !arm->pending && can_command(arm)
+                   && settled;
     if (!arm->feeling) {
         memset(arm->external, 0, sizeof arm->external);
         memset(arm->wrench, 0, sizeof arm->wrench);
@@ -999,6 +1004,7 @@ static int read_bus(plem_arm *arm, const plem_bus *bus) {
         }
     } else {
         answered = plem_master_read(bus->master, arm);
+        if (!plem_master_fresh(bus->master)) arm->unsettled = (int32_t)ceil(PLEM_UNSETTLED_S / arm->settings.dt);
     }
     if (!answered) plem_power_master_lost(&arm->power);
     arm->io_answered = answered;

@@ -73,6 +73,8 @@ int plem_master_read(plem_master *m, plem_arm *arm) {
     return 0;
 }
 
+int plem_master_fresh(const plem_master *m) { return m->status.bad_cycles == 0; }
+
 void plem_master_write(plem_master *m, const plem_arm *arm, const uint16_t *controlwords) {
     for (int i = 0; i < m->dof; i++) {
         uint8_t *out = m->slaves[i + 1].outputs;

@@ -306,6 +306,7 @@ enum plem_cause {
 /* Reactions: conditions over what the core measures, evaluated every cycle, each with an action. A condition is a
  * program in postfix: comparisons push a truth, AND/OR/NOT combine the top ones. */
 #define PLEM_REACTIONS 16
+#define PLEM_UNSETTLED_S 0.02      /* s without the external-torque estimate after a stale bus answer */
 #define PLEM_REACTION_TERMS 16
 enum plem_measure {
     PLEM_MEASURE_POSITION = 1, PLEM_MEASURE_VELOCITY, PLEM_MEASURE_EFFORT, PLEM_MEASURE_EXTERNAL_TORQUE,
@@ -537,6 +538,8 @@ typedef struct {
      * effort is known: drives enabled, not in free drive) */
     int32_t feeling;                 /* 1 while the estimate below is current */
     uint32_t reacting;               /* bit k set while reactions[k] is armed */
+    int32_t unsettled;               /* cycles until the estimate is trusted again after a bus answer was stale */
+    int32_t pad5;
     double external[PLEM_MAX_JOINTS];
     double wrench[6];
     plem_reaction reactions[PLEM_REACTIONS];
@@ -572,6 +575,8 @@ typedef struct {
 /* The master's read: the answer to last cycle's frame into the arm's io_* (the last good inputs stand in for a
  * bad answer); 0 once bad_cycles_to_fault answers in a row were bad. */
 int plem_master_read(struct plem_master *master, plem_arm *arm);
+/* Whether the last read's inputs are this cycle's answer (0 while the last good inputs stand in for a bad one). */
+int plem_master_fresh(const struct plem_master *master);
 /* The master's write: the arm's targets and `controlwords` into the outputs, and the frame sent. */
 void plem_master_write(struct plem_master *master, const plem_arm *arm, const uint16_t *controlwords);
 

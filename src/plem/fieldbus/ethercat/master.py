@@ -98,6 +98,11 @@ class EtherCATBus:
         return None if self.segment is None else self.segment.master
 
     @property
+    def torque_in_newton_metres(self) -> tuple[bool, ...]:
+        """Per drive, whether its torque reads as N·m at the joint (its rated torque is known); empty while closed."""
+        return () if self.segment is None else tuple(r.newton_metres is not None for r in self.segment.rated_torque)
+
+    @property
     def free_drive_refusal(self) -> CommandRejected | None:
         """Why free drive cannot run on these drives (None when it can): it holds the arm up with a gravity torque
         in N·m, which a drive whose rated torque is unknown cannot be sent, so without it the arm would fall."""

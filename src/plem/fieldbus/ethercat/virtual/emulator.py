@@ -182,6 +182,8 @@ class VirtualNetwork:
                 segment.drop_rate = float(request["rate"])
             elif op == "delay":
                 segment.delay_s = float(request["seconds"])
+            elif op == "push":
+                drives.arm.apply_external_torque(int(request["drive"]), float(request["torque"]))
             elif op == "disappear":
                 segment.disappear(int(request["slave"]))
             elif op == "reappear":
