@@ -326,12 +326,15 @@ def test_a_drive_that_refuses_to_enable_is_named(network, home, tmp_path):
 
 def test_lost_frames_are_counted_and_alone_do_not_fault(network, home, tmp_path):
     """Not even during motions, where the drives catch up after each lost frame with an acceleration the command
-    did not have: the contact stop waits for them to settle."""
-    with enabled_launch(network, home, tmp_path) as (launch, client):
+    did not have: the contact stop (here at a tenth of the effort limits) waits for them to settle. At half speed,
+    so that the emulated drives, which step only on frames, catch up two lost frames in a row within the encoders'
+    plausible jump."""
+    with launch_on(network, home, tmp_path, "contact_share:=0.1") as launch, connect(launch.robot_id) as client:
+        client.set_mode("hold")
         network.control.request("drop_rate", rate=0.05)
         try:
-            for target in ([0.5, 0.6, -0.5, 0.3, 0.4, 0.2], [0.0] * 6):
-                client.move_joints(target).wait(30)
+            for target in ([0.5, 0.6, -0.5, 0.3, 0.4, 0.2], [0.0] * 6, [0.5, 0.6, -0.5, 0.3, 0.4, 0.2]):
+                client.move_joints(target, speed_scale=0.5).wait(30)
             assert wait_until(lambda: (client.stats() or {}).get("bus", {}).get("lost_frames", 0) >= 5, 20)
         finally:
             network.control.request("drop_rate", rate=0.0)

@@ -21,6 +21,8 @@ from plem.errors import CommandRejected, ConfigError
 
 #: Names of the limit arrays, as used in messages.
 KINDS = ("position", "velocity", "acceleration", "jerk", "effort")
+#: The contact stop's default threshold: estimated external torque as a share of each joint's effort limit.
+CONTACT_SHARE = 0.25
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,7 @@ from plem.control.compiled import CONSTANTS as C
 from plem.control.events import EventKind, EventLog
 from plem.control.free_drive import FreeDriveController
 from plem.control.kinematics import compiled_model
-from plem.control.limits import ArmLimits
+from plem.control.limits import CONTACT_SHARE, ArmLimits
 from plem.control.loop import OverrunWindow
 from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
@@ -86,7 +86,7 @@ class RuntimeSettings:
     enable_timeout_s: float = 1.0             # drives must reach operation enabled within this
     standstill_velocity: float = 0.05         # rad/s below which the arm counts as standing still
     command_tolerance: float = 1e-6           # relative slack for commanded derivatives (rounding)
-    contact_share: float = 0.25               # estimated external torque, as a share of each joint's effort limit,
+    contact_share: float = CONTACT_SHARE      # estimated external torque, as a share of each joint's effort limit,
                                               # past which the arm stops (the contact stop); inf: off
 
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from plem.control.limits import ArmLimits
+from plem.control.limits import CONTACT_SHARE, ArmLimits
 from plem.control.payload import PAYLOAD_RULES, Payload
 from plem.core.config.launch_args import number_list, parse_launch_arguments, shown
 from plem.core.config.settings import Setting
@@ -60,6 +60,8 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("payload", "", "what the flange carries: mass,x,y,z (kg; centre of mass in m in the flange "
                    "frame) or mass,x,y,z,ixx,ixy,ixz,iyy,iyz,izz (and its inertia in kg·m², URDF order); default: "
                    "the robot profile's, else none"),
+    LaunchArgument("contact_share", f"{CONTACT_SHARE:g}", "the contact stop: estimated external torque, as a share of "
+                   "each joint's effort limit, past which the arm stops (0 to 1), or off (docs/motion.md)"),
     LaunchArgument("joint_states_rate", "", "Hz of /{robot_id}/joint_states; default: controllers.yaml update_rate, "
                    "at most 100"),
     LaunchArgument("planner", "true", "start the motion planner when the package has an SRDF (IK, collision "
@@ -144,6 +146,21 @@ def payload(text: str) -> Payload | None:
                           why=error.why,
                           how="e.g. payload:=1.5,0,0,0.05 for 1.5 kg 5 cm past the flange, or leave payload out "
                               "for none") from None
+
+
+def contact_share(text: str) -> float:
+    """The contact stop's threshold of `contact_share:=`, a share of each joint's effort limit (inf: off); else a
+    ConfigError saying what to give."""
+    if text.strip().lower() == "off":
+        return float("inf")
+    values = number_list(text)
+    if values is not None and len(values) == 1 and 0 < values[0] <= 1:
+        return values[0]
+    raise ConfigError(f"invalid launch argument contact_share:={shown(text)}",
+                      what="a share of each joint's effort limit above 0 and at most 1, or off",
+                      why=f"'{shown(text)}' is not a number in that range",
+                      how=f"e.g. contact_share:=0.4 for a stop past 40 % of the effort limits, contact_share:=off "
+                          f"for none, or leave it out for {CONTACT_SHARE:g}")
 
 
 def help_text() -> str:

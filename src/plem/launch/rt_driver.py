@@ -59,6 +59,7 @@ def build(plan: RobotPlan, warn: Callable[[str], None] = _log.warning) -> tuple[
     try:
         robot = (Robot.builder(plan.config).with_bus(_bus(plan)).with_description(str(plan.package), plan.urdf_file)
                  .with_loop_settings(max_consecutive_overruns=plan.max_consecutive_overruns).with_payload(plan.payload)
+                 .with_runtime_settings(contact_share=plan.contact_share)
                  .with_state_block(state_block).with_motion_slab(lambda: _slab(channels[0]))
                  .with_raw_ring(lambda: channels[0].rings["rt_raw"])
                  .with_stream_block(lambda: _stream(channels[0]))
