@@ -1,4 +1,5 @@
-"""`plem bag info|plot|repair`: what the flight recorder's bags hold, a plot of them, and repair of killed segments.
+"""`plem bag info|plot|repair|export`: what the flight recorder's bags hold, a plot of them, repair of killed
+segments, and their export into the fleet's Parquet dataset (docs/fleet.md).
 
 DIR is the recorder's bag_dir, one robot's directory in it, or one segment directory. The bag reading
 modules are imported inside the commands so other commands start fast.
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
     from plem.recording.summary import RobotBags, RobotSummary, SegmentInfo
     from plem.recording.time_range import TimePoint
 
-app = typer.Typer(help="Inspect, plot and repair the flight recorder's bags.", no_args_is_help=True)
+app = typer.Typer(help="Inspect, plot, repair and export the flight recorder's bags.", no_args_is_help=True)
 
 Directory = Annotated[Path, typer.Argument(metavar="DIR", show_default=False, help="The recorder's bag_dir, one "
                                                 "robot's directory in it, or one segment directory.")]
@@ -298,3 +299,28 @@ def repair(directory: Directory) -> None:
         raise BagError(f"{_count(len(failures), 'segment')} could not be repaired", what="every killed segment rebuilt",
                        why="; ".join(f"{name}: {failure.why}" for name, failure in failures),
                        how="; ".join(dict.fromkeys(failure.how for _, failure in failures)))
+
+
+@app.command("export")
+def export(
+    directories: Annotated[list[Path], typer.Argument(metavar="BAG_DIR...", show_default=False, help="The "
+                                                      "recorder's bag_dir, one robot's directory in it, or one "
+                                                      "segment directory; several may be given.")],
+    to: Annotated[str, typer.Option("--to", metavar="DEST", show_default=False, help="The dataset: a directory, or "
+                                    "s3://BUCKET/PREFIX (credentials from the usual AWS_* variables).")],
+) -> None:
+    """Export the closed segments under BAG_DIR into a Parquet dataset (one table per topic, Hive-partitioned by
+    robot_id and date); segments exported before are skipped, so it can run again at any time."""
+    from plem.fleet.destination import open_destination
+    from plem.fleet.export import export as export_bags
+
+    destination = open_destination(to)
+    report = export_bags(directories, destination)
+    for path in report.removed_temporaries:
+        typer.echo(f"removed {path}, left by an export that was killed")
+    for name in report.recording:
+        typer.echo(f"{name}: being recorded, exported once closed")
+    typer.echo(f"exported {_count(len(report.exported), 'segment')} ({report.rt_raw_rows} rt_raw rows, "
+               f"{_count(report.files, 'file')}, {_size(report.bytes)}) to {to}; "
+               f"{len(report.already)} exported before")
+    raise_collected(report.problems, f"the export of {', '.join(map(str, directories))}")

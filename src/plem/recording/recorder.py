@@ -34,7 +34,7 @@ import shutil
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -110,13 +110,15 @@ class Recorder:
     """Writes one robot's monitoring messages into segments under `settings.directory`.
 
     `description`: the robot's URDF text, recorded at the start of every segment (None: not recorded).
+    `identity`: who records (plem.recording.identity), written into every segment's metadata.yaml.
     Raises RecordingError (WHAT/WHY/HOW) when the directory cannot be created or written into.
     """
 
     def __init__(self, settings: RecordingSettings, robot_id: str, topics: dict[str, str], store: Typestore,
                  clock: Clock = time.time_ns, disk_usage: DiskUsage = shutil.disk_usage,
-                 description: str | None = None) -> None:
+                 description: str | None = None, identity: Mapping[str, str] | None = None) -> None:
         self.settings = settings
+        self.identity = dict(identity or {})
         self.topics = topics                       # short name (rt_raw) → ROS type
         self._description = None
         if description is not None:
@@ -231,7 +233,7 @@ class Recorder:
         path = self.archive.new_segment_path(wall_ns)
         topics = [(f"{self.namespace}/{name}", ros_type) for name, ros_type in self.topics.items()]
         self.segment = SegmentWriter(path, topics, self.store, self.settings.storage, self.settings.flush_period_s,
-                                     self.access)
+                                     self.access, self.identity)
         self._segment_start = wall_ns
         if self._description is not None:
             self._append(self.segment, [Messages.one(DESCRIPTION_TOPIC, wall_ns, self._description)])

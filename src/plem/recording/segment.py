@@ -27,7 +27,7 @@ import shutil
 import sqlite3
 import stat
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final, cast
 
@@ -151,15 +151,18 @@ class StagedFile:
 
 
 class SegmentWriter:
-    """Writes serialized messages of fixed topics into one bag directory."""
+    """Writes serialized messages of fixed topics into one bag directory; `custom_data` goes into its metadata.yaml."""
 
     def __init__(self, directory: Path, topics: Sequence[tuple[str, str]], store: Typestore,
-                 storage: str = "mcap", flush_period_s: float = 1.0, access: FileAccess = OWNER_ONLY) -> None:
+                 storage: str = "mcap", flush_period_s: float = 1.0, access: FileAccess = OWNER_ONLY,
+                 custom_data: Mapping[str, str] | None = None) -> None:
         self.directory = directory
         self.access = access
         self.messages = 0
         self.start_ns: int | None = None                     # the earliest stamp written: a reader's start time
         self._writer = BulkWriter(directory, version=BAG_VERSION, storage_plugin=STORAGES[storage])
+        for key, value in (custom_data or {}).items():
+            self._writer.set_custom_data(key, value)
         self._flush_period_ns = round(flush_period_s * 1e9)
         self._next_flush = 0
         self._file: StagedFile | None = None
