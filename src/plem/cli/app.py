@@ -70,6 +70,7 @@ COMMANDS: dict[str, CommandSource] = {
     "action": CommandSource("plem.cli.action"),
     "node": CommandSource("plem.cli.node"),
     "bag": CommandSource("plem.cli.bag"),
+    "fleet": CommandSource("plem.cli.fleet"),
     "view": CommandSource("plem.cli.view", "view"),
     "ethercat": CommandSource("plem.cli.ethercat"),
 }

@@ -1,0 +1,204 @@
+"""Opening a fleet dataset (a directory or an `s3://bucket/prefix`): its files, their schema versions, and a DuckDB
+connection with one view per table.
+
+Each view reads `DEST/<table>/**/*.parquet` (an export's temporary files never end in `.parquet`) with the Hive
+partitions `robot_id` (text) and `date` (a date), unions the files by column name (a 6- and a 7-axis robot share a
+table) and always has every column of the current schema: a column that older files lack reads as null.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from typing import TYPE_CHECKING, Any
+
+import pyarrow as pa
+
+from plem.errors import PlemError
+from plem.fleet import schema
+
+if TYPE_CHECKING:
+    import duckdb
+    from fsspec import AbstractFileSystem
+
+#: The current schema of each table, with the Hive partition columns (a 6-axis robot's joint columns).
+PARTITION_FIELDS = (pa.field("robot_id", pa.string()), pa.field("date", pa.date32()))
+_CURRENT: dict[str, pa.Schema] = {"rt_raw": schema.rt_raw(6), "rt_events": schema.rt_events(),
+                                  "rt_monitor_stats": schema.rt_monitor_stats(), "joint_states": schema.joint_states(6),
+                                  "segments": schema.segments()}
+QUERY_HOW = 'the tables are {tables}; list a table\'s columns with `plem fleet query {dest} "DESCRIBE rt_raw"`'
+
+
+class FleetError(PlemError):
+    """A fleet dataset cannot be opened or queried."""
+
+
+def current_schema(table: str) -> pa.Schema:
+    """A table's columns now, with its partition columns (what a reader sees of every file)."""
+    current = _CURRENT[table]
+    return pa.schema([*current, *PARTITION_FIELDS], metadata=current.metadata)
+
+
+@dataclass
+class Dataset:
+    """An opened DEST: where it is, its tables' files, and the DuckDB connection with their views."""
+
+    dest: str
+    filesystem: AbstractFileSystem
+    files: dict[str, list[str]]
+    connection: duckdb.DuckDBPyConnection
+    _empty: dict[str, pa.Table] = field(default_factory=dict)
+
+    def sql(self, query: str, parameters: list[Any] | None = None) -> duckdb.DuckDBPyRelation | None:
+        """Run `query` on the views; a failing query is a FleetError with DuckDB's message."""
+        import duckdb
+
+        try:
+            return self.connection.sql(query, params=parameters)
+        except duckdb.Error as error:
+            raise FleetError("The query failed", what="a query DuckDB can run over the dataset's tables",
+                             why=f"DuckDB: {error}".strip(),
+                             how=self.query_how()) from None
+
+    def query_how(self) -> str:
+        """The HOW of a failed query: the tables, and how to list a table's columns."""
+        return QUERY_HOW.format(tables=", ".join(schema.TABLES), dest=self.dest)
+
+    def frame(self, query: str, parameters: list[Any] | None = None) -> Any:
+        """The result of `query` as a pandas DataFrame (empty when the query returns nothing)."""
+        relation = self.sql(query, parameters)
+        if relation is None:
+            raise FleetError("The query returned no rows", what="a query with a result (SELECT …)",
+                             why=f"{query!r} is a statement without a result",
+                             how=self.query_how())
+        return relation.df()
+
+    def url(self, path: str) -> str:
+        """A file's path as DuckDB reads it (with its scheme on object storage)."""
+        return path if self.dest_scheme() == "" else f"{self.dest_scheme()}://{path}"
+
+    def dest_scheme(self) -> str:
+        """DEST's scheme (`s3`), empty for a local directory."""
+        return self.dest.split("://", 1)[0] if "://" in self.dest else ""
+
+
+def open_dataset(dest: str) -> Dataset:
+    """Open DEST: check it is a dataset and that no file is of a newer schema, then make the views."""
+    import duckdb
+
+    filesystem, root = _filesystem(dest)
+    files = {table: _table_files(filesystem, dest, root, table) for table in schema.TABLES}
+    if not any(files.values()):
+        raise FleetError(f"{dest} is not a fleet dataset", what="a dataset exported by `plem bag export BAG_DIR "
+                         f"--to DEST`: one directory per table ({', '.join(schema.TABLES)}) of .parquet files",
+                         why=f"{dest} holds no .parquet file under any of those directories",
+                         how="pass the DEST given to `plem bag export --to` or `export_dir:=`, or export the bags "
+                             "first: plem bag export BAG_DIR --to DEST")
+    connection = duckdb.connect()
+    connection.execute("SET TimeZone = 'UTC'")
+    dataset = Dataset(dest, filesystem, files, connection)
+    if dataset.dest_scheme():
+        connection.register_filesystem(filesystem)
+    _check_versions(dataset)
+    for table in schema.TABLES:
+        _create_view(dataset, table)
+    return dataset
+
+
+def _filesystem(dest: str) -> tuple[AbstractFileSystem, str]:
+    """The fsspec filesystem of DEST and DEST's path on it; a local DEST must be an existing directory."""
+    import fsspec
+
+    if "://" not in dest:
+        if not os.path.isdir(dest):
+            why = f"{dest} is a file" if os.path.exists(dest) else f"{dest} does not exist"
+            raise FleetError(f"No fleet dataset at {dest}", what="DEST: the directory (or s3://bucket/prefix) a "
+                             "fleet's bags were exported to", why=why,
+                             how="pass the DEST given to `plem bag export --to` or `export_dir:=`, e.g. "
+                                 "plem fleet query /data/fleet \"SELECT count(*) FROM segments\"")
+        return fsspec.filesystem("file"), os.path.abspath(dest)
+    scheme, _, path = dest.partition("://")
+    try:
+        filesystem = fsspec.filesystem(scheme)
+    except (ImportError, ValueError) as error:
+        raise FleetError(f"Cannot open {dest}", what="DEST as a directory or an s3://bucket/prefix",
+                         why=f"no filesystem for {scheme}://: {error}",
+                         how="install the object-store support: pip install 'plem[s3]'") from None
+    return filesystem, path.rstrip("/")
+
+
+def _table_files(filesystem: AbstractFileSystem, dest: str, root: str, table: str) -> list[str]:
+    """Every whole file of a table (`.parquet` only: an export's temporary files are named otherwise)."""
+    try:
+        found = filesystem.glob(f"{root}/{table}/**/*.parquet")
+    except Exception as error:  # noqa: BLE001 - every store fails its own way; all mean DEST cannot be listed
+        raise _access_error(dest, error) from None
+    return sorted(str(path) for path in found)
+
+
+def _access_error(dest: str, error: Exception) -> FleetError:
+    """Listing DEST failed: missing credentials, access denied, or an unreachable store."""
+    text = f"{type(error).__name__}: {error}"
+    credentials = "credential" in text.lower() or "NoCredentials" in text
+    why = ("no credentials were found for the object store (" + text + ")") if credentials else text
+    how = ("set AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY (or AWS_PROFILE), and AWS_ENDPOINT_URL for a store other "
+           "than AWS S3, then rerun") if credentials else \
+        "check DEST, the credentials in AWS_ACCESS_KEY_ID/AWS_SECRET_ACCESS_KEY and AWS_ENDPOINT_URL, and the network"
+    return FleetError(f"Cannot read {dest}", what=f"to list the dataset's files under {dest}", why=why, how=how)
+
+
+def _check_versions(dataset: Dataset) -> None:
+    """Refuse files written by a newer plem (they may hold columns this one reads wrongly); accept older ones."""
+    urls = [dataset.url(path) for paths in dataset.files.values() for path in paths]
+    if not urls:
+        return
+    rows = dataset.sql("SELECT file_name, decode(value) FROM parquet_kv_metadata(?) WHERE decode(key) = ?",
+                       [urls, schema.VERSION_KEY.decode()])
+    assert rows is not None
+    newer = [(name, version) for name, version in rows.fetchall() if _version(version) > schema.SCHEMA_VERSION]
+    if newer:
+        name, version = newer[0]
+        raise FleetError("The dataset holds files of a newer schema", what=f"files of schema version "
+                         f"{schema.SCHEMA_VERSION} or older (this plem reads those)",
+                         why=f"{len(newer)} file(s) of a newer version, e.g. {name} (version {version})",
+                         how="upgrade plem on this machine (pip install -U plem) to read them; nothing was changed")
+
+
+def _version(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        return schema.SCHEMA_VERSION + 1   # unreadable: treat as not ours to read
+
+
+def _create_view(dataset: Dataset, table: str) -> None:
+    """The table's view: its files unioned by name with an empty table of the current schema (missing columns
+    read as null; a table without files is an empty view of the right columns)."""
+    empty = current_schema(table).empty_table()
+    dataset._empty[table] = empty
+    dataset.connection.register(f"_{table}_columns", empty)
+    urls = [dataset.url(path) for path in dataset.files[table]]
+    if not urls:
+        dataset.connection.execute(f"CREATE VIEW {table} AS SELECT * FROM _{table}_columns")
+        return
+    listing = ", ".join("'" + url.replace("'", "''") + "'" for url in urls)
+    dataset.sql(f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], hive_partitioning = true, "
+                f"union_by_name = true, hive_types = {{'robot_id': VARCHAR, 'date': DATE}}) "
+                f"UNION ALL BY NAME SELECT * FROM _{table}_columns")
+
+
+def parse_since(text: str, now: datetime) -> datetime:
+    """`--since`: a date or time (2026-11-01, 2026-11-01T08:00) in UTC, or a duration back from now (7d, 12h, 30m)."""
+    units = {"d": "days", "h": "hours", "m": "minutes", "s": "seconds", "w": "weeks"}
+    value = text.strip()
+    if value[-1:] in units and value[:-1].replace(".", "", 1).isdigit():
+        return now - timedelta(**{units[value[-1]]: float(value[:-1])})
+    try:
+        moment = datetime.fromisoformat(value)
+    except ValueError:
+        raise FleetError(f"--since {text!r} is not a date or a duration",
+                         what="--since as a date (2026-11-01), a UTC time (2026-11-01T08:00) or a duration back "
+                              "from now (7d, 12h, 30m, 2w)",
+                         why=f"{text!r} is neither", how="pass e.g. --since 7d or --since 2026-11-01") from None
+    return moment if moment.tzinfo else moment.replace(tzinfo=UTC)
