@@ -119,7 +119,7 @@ def _skipped(info: SegmentInfo) -> PlemError:
                        how=f"restore the files of {info.path}, or delete it; the other segments are exported")
 
 
-def _open(path: Path) -> bool:
+def still_open(path: Path) -> bool:
     """Whether a recorder still writes the segment (its lock, or its disk reserve)."""
     return being_written(path) or (path / RESERVE_NAME).exists()
 
@@ -139,7 +139,7 @@ def export_segments(robot_id: str, paths: Iterable[Path], destination: Destinati
                 what="the segment's directory", why=f"{path} no longer exists (retention, the disk guard, or by hand)",
                 how="nothing to do for it; keep segments until exported by raising retention_minutes:="))
             continue
-        if _open(path):
+        if still_open(path):
             report.recording.append(name)
             continue
         info = segment_info(path)

@@ -11,7 +11,7 @@ from plem.control.limits import CONTACT_SHARE, ArmLimits
 from plem.control.payload import PAYLOAD_RULES, Payload
 from plem.core.config.launch_args import number_list, parse_launch_arguments, shown
 from plem.core.config.settings import Setting
-from plem.errors import ConfigError
+from plem.errors import ConfigError, PlemError
 from plem.robot.config import ARM_SETTINGS
 from plem.robot.models import DEFAULT_ROBOT_TYPE, model_for
 
@@ -75,6 +75,8 @@ LAUNCH_ARGUMENTS: tuple[LaunchArgument, ...] = (
     LaunchArgument("bag_segment_seconds", "60", "length of one bag segment (the unit retention deletes)"),
     LaunchArgument("flight_recorder_seconds", "10", "seconds before a fault whose segments are never deleted "
                    "automatically"),
+    LaunchArgument("export_dir", "", "export each closed bag segment into this Parquet dataset, a directory or "
+                   "s3://BUCKET/PREFIX (docs/fleet.md); default: no export"),
     LaunchArgument("shm_group", "", "group allowed to read the shared memory; default: owner only"),
     LaunchArgument("max_consecutive_overruns", "", "overrun cycles in a row that fault the arm; default: 10 on "
                    "EtherCAT, 1000 on bus:=mock (docs/runtime.md)"),
@@ -146,6 +148,22 @@ def payload(text: str) -> Payload | None:
                           why=error.why,
                           how="e.g. payload:=1.5,0,0,0.05 for 1.5 kg 5 cm past the flange, or leave payload out "
                               "for none") from None
+
+
+def export_dir(text: str, record: bool) -> str | None:
+    """The dataset of `export_dir:=` (None when empty), checked without touching it; else a ConfigError."""
+    from plem.fleet.destination import destination_problem
+
+    if not text.strip():
+        return None
+    problem: PlemError | None = destination_problem(text, "export_dir:=")
+    if problem is None and not record:
+        problem = ConfigError("nothing to export", what="recording on, to export its segments",
+                              why="record:=false", how="leave record on, or leave export_dir out")
+    if problem is not None:
+        raise ConfigError(f"invalid launch argument export_dir:={shown(text)}", what=problem.what, why=problem.why,
+                          how=problem.how)
+    return text
 
 
 def contact_share(text: str) -> float:

@@ -27,7 +27,7 @@ from plem.description.generate import ResolvedDescription, complete_description
 from plem.description.limits import derived_limits_note
 from plem.description.validate import Stage, ValidationReport, require_valid
 from plem.errors import ConfigError, MultipleErrors, PlemError, UsageError, raise_collected
-from plem.launch.arguments import DEFAULTS, contact_share, initial_positions, model_default, payload
+from plem.launch.arguments import DEFAULTS, contact_share, export_dir, initial_positions, model_default, payload
 from plem.planning.named_states import with_zero
 from plem.planning.scene import read_scene_file
 from plem.recording.access import FileAccess
@@ -377,6 +377,7 @@ def plan_robot(arguments: Mapping[str, str], *, generate: bool = False, temp_roo
                                                          ArmLimits.from_joint_limits(report.limits, arm_joint_names(
                                                              resolved.config, startup_urdf(report)[0]))))
     _collected(errors, lambda: payload(arguments.get("payload", "")))
+    _collected(errors, lambda: export_dir(arguments.get("export_dir", ""), bool(_flag(arguments, "record"))))
     _collected(errors, lambda: contact_share(arguments.get("contact_share", DEFAULTS["contact_share"])))
     raise_collected(errors, "the launch arguments")
     assert package is not None and report is not None and resolved is not None  # each failure added an error

@@ -5,8 +5,10 @@
 shared memory, so a slow or full disk never reaches the loop: the rings hold about four seconds, and
 what the recorder could not keep is counted. On a stop signal it records on until the driver has
 stopped the arm (at most `DRAIN_TIMEOUT_S`), so the stop is in the bag too. Every segment starts with the
-robot's URDF text (robot_description, as the bridge publishes it). Everything it writes is
-owner-only, or readable by the group of `shm_group:=` as the robot's shared memory is.
+robot's URDF text (robot_description, as the bridge publishes it), and its metadata.yaml says who recorded it
+(robot, serial, model, host, plem version). Everything it writes is owner-only, or readable by the group of
+`shm_group:=` as the robot's shared memory is. With `export_dir:=` a child process at idle priority exports each
+closed segment into the fleet dataset (plem.fleet.follow).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import functools
 import logging
 import os
+import subprocess
 import sys
 import threading
 import time
@@ -28,8 +31,10 @@ from plem.middleware.types import library
 from plem.recording.access import restrict_umask
 from plem.recording.disk_use import disk_use
 from plem.recording.feed import RecordingFeed
+from plem.recording.identity import identity
 from plem.recording.problems import refuse_unusable
 from plem.recording.recorder import Recorder
+from plem.recording.settings import RecordingSettings
 from plem.recording.status import remove_status, write_status
 
 _log = logging.getLogger("plem.recorder")
@@ -43,6 +48,8 @@ DRAIN_TIMEOUT_S = 10.0
 #: the few percent of a core it needs within the four seconds the rings hold (never ahead of the real-time loops,
 #: which run SCHED_FIFO).
 RECORDER_NICE = -10
+#: After recording ends, how long the continuous export may take to export the last segment.
+EXPORT_STOP_S = 30.0
 
 
 def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = None) -> None:
@@ -61,9 +68,12 @@ def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = 
     plan = plan_robot(arguments, generate=False)
     settings = replace(plan.recording(), group=plan.shm_group)
     interfaces = library()
-    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,
-                        description=plan.robot_description)
     client = connect(plan.robot_id, plan.config.dof)
+    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,
+                        description=plan.robot_description,
+                        identity=identity(plan.robot_id, plan.config.robot_serial, plan.config.MODEL.name
+                                          if plan.config.MODEL else plan.robot_name, client.joint_names))
+    exporter = start_export(arguments, settings)
     feed = RecordingFeed(client, interfaces, plan.joint_state_rate())
     try:
         use = disk_use(settings, client.joint_names, client.cycle_time_s, plan.joint_state_rate(), interfaces)
@@ -77,6 +87,30 @@ def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = 
             recorder.close()
             remove_status(plan.robot_id)
             client.close()
+            stop_export(exporter)
+
+
+def start_export(arguments: dict[str, str], settings: RecordingSettings) -> subprocess.Popen[bytes] | None:
+    """The continuous export of closed segments into `export_dir:=` (plem.fleet.follow), a child process at idle
+    priority; None without export_dir."""
+    if not arguments.get("export_dir"):
+        return None
+    environment = {**os.environ, "PLEM_LAUNCH_PID": str(os.getpid())}     # it dies with the recorder
+    return subprocess.Popen([sys.executable, "-m", "plem.fleet.follow", str(settings.directory),
+                             arguments["export_dir"], f"{settings.disk_threshold:g}"], env=environment,
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+
+
+def stop_export(exporter: subprocess.Popen[bytes] | None) -> None:
+    """Let the export take the last segment (at most `EXPORT_STOP_S`), then end it."""
+    if exporter is None:
+        return
+    exporter.terminate()
+    try:
+        exporter.wait(EXPORT_STOP_S)
+    except subprocess.TimeoutExpired:
+        exporter.kill()                       # a file it was writing is written again by the next export
+        exporter.wait()
 
 
 def run(client: RobotClient, feed: RecordingFeed, recorder: Recorder, stop: threading.Event,
