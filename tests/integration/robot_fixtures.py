@@ -88,3 +88,6 @@ def assert_within_limits(robot: Robot, commands: np.ndarray, slack: float = 1e-6
     assert np.all(np.abs(acceleration) <= limits.max_acceleration * (1 + slack) + 1e-9)
     jerk = np.abs(np.diff(acceleration, axis=0)) / dt
     assert np.all(jerk <= limits.max_jerk * (1 + slack) + 1e-6), jerk.max(axis=0)
+    # the position moves as the velocity says: a cycle that repeats a moving command is a step in velocity
+    mismatch = np.abs(np.diff(position, axis=0) - (velocity[1:] + velocity[:-1]) / 2.0 * dt)
+    assert np.all(mismatch <= limits.max_acceleration * dt * dt + 1e-9), mismatch.max(axis=0)

@@ -10,7 +10,7 @@ from plem.control.modes import Mode
 from plem.control.trajectory import TrajectoryOutcome
 from plem.errors import CommandRejected
 from plem.robot import Robot
-from tests.integration.robot_fixtures import Trace, simulated_robot
+from tests.integration.robot_fixtures import Trace, assert_within_limits, simulated_robot
 
 #: One sample every 4 cycles: 250 Hz on the 1 kHz loop.
 SAMPLE_CYCLES = 4
@@ -21,15 +21,6 @@ def robot() -> Robot:
     robot = simulated_robot()
     robot.set_mode("hold")
     return robot
-
-
-def _within_limits(robot: Robot, commands: np.ndarray) -> None:
-    """Every commanded velocity, acceleration and jerk within the arm's limits (the core's own slack)."""
-    limits, dt = robot.limits, robot.runtime.dt
-    slack = 1.0 + 1e-6
-    assert np.all(np.abs(commands[:, 1]) <= limits.maximum("velocity") * slack)
-    assert np.all(np.abs(commands[:, 2]) <= limits.maximum("acceleration") * slack)
-    assert np.all(np.abs(np.diff(commands[:, 2], axis=0)) / dt <= limits.maximum("jerk") * slack)
 
 
 def test_a_250_hz_stream_with_jumps_and_gaps_keeps_every_limit_and_reaches_its_target(robot: Robot) -> None:
@@ -54,7 +45,7 @@ def test_a_250_hz_stream_with_jumps_and_gaps_keeps_every_limit_and_reaches_its_t
     assert np.allclose(robot.state().command_position, target, atol=1e-6)
     robot.step(500)   # no more samples: the stream times out, the arm is at rest and it ends
     assert robot.mode is Mode.HOLD and robot.fault_reason == ""
-    _within_limits(robot, trace.commands())
+    assert_within_limits(robot, trace.commands())
 
 
 def test_a_stream_that_stops_arriving_brings_the_arm_to_rest_and_ends(robot: Robot) -> None:
@@ -70,7 +61,24 @@ def test_a_stream_that_stops_arriving_brings_the_arm_to_rest_and_ends(robot: Rob
     assert result.outcome is TrajectoryOutcome.SUCCEEDED and "no sample for 0.1 s" in result.message
     assert robot.mode is Mode.HOLD
     assert np.all(robot.state().command_velocity == 0.0)
-    _within_limits(robot, trace.commands())
+    assert_within_limits(robot, trace.commands())
+
+
+def test_stop_brings_a_fast_stream_to_rest_within_every_limit_without_a_contact(robot: Robot) -> None:
+    """The stop takes the next step of its own plan in the cycle it starts: a cycle that kept the moving command
+    would be a step in velocity, which the drives' stiff servo turns into an effort the contact stop catches."""
+    trace = Trace.attach(robot)
+    velocities = np.zeros(robot.limits.dof)
+    velocities[1] = 1.0
+    for _ in range(150):
+        robot.speed_joints(velocities)
+        robot.step(SAMPLE_CYCLES)
+    assert robot.state().command_velocity[1] == pytest.approx(1.0, abs=1e-9)
+    robot.stop().wait(1.0)
+    robot.step(1000)
+    assert robot.mode is Mode.HOLD and robot.fault_reason == ""
+    assert np.all(robot.state().command_velocity == 0.0)
+    assert_within_limits(robot, trace.commands())
 
 
 def test_jog_moves_one_joint_and_a_planned_motion_waits_for_the_stream_to_end(robot: Robot) -> None:
@@ -141,7 +149,7 @@ def test_the_speed_override_keeps_the_path_and_every_limit_through_1_03_0_1(robo
     robot.set_speed_override(1.0)
     handle.wait(30.0)
     commands = trace.commands()
-    _within_limits(robot, commands)
+    assert_within_limits(robot, commands)
     assert motion is not None and robot.mode is Mode.HOLD and robot.fault_reason == ""
     # every commanded position is the planned path's at the motion's own time: the path is unchanged
     path = np.array([motion.state_at(t)[0] for t in times[-len(commands):]])
@@ -163,4 +171,4 @@ def test_random_speed_override_changes_on_random_motions_never_break_a_limit(rob
         handle.wait(0)
         robot._request_speed_override(1.0)
         assert robot.fault_reason == ""
-    _within_limits(robot, trace.commands())
+    assert_within_limits(robot, trace.commands())

@@ -150,7 +150,7 @@ ARM = _checked("plem_arm", [
     ("pending_enable_sent", "<i4"), ("pad3", "<i4"),
     ("stop_knots", "<f8", STOP_SEGMENTS + 1), ("stop_coefficients", "<f8", STOP_SEGMENTS * ORDER * J),
     ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("override", OVERRIDE),
-    ("stream", STREAM), ("feeling", "<i4"), ("reacting", "<u4"), ("unsettled", "<i4"), ("pad5", "<i4"),
+    ("stream", STREAM), ("feeling", "<i4"), ("reacting", "<u4"), ("unsettled", "<i4"), ("commanded", "<i4"),
     ("external", "<f8", J), ("wrench", "<f8", 6),
     ("reactions", REACTION, CONSTANTS["PLEM_REACTIONS"]),
     ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),

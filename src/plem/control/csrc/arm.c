@@ -226,7 +226,8 @@ static void end_motion(plem_arm *arm, int outcome, int joint, double v0, double 
     }
 }
 
-/* Replace whatever runs by the quickest jerk-limited stop from the current command. */
+/* Replace whatever runs by the quickest jerk-limited stop from the current command: the stop's time starts at the
+ * cycle whose command that is, so the cycle that follows it takes the stop's next step, never the same command. */
 static void start_stop(plem_arm *arm, const plem_slab *slab) {
     int n = arm->settings.dof, moving = 0;
     for (int i = 0; i < n; i++) moving |= row(arm, COMMAND + 1)[i] != 0.0 || row(arm, COMMAND + 2)[i] != 0.0;
@@ -240,7 +241,8 @@ static void start_stop(plem_arm *arm, const plem_slab *slab) {
     arm->stop_segments = plem_plan_stop(n, row(arm, COMMAND), row(arm, COMMAND + 1), row(arm, COMMAND + 2),
                                         acceleration, jerk, arm->stop_knots, arm->stop_coefficients, arm->stop_final);
     arm->active = 1, arm->active_slot = PLEM_STOP_SLOT, arm->active_segments = arm->stop_segments;
-    arm->active_token = 0, arm->active_start_cycle = arm->cycle, arm->settle_deadline = -1, arm->active_cursor = 0;
+    arm->active_token = 0, arm->active_start_cycle = arm->cycle - !arm->commanded;
+    arm->settle_deadline = -1, arm->active_cursor = 0;
     arm->active_has_path = arm->active_has_goal = 0;
     for (int r = 0; r < 3; r++)
         for (int i = 0; i < n; i++) arm->active_final[r][i] = arm->stop_final[r * n + i];
@@ -952,6 +954,7 @@ static void run_motion(plem_arm *arm, const plem_slab *slab, plem_stream_block *
             arm->active_cursor = motion.cursor;
             for (int r = 0; r < 3; r++) memcpy(row(arm, COMMAND + r), out + r * n, (size_t)n * sizeof(double));
         }
+        arm->commanded = 1;
         if (arm->active_has_path) aborted = check_path(arm, slab);
     } else if (slab_motion && override_ramping(&arm->override)) {
         step_override(arm, 0);   /* the motion ended: its last state is at rest, nothing left to fit */
@@ -982,6 +985,7 @@ static void control(plem_arm *arm, const plem_slab *slab, plem_stream_block *blo
         return;
     }
     if (arm->active) run_motion(arm, slab, block);
+    arm->commanded = 1;
     check_command(arm, slab);
     if (arm->pending) advance_enable(arm);
 }
@@ -1087,6 +1091,7 @@ void plem_arm_cycle(plem_arm *arm, const plem_bus *bus, const plem_slab *slab, p
     control(arm, slab, stream);
     write_bus(arm, bus);
     arm->cycle++;
+    arm->commanded = 0;
     publish(arm, block);
     publish_stream(arm, stream);
 }

@@ -667,7 +667,7 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, pending_target), FIELD(plem_arm, pending_deadline), FIELD(plem_arm, pending_token),
     FIELD(plem_arm, pending_enable_sent), FIELD(plem_arm, stop_knots), FIELD(plem_arm, stop_coefficients),
     FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, override),
-    FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, reacting), FIELD(plem_arm, unsettled),
+    FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, reacting), FIELD(plem_arm, unsettled), FIELD(plem_arm, commanded),
     FIELD(plem_arm, external), FIELD(plem_arm, wrench),
     FIELD(plem_arm, reactions),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),

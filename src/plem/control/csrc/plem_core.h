@@ -539,7 +539,7 @@ typedef struct {
     int32_t feeling;                 /* 1 while the estimate below is current */
     uint32_t reacting;               /* bit k set while reactions[k] is armed */
     int32_t unsettled;               /* cycles until the estimate is trusted again after a bus answer was stale */
-    int32_t pad5;
+    int32_t commanded;               /* the command rows hold this cycle's command (else the previous cycle's) */
     double external[PLEM_MAX_JOINTS];
     double wrench[6];
     plem_reaction reactions[PLEM_REACTIONS];
