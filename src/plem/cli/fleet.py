@@ -123,3 +123,109 @@ def query(
     if relation is None:
         return
     print_rows("Query", list(relation.columns), relation.fetchall(), output, "The query returned no rows.")
+
+
+def _print_frame(title: str, frame: Any, output: TableFormat, empty: str) -> None:
+    columns, rows = _frame_rows(frame)
+    print_rows(title, columns, rows, output, empty)
+
+
+def _window(since: datetime | None) -> str:
+    return f" since {since.isoformat()}" if since is not None else ""
+
+
+@app.command()
+def faults(
+    dest: Dest,
+    since: Since = None,
+    window: Annotated[float, typer.Option("--window", min=0.001, metavar="SECONDS",
+                                          help="Seconds of rt_raw before each fault to summarise.")] = 1.0,
+    output: FormatOption = TableFormat.table,
+) -> None:
+    """Every fault across the robots, with the motion and timing of the seconds before it."""
+    from plem.fleet import reports
+
+    start = _since(since)
+    dataset = _open(dest)
+    report = reports.faults(dataset, start, window)
+    _print_frame(f"Faults ({window:g} s before each)", report, output, f"No faults in {dest}{_window(start)}.")
+    if output is TableFormat.table and not report.empty:
+        counts = report["robot_id"].value_counts()
+        stdout.print("Faults per robot: " + ", ".join(f"{robot} {count}" for robot, count in counts.items()),
+                     markup=False, highlight=False)
+
+
+@app.command()
+def health(
+    dest: Dest,
+    since: Since = None,
+    engine: Annotated[Engine, typer.Option("--engine", help="DuckDB on this machine, or a Dask cluster.")]
+    = Engine.duckdb,
+    scheduler: Annotated[str | None, typer.Option("--scheduler", metavar="tcp://HOST:8786", show_default=False,
+                                                  help="With --engine dask: the cluster's scheduler "
+                                                       "(default: a local cluster of 2 worker processes).")] = None,
+    output: FormatOption = TableFormat.table,
+    plot: Plot = None,
+) -> None:
+    """Overruns, missed periods, lost frames and wake-up latency percentiles per robot per day, and the trend."""
+    from plem.fleet import health as report
+
+    start = _since(since)
+    if scheduler is not None and engine is not Engine.dask:
+        from plem.errors import UsageError
+
+        raise UsageError("--scheduler needs --engine dask", what="--scheduler with --engine dask",
+                         why=f"--engine is {engine.value}", how="add --engine dask, or leave --scheduler out")
+    dataset = _open(dest)
+    if engine is Engine.dask:
+        from plem.fleet import dask_engine
+
+        with dask_engine.connect(scheduler) as client:
+            aggregates = dask_engine.aggregates(dataset, start, client)
+    else:
+        aggregates = report.duckdb_aggregates(dataset, start)
+    days = report.days(*aggregates)
+    trend = report.trend(days)
+    empty = f"No rt_raw or rt_monitor_stats rows in {dest}{_window(start)}."
+    if output is TableFormat.json:
+        print_json({"days": [_record(row) for row in days.to_dict("records")],
+                    "trend": [_record(row) for row in trend.to_dict("records")]})
+    else:
+        _print_frame("Health per robot and day (latency in µs)", days, output, empty)
+        if output is TableFormat.table and not trend.empty:
+            _print_frame("Trend (least-squares change per week over the days)", trend, output, "")
+            growing = [f"{robot} ({grows})" for robot, grows in zip(trend["robot_id"], trend["grows"], strict=True)
+                       if grows]
+            stdout.print("Growing week on week: " + ("; ".join(growing) if growing else "none"), markup=False,
+                         highlight=False)
+    if plot is not None and not days.empty:
+        from plem.fleet import plots
+
+        plots.health(days, plot)
+
+
+def _record(row: dict[str, Any]) -> dict[str, Any]:
+    return {key: _cell(value) for key, value in row.items()}
+
+
+@app.command()
+def usage(
+    dest: Dest,
+    since: Since = None,
+    deadband: Annotated[float, typer.Option("--deadband", min=0.0, metavar="RAD/S",
+                                            help="Velocities within ±this are no direction (for reversals).")]
+    = 0.01,
+    output: FormatOption = TableFormat.table,
+    plot: Plot = None,
+) -> None:
+    """Travel, reversals and RMS effort per robot and joint, the most travelled first: what to service first."""
+    from plem.fleet import reports
+
+    start = _since(since)
+    dataset = _open(dest)
+    report = reports.usage(dataset, start, deadband)
+    _print_frame("Usage per joint (most travelled first)", report, output, f"No rt_raw rows in {dest}{_window(start)}.")
+    if plot is not None and not report.empty:
+        from plem.fleet import plots
+
+        plots.usage(report, plot)

@@ -66,13 +66,17 @@ class Dataset:
         return QUERY_HOW.format(tables=", ".join(schema.TABLES), dest=self.dest)
 
     def frame(self, query: str, parameters: list[Any] | None = None) -> Any:
-        """The result of `query` as a pandas DataFrame (empty when the query returns nothing)."""
+        """The result of `query` as a pandas DataFrame, its times in UTC."""
         relation = self.sql(query, parameters)
         if relation is None:
             raise FleetError("The query returned no rows", what="a query with a result (SELECT …)",
                              why=f"{query!r} is a statement without a result",
                              how=self.query_how())
-        return relation.df()
+        frame = relation.df()
+        for column in frame.columns:   # DuckDB hands TIMESTAMPTZ columns over as naive UTC
+            if str(frame[column].dtype).startswith("datetime64[") and frame[column].dt.tz is None:
+                frame[column] = frame[column].dt.tz_localize("UTC")
+        return frame
 
     def url(self, path: str) -> str:
         """A file's path as DuckDB reads it (with its scheme on object storage)."""
