@@ -186,7 +186,7 @@ def _local_problem(destination: Destination, error: OSError) -> DestinationError
 
 
 def _open_s3(text: str, argument: str) -> Destination:
-    import s3fs  # type: ignore[import-untyped]
+    import s3fs
 
     bucket_and_prefix = text.removeprefix("s3://").rstrip("/")
     bucket = bucket_and_prefix.split("/", 1)[0]
