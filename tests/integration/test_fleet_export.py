@@ -262,3 +262,41 @@ def test_missing_s3_credentials_are_what_why_how(bag_dir: Path, tmp_path: Path):
                             capture_output=True, text=True, env=environment, timeout=60)
     assert result.returncode == 1 and "ERROR: no S3 credentials for s3://fleet/x" in result.stderr
     assert "HOW: export AWS_ACCESS_KEY_ID=" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.fixture
+def s3_server(monkeypatch: pytest.MonkeyPatch) -> Any:
+    """A real S3-compatible server (moto's server mode) on a free local port, with the usual AWS variables."""
+    from moto.server import ThreadedMotoServer
+
+    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0)
+    server.start()
+    host, port = server.get_host_and_port()
+    environment = {"AWS_ACCESS_KEY_ID": "fleet", "AWS_SECRET_ACCESS_KEY": "secret",
+                   "AWS_ENDPOINT_URL": f"http://{host}:{port}", "AWS_DEFAULT_REGION": "us-east-1"}
+    for name, value in environment.items():
+        monkeypatch.setenv(name, value)
+    try:
+        yield environment
+    finally:
+        server.stop()
+
+
+def test_export_to_a_real_s3_server_equals_the_local_export(bag_dir: Path, dataset: Path, s3_server: Any):
+    import s3fs
+
+    store = s3fs.S3FileSystem(client_kwargs={"endpoint_url": s3_server["AWS_ENDPOINT_URL"]})
+    result = run_plem("bag", "export", str(bag_dir), "--to", "s3://fleet/plant1", env=s3_server)
+    assert result.returncode == 1 and "ERROR: bucket fleet does not exist" in result.stderr
+    assert "HOW: create it (aws s3 mb s3://fleet)" in result.stderr and "Traceback" not in result.stderr
+    store.mkdir("fleet")
+    result = run_plem("bag", "export", str(bag_dir), "--to", "s3://fleet/plant1", env=s3_server)
+    assert result.returncode == 0, result.stderr
+    assert "exported 5 segments (4500 rt_raw rows" in result.stdout
+    store.invalidate_cache()
+    objects = {key.removeprefix("fleet/plant1/"): store.cat_file(key) for key in store.find("fleet/plant1")}
+    assert objects == files(dataset)
+    raw = ds.dataset("fleet/plant1/rt_raw", filesystem=store, format="parquet", partitioning="hive").to_table()
+    assert raw.num_rows == 4500 and set(raw.column("robot_id").to_pylist()) == set(ROBOTS)
+    again = export([bag_dir], open_destination("s3://fleet/plant1"))
+    assert again.exported == [] and len(again.already) == 5
