@@ -300,3 +300,31 @@ def test_export_to_a_real_s3_server_equals_the_local_export(bag_dir: Path, datas
     assert raw.num_rows == 4500 and set(raw.column("robot_id").to_pylist()) == set(ROBOTS)
     again = export([bag_dir], open_destination("s3://fleet/plant1"))
     assert again.exported == [] and len(again.already) == 5
+
+
+def test_sqlite3_bags_and_joint_states_of_another_shape_export_too(tmp_path: Path):
+    """A sqlite3 bag (no embedded definitions: plem's interfaces decode it) whose joint_states carry positions
+    only: those messages take the one-by-one path, their missing velocities and efforts are null."""
+    from tests.integration.test_bag_cli import record as record_sqlite3
+
+    record_sqlite3(tmp_path / "bags" / "arm", storage="sqlite3", samples=1500)
+    report = export([tmp_path / "bags"], open_destination(str(tmp_path / "fleet")))
+    assert report.problems == [] and report.rt_raw_rows == 1500
+    states = table(tmp_path / "fleet", "joint_states")
+    assert states.num_rows == 150 and states.column("position_0").null_count == 0
+    assert states.column("velocity_0").null_count == 150
+
+
+def test_an_rtraw_of_an_unknown_layout_is_refused_with_what_why_how(tmp_path: Path):
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    text = (Path(__file__).parents[2] / "src/plem/middleware/interfaces/plem_msgs/msg/RtRaw.msg").read_text()
+    store = get_typestore(Stores.ROS2_JAZZY)
+    store.register(get_types_from_msg(text + "\nfloat64 torque_scale\n", "plem_msgs/msg/RtRaw"))
+    robot = tmp_path / "bags" / "arm"
+    robot.mkdir(parents=True)
+    SegmentWriter(robot / "arm_2027_01_16-00_00_00", [("/arm/rt_raw", "plem_msgs/msg/RtRaw")], store).close()
+    result = run_plem("bag", "export", str(tmp_path / "bags"), "--to", str(tmp_path / "fleet"))
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert "ERROR: rt_raw of arm_2027_01_16-00_00_00 has a layout this plem does not know" in result.stderr
+    assert "speed_override, torque_scale" in result.stderr and "HOW: export it with the plem version" in result.stderr

@@ -12,6 +12,7 @@ is its message's bag time, which the recorder sets to the message's header stamp
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from functools import cache
@@ -20,17 +21,18 @@ from typing import Any
 
 import numpy as np
 import pyarrow as pa
-from rosbags.interfaces import MessageDefinitionFormat
-from rosbags.rosbag2 import Reader, ReaderError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
+from plem.errors import PlemError
 from plem.fleet import schema
 from plem.middleware.monitor_feed import MONITOR_TOPICS
 from plem.middleware.raw_cdr import raw_dof, raw_dtype, raw_sizes
 from plem.recording.archive import bag_metadata
 from plem.recording.bulk_cdr import JointStateEncoder
 from plem.recording.identity import IDENTITY_PREFIX
+from plem.recording.mcap_records import CHUNK, MAGIC, SCHEMA, chunk_records, records, string
+from plem.recording.segment import bag_file
 from plem.recording.summary import BagError, Payloads, SegmentInfo, read_topic
 
 RAW_TYPE = MONITOR_TOPICS["rt_raw"]
@@ -60,18 +62,44 @@ def _types_of(definitions: tuple[tuple[str, str], ...]) -> Typestore:
     return store
 
 
-def _bag_types(segment: Path) -> tuple[Typestore, dict[str, str]]:
-    """The type store of a segment's embedded definitions (plem's own interfaces for a bag without them), and its
-    custom_data."""
+def embedded_definitions(file: Path) -> tuple[tuple[str, str], ...]:
+    """(type, ros2msg text) of every schema an MCAP file embeds: its first records and first chunk hold them all
+    (the recorder writes its connections before any message)."""
+    with open(file, "rb") as handle:
+        data = handle.read(HEAD_BYTES)
+    found: dict[str, str] = {}
+
+    def take(opcode: int, content: memoryview) -> None:
+        if opcode == SCHEMA:
+            name, offset = string(content, 2)
+            encoding, offset = string(content, offset)
+            (length,) = struct.unpack_from("<I", content, offset)
+            if encoding == "ros2msg":
+                found[name] = bytes(content[offset + 4:offset + 4 + length]).decode()
+
+    for opcode, content in records(data, len(MAGIC)):
+        take(opcode, content)
+        if opcode == CHUNK:
+            for inner, inner_content in records(chunk_records(content)):
+                take(inner, inner_content)
+            break
+    return tuple(sorted(found.items()))
+
+
+#: How much of an MCAP file is read for its definitions: the recorder's first chunk holds only its connections.
+HEAD_BYTES = 1024 * 1024
+
+
+def _bag_types(info: SegmentInfo) -> tuple[Typestore, dict[str, str]]:
+    """The type store of a segment's embedded definitions (plem's own interfaces for a bag without them, as sqlite3
+    bags are), and its metadata's custom_data."""
+    file = bag_file(info.path)
     try:
-        with Reader(segment) as reader:
-            definitions = tuple(sorted({(connection.msgtype, connection.msgdef.data)
-                                        for connection in reader.connections
-                                        if connection.msgdef.format == MessageDefinitionFormat.MSG}))
-    except (ReaderError, OSError, ValueError, KeyError, TypeError) as error:
-        raise BagError(f"segment {segment.name} cannot be read", what="a complete rosbag2 segment",
-                       why=f"{type(error).__name__}: {error}", how=f"run `plem bag repair {segment}`") from None
-    custom = (bag_metadata(segment) or {}).get("custom_data") or {}
+        definitions = embedded_definitions(file) if file is not None and file.suffix == ".mcap" else ()
+        custom = (bag_metadata(info.path) or {}).get("custom_data") or {}
+    except (OSError, ValueError, struct.error, PlemError) as error:
+        raise BagError(f"segment {info.name} cannot be read", what="a complete rosbag2 segment",
+                       why=f"{type(error).__name__}: {error}", how=f"run `plem bag repair {info.path}`") from None
     custom = {str(key): str(value) for key, value in custom.items()} if isinstance(custom, dict) else {}
     if definitions:
         return _types_of(definitions), custom
@@ -100,9 +128,11 @@ def raw_layout(store: Typestore, segment: str) -> bool:
 
 # -- rt_raw -----------------------------------------------------------------------------------------------------
 def _gather(payloads: Payloads, rows: np.ndarray, size: int, begin: int = 0) -> np.ndarray:
-    """Bytes `begin` to `size` of the payloads at `rows`, one row of bytes each."""
-    index = payloads.starts[rows].astype(np.int64)[:, None] + np.arange(begin, size)
-    out: np.ndarray = payloads.buffer[index]
+    """Bytes `begin` to `size` of the payloads at `rows`, one row of bytes each: whole rows copied out of a
+    sliding-window view of the buffer (no index per byte)."""
+    width = size - begin
+    windows = np.lib.stride_tricks.sliding_window_view(payloads.buffer, width)
+    out: np.ndarray = windows[payloads.starts[rows].astype(np.int64) + begin]
     return out
 
 
@@ -272,7 +302,7 @@ def stats_table(batches: Iterable[Payloads], store: Typestore) -> pa.Table:
 # -- a segment ------------------------------------------------------------------------------------------------------
 def decode_segment(info: SegmentInfo, robot_id: str) -> SegmentTables:
     """Every exported topic of one complete segment, decoded through the definitions it embeds."""
-    store, custom = _bag_types(info.path)
+    store, custom = _bag_types(info)
     topics = {name: info.topic_of(ros_type) for name, ros_type in MONITOR_TOPICS.items()}
 
     def batches(name: str) -> Iterator[Payloads]:
