@@ -100,6 +100,7 @@ class Destination:
         """The names of the `.parquet` files anywhere under `relative` (none when it does not exist)."""
         if self.fs is not None:
             with _s3_errors(self):
+                self.fs.invalidate_cache()           # another process may have exported since
                 found = self.fs.glob(self.path(f"{relative}/**/*.parquet"))
             return {str(key).rsplit("/", 1)[-1] for key in found}
         base = Path(self.path(relative))

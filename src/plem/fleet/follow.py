@@ -38,33 +38,39 @@ def lower_priority() -> None:
     os.setpriority(os.PRIO_PROCESS, 0, 19)
 
 
-def closed_candidates(robot_dir: Path, handled: set[str]) -> list[Path]:
-    """Closed segment directories of the robot not handled yet, oldest first: with their metadata.yaml (the
-    recorder writes it when it closes one) and no recorder's lock."""
+def segment_names(robot_dir: Path) -> set[str]:
+    """The names of the robot's segment directories (and anything else not hidden in its directory)."""
     try:
-        children = sorted(robot_dir.iterdir())
+        return {child.name for child in robot_dir.iterdir() if not child.name.startswith(".")}
     except OSError:
-        return []                                    # recreated by the recorder meanwhile: looked at next time
-    return [child for child in children if child.name not in handled and not child.name.startswith(".")
-            and (child / "metadata.yaml").is_file() and bag_file(child) is not None and not still_open(child)]
+        return set()                                 # recreated by the recorder meanwhile: looked at next time
+
+
+def closed(segment: Path) -> bool:
+    """Whether a segment is closed: its metadata.yaml (the recorder writes it when it closes one) is there and no
+    recorder holds it."""
+    return (segment / "metadata.yaml").is_file() and bag_file(segment) is not None and not still_open(segment)
 
 
 class Follower:
-    """Exports one robot's segments as they close; `handled` holds those exported or reported once."""
+    """Exports one robot's segments as they close; `handled` holds those exported or reported once (names still in
+    the robot's directory, so it stays as small as the directory)."""
 
     def __init__(self, robot_dir: Path, destination: Destination, threshold: float) -> None:
         self.robot_dir = robot_dir
         self.destination = destination
         self.room = disk_room(destination, threshold)
         self.handled: set[str] = set()
-        self.seen: set[str] = set()                  # found at least once: its deletion before export is reported
+        self.seen: set[str] = set()                  # found closed once: its deletion before export is reported
         self.held_back: str | None = None            # why the destination refused last time (said once)
 
     def step(self) -> bool:
         """One pass: export what closed; False when the destination refused (try again after `RETRY_S`)."""
-        candidates = closed_candidates(self.robot_dir, self.handled)
-        gone = [Path(self.robot_dir / name) for name in sorted(self.seen - self.handled)
-                if not (self.robot_dir / name).is_dir()]
+        present = segment_names(self.robot_dir)
+        gone = [self.robot_dir / name for name in sorted(self.seen - self.handled - present)]
+        self.handled &= present
+        self.seen &= present
+        candidates = [self.robot_dir / name for name in sorted(present - self.handled) if closed(self.robot_dir / name)]
         if not candidates and not gone:
             return True
         self.seen.update(path.name for path in candidates)
@@ -82,8 +88,7 @@ class Follower:
             _log.info("exported %s to %s", name, self.destination.text)
         for problem in report.problems:
             _log.warning("%s", problem.log_text())
-        reported = {path.name for path in [*gone, *candidates]} - {name.split("/", 1)[1] for name in report.recording}
-        self.handled.update(reported)
+        self.handled.update(path.name for path in candidates)
         return True
 
 
