@@ -11,9 +11,9 @@ import numpy as np
 import pyarrow.dataset as ds
 import pytest
 
+from plem.fleet.continuous import Follower
 from plem.fleet.destination import open_destination
 from plem.fleet.export import disk_room
-from plem.fleet.follow import Follower
 from plem.recording.bulk_cdr import raw_payloads
 from plem.recording.recorder import Messages, Recorder
 from tests.integration.fleet_bags import MS, S, recorder_for, ring_records
