@@ -26,11 +26,14 @@ from tests.integration.fleet_dataset import write_fleet
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The two robots, and a third whose counters restart twice within one day (three runs)."""
+    """The two robots, a third whose counters restart twice within one day (three runs), and a fourth recording
+    across midnight."""
     directory = write_fleet(tmp_path_factory.mktemp("fleet") / "dataset")
     restarts = [Run("arm_c", 6, datetime(2026, 11, 4, hour, tzinfo=UTC), 3, segment_seconds=3, overruns=hour,
                     lost_frames=2 * hour, latency_base_us=hour) for hour in (8, 9, 10)]
-    write_runs(directory, restarts)
+    across_midnight = Run("arm_d", 6, datetime(2026, 11, 4, 23, 59, 58, tzinfo=UTC), 4, segment_seconds=4,
+                          overruns=4)
+    write_runs(directory, [*restarts, across_midnight])
     return directory
 
 
@@ -48,11 +51,15 @@ def test_the_dask_job_equals_duckdb_row_for_row(fleet: Path, client: Client, sin
     by_duckdb = health.days(*health.duckdb_aggregates(dataset, since))
     by_dask = health.days(*dask_engine.aggregates(dataset, since, client))
     pd.testing.assert_frame_equal(by_dask, by_duckdb, check_exact=True)
-    expected_rows = 5 if since is None else 3
+    expected_rows = 7 if since is None else 5
     assert len(by_duckdb) == expected_rows
     arm_c = by_duckdb[by_duckdb["robot_id"] == "arm_c"].iloc[0]
     # three runs in a day, each counter from 0: 8 + 9 + 10 overruns; latency bases 8, 9, 10 µs → p99.9 10 + 99
     assert (arm_c["overruns"], arm_c["lost_frames"], arm_c["latency_p999_us"]) == (27, 54, 109)
+    arm_d = by_duckdb[by_duckdb["robot_id"] == "arm_d"]
+    assert [(str(day), cycles) for day, cycles in zip(arm_d["day"], arm_d["cycles"], strict=True)] == \
+        [("2026-11-04", 2000), ("2026-11-05", 2000)]
+    assert arm_d["overruns"].sum() == 4
     pd.testing.assert_frame_equal(health.trend(by_dask), health.trend(by_duckdb), check_exact=True)
 
 
@@ -61,7 +68,7 @@ def test_the_cli_runs_the_dask_job_on_a_scheduler(fleet: Path, client: Client, c
     assert run(["fleet", "health", str(fleet), "--format", "csv"]) == 0
     by_duckdb = capsys.readouterr().out
     assert run(["fleet", "health", str(fleet), "--engine", "dask", "--scheduler", address, "--format", "csv"]) == 0
-    assert capsys.readouterr().out == by_duckdb and by_duckdb.count("\n") == 6
+    assert capsys.readouterr().out == by_duckdb and by_duckdb.count("\n") == 8
 
 
 def test_an_unreachable_scheduler_is_what_why_how(fleet: Path, capsys: pytest.CaptureFixture[str]):
@@ -109,7 +116,7 @@ def test_a_dataset_on_s3_is_queried_like_a_directory(fleet: Path, s3: dict[str, 
                                                      capsys: pytest.CaptureFixture[str]):
     sql = "SELECT robot_id, count(*) AS n, count(DISTINCT date) AS days FROM rt_raw GROUP BY 1 ORDER BY 1"
     assert run(["fleet", "query", "s3://fleet/plant", sql, "--format", "csv"]) == 0
-    assert capsys.readouterr().out == "robot_id,n,days\narm_a,15000,2\narm_b,16000,2\narm_c,9000,1\n"
+    assert capsys.readouterr().out == "robot_id,n,days\narm_a,15000,2\narm_b,16000,2\narm_c,9000,1\narm_d,4000,2\n"
     assert run(["fleet", "health", "s3://fleet/plant", "--format", "csv"]) == 0
     on_s3 = capsys.readouterr().out
     assert run(["fleet", "health", str(fleet), "--format", "csv"]) == 0

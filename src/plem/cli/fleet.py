@@ -49,10 +49,11 @@ Plot = Annotated[Path | None, typer.Option("--plot", metavar="PNG", show_default
                                            help="Also draw the report into this PNG file.")]
 
 
-def _open(dest: str) -> Dataset:
+def _open(dest: str, *tables: str) -> Dataset:
+    """DEST opened with the views of `tables` (every table when none is named)."""
     from plem.fleet.dataset import open_dataset
 
-    return open_dataset(dest)
+    return open_dataset(dest, tables) if tables else open_dataset(dest)
 
 
 def _since(text: str | None) -> datetime | None:
@@ -146,7 +147,7 @@ def faults(
     from plem.fleet import reports
 
     start = _since(since)
-    dataset = _open(dest)
+    dataset = _open(dest, "rt_raw", "rt_events", "rt_monitor_stats", "segments")
     report = reports.faults(dataset, start, window)
     _print_frame(f"Faults ({window:g} s before each)", report, output, f"No faults in {dest}{_window(start)}.")
     if output is TableFormat.table and not report.empty:
@@ -176,7 +177,7 @@ def health(
 
         raise UsageError("--scheduler needs --engine dask", what="--scheduler with --engine dask",
                          why=f"--engine is {engine.value}", how="add --engine dask, or leave --scheduler out")
-    dataset = _open(dest)
+    dataset = _open(dest, "rt_raw", "rt_monitor_stats")
     if engine is Engine.dask:
         from plem.fleet import dask_engine
 
@@ -222,7 +223,7 @@ def usage(
     from plem.fleet import reports
 
     start = _since(since)
-    dataset = _open(dest)
+    dataset = _open(dest, "rt_raw", "segments")
     report = reports.usage(dataset, start, deadband)
     _print_frame("Usage per joint (most travelled first)", report, output, f"No rt_raw rows in {dest}{_window(start)}.")
     if plot is not None and not report.empty:

@@ -9,12 +9,14 @@ its AWS_* variables). The aggregates are those of plem.fleet.health.duckdb_aggre
 from __future__ import annotations
 
 import logging
-from datetime import datetime, timedelta
+from datetime import date, datetime
 from typing import TYPE_CHECKING, Any
 
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from plem.fleet import schema
 from plem.fleet.dataset import Dataset, FleetError, current_schema
 from plem.fleet.health import COUNTERS, HISTOGRAM_COLUMNS
 
@@ -27,46 +29,77 @@ LOCAL_WORKERS = 2
 CONNECT_TIMEOUT_S = 10
 
 
-def read_file(path: str, filesystem: AbstractFileSystem, table: str, columns: list[str]) -> pd.DataFrame:
-    """One file's `columns` as pandas: partition columns from its path, columns the file lacks as null."""
+def _partitions(path: str) -> dict[str, str]:
+    """A file's Hive partition values from its path (`robot_id=…/date=…/`)."""
+    return dict(part.split("=", 1) for part in path.split("/") if "=" in part)
+
+
+def _partition_array(path: str, name: str, rows: int) -> pa.Array:
+    value = _partitions(path)[name]
+    if name == "date":
+        return pa.array([date.fromisoformat(value)] * rows, pa.date32())
+    return pa.array([value] * rows, pa.string())
+
+
+def read_file(path: str, filesystem: AbstractFileSystem, table: str, columns: list[str]) -> pa.Table:
+    """One file's `columns`: partition columns from its path, columns the file lacks as null (as the views)."""
     wanted = current_schema(table)
     present = set(pq.read_schema(path, filesystem=filesystem).names)
     data = pq.read_table(path, filesystem=filesystem, columns=[name for name in columns if name in present])
-    partitions = dict(part.split("=", 1) for part in path.split("/") if "=" in part)
     arrays = []
     for name in columns:
         if name in data.column_names:
             arrays.append(data.column(name).cast(wanted.field(name).type))
-        elif name == "robot_id":
-            arrays.append(pa.array([partitions["robot_id"]] * data.num_rows, pa.string()))
+        elif name in ("robot_id", "date"):
+            arrays.append(_partition_array(path, name, data.num_rows))
         else:
             arrays.append(pa.nulls(data.num_rows, wanted.field(name).type))
-    return pa.table(arrays, names=columns).to_pandas()
+    return pa.table(arrays, names=columns)
 
 
-def _frame(dataset: Dataset, table: str, columns: list[str], since: datetime | None) -> Any:
-    """The table's files (those of dates before `since` left out) as one dask DataFrame of `columns`."""
+def file_histogram(path: str, filesystem: AbstractFileSystem, since: datetime | None) -> pd.DataFrame:
+    """One rt_raw file's latency histogram (robot_id, day, us, n, max_ns), counted where it is read."""
+    data = read_file(path, filesystem, "rt_raw", ["time", "latency_ns"])
+    keep = pc.is_valid(data.column("latency_ns"))
+    if since is not None:
+        keep = pc.and_(keep, pc.greater_equal(data.column("time"), pa.scalar(since, schema.TIME)))
+    latency = data.filter(keep).column("latency_ns").cast(pa.int64())
+    grouped = pa.table({"us": pc.divide(latency, 1000), "latency": latency}).group_by("us") \
+        .aggregate([("latency", "count"), ("latency", "max")])
+    rows = grouped.num_rows
+    return pa.table({"robot_id": _partition_array(path, "robot_id", rows), "day": _partition_array(path, "date", rows),
+                     "us": grouped.column("us"), "n": grouped.column("latency_count"),
+                     "max_ns": grouped.column("latency_max")}).to_pandas()
+
+
+def file_frame(path: str, filesystem: AbstractFileSystem, table: str, columns: list[str]) -> pd.DataFrame:
+    """One file's `columns` as pandas (read_file's table)."""
+    return read_file(path, filesystem, table, columns).to_pandas()
+
+
+def _files(dataset: Dataset, table: str, since: datetime | None) -> list[str]:
+    """The table's files, those of dates before `since` left out."""
+    files = dataset.files[table]
+    if since is None:
+        return files
+    first = since.date().isoformat()
+    return [path for path in files if _partitions(path).get("date", first) >= first]
+
+
+def _from_files(function: Any, files: list[str], meta: pd.DataFrame, **arguments: Any) -> Any:
+    """A dask DataFrame of `function(file, **arguments)` for every file (just `meta` without files)."""
     import dask.dataframe as dd
 
-    files = dataset.files[table]
-    if since is not None:
-        first = (since.date() - timedelta(days=1)).isoformat()
-        files = [path for path in files if _date_of(path) >= first]
-    meta = current_schema(table).empty_table().select(columns).to_pandas()
     if not files:
         return dd.from_pandas(meta, npartitions=1)  # type: ignore[no-untyped-call]
-    return dd.from_map(read_file, files, filesystem=dataset.filesystem, table=table, columns=columns, meta=meta,  # type: ignore[no-untyped-call]
-                       enforce_metadata=False)
-
-
-def _date_of(path: str) -> str:
-    return next((part.removeprefix("date=") for part in path.split("/") if part.startswith("date=")), "")
+    return dd.from_map(function, files, meta=meta, enforce_metadata=False,  # type: ignore[no-untyped-call]
+                       **arguments)
 
 
 def _increases(group: pd.DataFrame) -> pd.DataFrame:
     """A robot's counters as increases in time order (a counter going down restarted: its value is all increase)."""
     ordered = group.sort_values("time", kind="stable")
-    result = ordered[["time"]].copy()
+    result = ordered[["time", "date"]].copy()
     result.insert(0, "robot_id", group.name)   # the group's key (pandas leaves it out of the group's columns)
     for name, source in COUNTERS:
         values = ordered[source].astype("float64")
@@ -76,36 +109,33 @@ def _increases(group: pd.DataFrame) -> pd.DataFrame:
 
 
 def aggregates(dataset: Dataset, since: datetime | None, client: Client) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """The latency histogram and the counters' daily increases (as health.duckdb_aggregates), computed by Dask."""
+    """The latency histogram and the counters' daily increases (as health.duckdb_aggregates), computed by Dask.
+
+    A day is the file's `date` partition, the UTC date of its rows (as DuckDB's), so each file's histogram is
+    counted where the file is read and only the small histograms travel."""
     import pandas as pd
 
-    raw = _frame(dataset, "rt_raw", ["robot_id", "time", "latency_ns"], since)
-    raw = raw[raw["latency_ns"].notnull()]
-    if since is not None:
-        raw = raw[raw["time"] >= pd.Timestamp(since)]
-    raw = raw.assign(day=raw["time"].dt.floor("D"), us=(raw["latency_ns"].astype("int64") // 1000),
-                     max_ns=raw["latency_ns"].astype("int64"))
-    histogram = raw.groupby(["robot_id", "day", "us"]).agg(n=("max_ns", "count"), max_ns=("max_ns", "max"))
+    histogram_meta = pd.DataFrame({"robot_id": pd.Series(dtype=str), "day": pd.Series(dtype=object),
+                                   "us": pd.Series(dtype="int64"), "n": pd.Series(dtype="int64"),
+                                   "max_ns": pd.Series(dtype="int64")})
+    parts = _from_files(file_histogram, _files(dataset, "rt_raw", since), histogram_meta,
+                        filesystem=dataset.filesystem, since=since)
+    histogram = parts.groupby(["robot_id", "day", "us"]).agg(n=("n", "sum"), max_ns=("max_ns", "max"))
 
-    sources = [source for _, source in COUNTERS]
-    stats = _frame(dataset, "rt_monitor_stats", ["robot_id", "time", *sources], since=None)
+    columns = ["robot_id", "date", "time", *(source for _, source in COUNTERS)]
+    stats_meta = current_schema("rt_monitor_stats").empty_table().select(columns).to_pandas()
+    stats = _from_files(file_frame, dataset.files["rt_monitor_stats"], stats_meta, filesystem=dataset.filesystem,
+                        table="rt_monitor_stats", columns=columns)
     meta = pd.DataFrame({"robot_id": pd.Series(dtype=str), "time": pd.Series(dtype="datetime64[ns, UTC]"),
-                         **{name: pd.Series(dtype="float64") for name, _ in COUNTERS}})
+                         "date": pd.Series(dtype=object), **{name: pd.Series(dtype="float64") for name, _ in COUNTERS}})
     increases = stats.groupby("robot_id", group_keys=False).apply(_increases, meta=meta)
     if since is not None:
         increases = increases[increases["time"] >= pd.Timestamp(since)]
-    increases = increases.assign(day=increases["time"].dt.floor("D"))
-    counters = increases.groupby(["robot_id", "day"])[[name for name, _ in COUNTERS]].sum(min_count=1)
+    counters = increases.rename(columns={"date": "day"}).groupby(["robot_id", "day"])[
+        [name for name, _ in COUNTERS]].sum(min_count=1)
 
     histogram_frame, counters_frame = client.compute([histogram, counters], sync=True)  # type: ignore[no-untyped-call]
-    histogram_frame = histogram_frame.reset_index().reindex(columns=list(HISTOGRAM_COLUMNS))
-    return _dated(histogram_frame), _dated(counters_frame.reset_index())
-
-
-def _dated(frame: pd.DataFrame) -> pd.DataFrame:
-    """`day` as a date (a UTC midnight from Dask; a date from DuckDB)."""
-    frame["day"] = frame["day"].dt.date
-    return frame
+    return histogram_frame.reset_index().reindex(columns=list(HISTOGRAM_COLUMNS)), counters_frame.reset_index()
 
 
 def connect(scheduler: str | None) -> Client:

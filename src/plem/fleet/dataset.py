@@ -87,8 +87,9 @@ class Dataset:
         return self.dest.split("://", 1)[0] if "://" in self.dest else ""
 
 
-def open_dataset(dest: str) -> Dataset:
-    """Open DEST: check it is a dataset and that no file is of a newer schema, then make the views."""
+def open_dataset(dest: str, tables: tuple[str, ...] = schema.TABLES) -> Dataset:
+    """Open DEST: check it is a dataset and that no file of `tables` is of a newer schema, then make their views
+    (a report opens only the tables it reads: every file's footer is read once per table)."""
     import duckdb
 
     filesystem, root = _filesystem(dest)
@@ -101,11 +102,12 @@ def open_dataset(dest: str) -> Dataset:
                              "first: plem bag export BAG_DIR --to DEST")
     connection = duckdb.connect()
     connection.execute("SET TimeZone = 'UTC'")
+    connection.execute("SET parquet_metadata_cache = true")   # the footers read by the version check serve every view
     dataset = Dataset(dest, filesystem, files, connection)
     if dataset.dest_scheme():
         connection.register_filesystem(filesystem)
-    _check_versions(dataset)
-    for table in schema.TABLES:
+    _check_versions(dataset, tables)
+    for table in tables:
         _create_view(dataset, table)
     return dataset
 
@@ -152,9 +154,9 @@ def _access_error(dest: str, error: Exception) -> FleetError:
     return FleetError(f"Cannot read {dest}", what=f"to list the dataset's files under {dest}", why=why, how=how)
 
 
-def _check_versions(dataset: Dataset) -> None:
+def _check_versions(dataset: Dataset, tables: tuple[str, ...]) -> None:
     """Refuse files written by a newer plem (they may hold columns this one reads wrongly); accept older ones."""
-    urls = [dataset.url(path) for paths in dataset.files.values() for path in paths]
+    urls = [dataset.url(path) for table in tables for path in dataset.files[table]]
     if not urls:
         return
     rows = dataset.sql("SELECT file_name, decode(value) FROM parquet_kv_metadata(?) WHERE decode(key) = ?",

@@ -105,7 +105,7 @@ def duckdb_aggregates(dataset: Dataset, since: datetime | None) -> tuple[pd.Data
     """The latency histogram and the counters' daily increases, computed by DuckDB over the views."""
     where, parameters = since_filter(since)
     histogram = dataset.frame(
-        "SELECT robot_id, CAST(time AS DATE) AS day, CAST(latency_ns // 1000 AS BIGINT) AS us, count(*) AS n, "
+        "SELECT robot_id, date AS day, CAST(latency_ns // 1000 AS BIGINT) AS us, count(*) AS n, "
         f"CAST(max(latency_ns) AS BIGINT) AS max_ns FROM rt_raw WHERE latency_ns IS NOT NULL {where} GROUP BY ALL",
         parameters)
     lags = ", ".join(f"lag({source}) OVER w AS previous_{name}" for name, source in COUNTERS)
@@ -115,7 +115,7 @@ def duckdb_aggregates(dataset: Dataset, since: datetime | None) -> tuple[pd.Data
     counters = dataset.frame(
         f"WITH ordered AS (SELECT robot_id, date, time, {sources}, {lags} FROM rt_monitor_stats "
         "WINDOW w AS (PARTITION BY robot_id ORDER BY time)) "
-        f"SELECT robot_id, CAST(time AS DATE) AS day, {sums} FROM ordered WHERE true {where} GROUP BY ALL",
+        f"SELECT robot_id, date AS day, {sums} FROM ordered WHERE true {where} GROUP BY ALL",
         parameters)
     return histogram, counters
 

@@ -9,7 +9,8 @@ Hive partitions `robot_id=…/date=…/`, one file per segment). A run is one re
 - wake-up latency repeats a shuffled pattern every 1000 cycles: `latency_base_us` µs plus 0, 100, …, 99 900 ns,
   so over whole seconds the whole-microsecond percentiles are base + 49 (p50), base + 98 (p99), base + 99 (p99.9);
 - the cumulative counters (overruns, missed periods, lost frames) climb evenly from 0 to the run's totals;
-- a fault is an rt_events row (kind `fault`), with the mode changes into and out of operation around the run.
+- a fault is an rt_events row (kind `fault`), with the mode changes into and out of operation around the run;
+- a segment's rows are split by their UTC date, as the export writes them (the `date` partition is that date).
 """
 
 from __future__ import annotations
@@ -85,11 +86,19 @@ def write_run(dest: Path, run: Run, compression: str = "zstd") -> list[Path]:
         name = f"{run.robot_id}_{segment_start:%Y_%m_%d-%H_%M_%S}"
         tables = _segment_tables(run, index, start_ns, period_ns, total, name)
         for table_name, table in tables.items():
-            path = dest / table_name / f"robot_id={run.robot_id}" / f"date={segment_start:%Y-%m-%d}" / f"{name}.parquet"
-            path.parent.mkdir(parents=True, exist_ok=True)
-            pq.write_table(table, path, compression=compression)
-            written.append(path)
+            for day, rows in _by_date(table, "start" if table_name == "segments" else "time"):
+                path = dest / table_name / f"robot_id={run.robot_id}" / f"date={day}" / f"{name}.parquet"
+                path.parent.mkdir(parents=True, exist_ok=True)
+                pq.write_table(rows, path, compression=compression)
+                written.append(path)
     return written
+
+
+def _by_date(table: pa.Table, column: str) -> list[tuple[str, pa.Table]]:
+    """The table's rows split by the UTC date of `column` (a segment across midnight is a file in each date)."""
+    days = table.column(column).cast(pa.int64()).to_numpy() // (86_400 * 1_000_000_000)
+    return [((_EPOCH + timedelta(days=int(day))).date().isoformat(), table.filter(pa.array(days == day)))
+            for day in np.unique(days)]
 
 
 def _epoch_ns(moment: datetime) -> int:
