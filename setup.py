@@ -13,7 +13,7 @@ SOEM_SOURCES = sorted(str(p) for p in [*SOEM.glob("soem/*.c"), SOEM / "osal/linu
 SOEM_INCLUDES = [str(SOEM / d) for d in ("soem", "osal", "osal/linux", "oshw/linux")]
 #: C11, every warning an error, no symbols leaking beyond the module. SOEM's headers are system headers to it:
 #: the core's warnings stay its own.
-FLAGS = ["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wstrict-prototypes", "-fvisibility=hidden",
+FLAGS = ["-std=c11", "-O2", "-fno-math-errno", "-Wall", "-Wextra", "-Werror", "-Wshadow", "-Wstrict-prototypes", "-fvisibility=hidden",
          "-D_GNU_SOURCE", f'-DPLEM_SOEM_VERSION="{SOEM_VERSION}"'] + [f"-isystem{d}" for d in SOEM_INCLUDES]
 
 setup(

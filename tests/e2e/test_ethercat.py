@@ -19,6 +19,7 @@ import pytest
 
 from plem.bridge.client import RobotClient, connect
 from plem.control.events import EventKind
+from plem.control.reactions import Measure, Record
 from plem.core.paths import BUILTIN_PACKAGES_DIR
 from plem.errors import CommandRejected
 from plem.fieldbus.ethercat.virtual.emulator import Control
@@ -324,6 +325,19 @@ def test_a_drive_that_refuses_to_enable_is_named(network, home, tmp_path):
         assert "did not enable" in str(caught.value) and "joint4" in str(caught.value)
 
 
+def test_a_digital_input_a_drive_reports_fires_a_reaction(network, home, tmp_path):
+    with enabled_launch(network, home, tmp_path) as (launch, client):
+        client.on(Measure.digital_input("joint5", 16) == 1, Record(), once=True)
+        network.control.request("inputs", drive=5, value=1 << 16)
+        try:
+            assert wait_until(lambda: any(e.kind is EventKind.REACTION
+                                          for e in client.events(timeout=0, from_oldest=True)), 10)
+        finally:
+            network.control.request("inputs", drive=5, value=0)
+        [fired] = [e for e in client.events(timeout=0, from_oldest=True) if e.kind is EventKind.REACTION]
+        assert "digital input 16 of joint5 == 1" in fired.reason
+
+
 def test_lost_frames_are_counted_and_alone_do_not_fault(network, home, tmp_path):
     """Not even during motions, where the drives catch up after each lost frame with an acceleration the command
     did not have: the contact stop (here at a tenth of the effort limits) waits for them to settle. At half speed,
@@ -428,7 +442,8 @@ def test_inject_reads_the_true_state_and_refuses_what_it_cannot_do(network: Netw
 
 # -- drives as they are --------------------------------------------------------------------------------------------
 def test_drives_without_rated_torque_run_in_per_mille_said_once(home: Path, tmp_path: Path):
-    network = Network(["robot_type:=indy7_v2", "master_index:=44", "--missing-object", "0x6076"], home)
+    network = Network(["robot_type:=indy7_v2", "master_index:=44", "--missing-object", "0x6076",
+                       "--missing-object", "0x60FD"], home)
     try:
         robot_id = new_robot_id()
         with launched(["bus:=ethercat", f"eth_interface:={network.interface}", f"robot_id:={robot_id}",
@@ -452,6 +467,13 @@ def test_drives_without_rated_torque_run_in_per_mille_said_once(home: Path, tmp_
             assert "free drive needs each drive's rated torque" in str(refused.value)
             assert "rated_torque" in refused.value.how
             assert client.state().mode.name == "HOLD" and network.control.state()["torque_offsets"] == [0] * 6
+            # nor do they map their digital inputs: a comparison on one is never true, not even == 0 (which a
+            # drive reporting its inputs would make true at once)
+            reaction = client.on(Measure.digital_input(5, 16) == 0, Record())
+            since = client.state().cycle
+            assert wait_until(lambda: client.state().cycle > since + 500, 10)
+            assert not [e for e in client.events(timeout=0, from_oldest=True) if e.kind is EventKind.REACTION]
+            reaction.remove()
             assert launch.stop() == 0, launch.describe()
         assert (launch.output + launch.errors).count("per mille") == 1
     finally:

@@ -12,7 +12,7 @@ from plem.control.motion import plan_stop
 from plem.control.payload import Payload
 from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
 from plem.control.trajectory import JointTrajectory, TrajectoryOutcome
-from plem.errors import PlemError
+from plem.errors import CommandRejected, PlemError
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
 from tests.integration.robot_fixtures import RAW_ZERO, Trace, simulated_robot
@@ -58,6 +58,32 @@ def test_until_stops_a_motion_which_succeeds_and_the_arm_holds(robot: Robot) -> 
     assert result.outcome is TrajectoryOutcome.SUCCEEDED and "until condition: force x > 20 N" in result.message
     assert robot.mode is Mode.HOLD and robot.fault_reason == ""
     assert not np.allclose(robot.state().command_position, start + 0.8, atol=1e-3)
+
+
+def test_a_digital_input_stops_a_motion_in_the_cycle_the_drive_reports_it(robot: Robot) -> None:
+    start = robot.state().position.copy()
+    handle = robot.move_joints(start + 0.8, speed_scale=0.3, until=Measure.digital_input("joint5", 16) == 1)
+    robot.on(Measure.digital_input(5, 16) == 1, Record(), once=True)   # marks the cycle that saw it
+    robot.bus.set_digital_inputs(5, 1 << 15)   # another input: nothing happens
+    robot.step(300)
+    assert not handle.done
+    robot.bus.set_digital_inputs(5, 1 << 16 | 1 << 15)
+    result = handle.wait(10.0)
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED and "digital input 16 of joint5 == 1" in result.message
+    until, record = robot.events.recent({EventKind.REACTION})   # both fired in the cycle that first saw it
+    stopped = [e for e in robot.events.recent({EventKind.MOTION_FINISHED}) if e.cycle >= record.cycle]
+    assert until.cycle == record.cycle == stopped[0].cycle   # no cycle between seeing the input and stopping
+    assert list(robot.bus.digital_inputs[:6]) == [0, 0, 0, 0, 0, 1 << 16 | 1 << 15]
+
+
+@pytest.mark.parametrize(("make", "words"), [
+    (lambda: Measure.digital_input(5, 32), "not a digital input's bit"),
+    (lambda: Measure.digital_input(5, True), "not a digital input's bit"),
+])
+def test_a_bad_digital_input_is_refused(make, words: str) -> None:
+    with pytest.raises(CommandRejected) as refused:
+        make()
+    assert words in refused.value.summary
 
 
 def test_actions_retract_pause_and_free_drive(robot: Robot) -> None:

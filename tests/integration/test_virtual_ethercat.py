@@ -47,7 +47,7 @@ class FakeDrives:
 
     def __init__(self, count: int) -> None:
         self.count = count
-        for entry in objects.RX_ENTRIES + objects.TX_ENTRIES:
+        for entry in objects.RX_ENTRIES + objects.TX_ENTRIES + (objects.DIGITAL_INPUTS,):
             setattr(self, entry.name, np.zeros(count, dtype=entry.dtype))
         self.rated_torque = np.full(count, 2500, dtype=np.uint32)
         self.error_code[:] = 0x1000 + np.arange(count)

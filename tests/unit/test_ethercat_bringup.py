@@ -77,6 +77,20 @@ def test_the_pdo_assignment_is_written_in_full_and_the_rated_torque_read():
     assert slave.written[-1] == (0x6060, 0, struct.pack("<b", 8))
 
 
+def test_the_digital_inputs_are_mapped_after_the_inputs_where_the_drive_takes_them():
+    slave = Slave()
+    assert assign_process_data(slave, 0, "joint0")
+    tx = [(sub, data) for index, sub, data in slave.written if index == objects.TX_PDO]
+    assert tx[-2:] == [(len(objects.TX_ENTRIES) + 1, struct.pack("<I", objects.DIGITAL_INPUTS.mapping)),
+                       (0, bytes([len(objects.TX_ENTRIES) + 1]))]
+    refusing = Slave(refuse=(objects.TX_PDO, len(objects.TX_ENTRIES) + 1))
+    assert not assign_process_data(refusing, 0, "joint0")   # runs without them
+    assert (objects.TX_PDO, 0, bytes([len(objects.TX_ENTRIES)])) in refusing.written
+    check_mapping([Slave(inputs=objects.pdo_bytes(objects.TX_ENTRIES) + 4), Slave()], JOINTS, [True, False])
+    with pytest.raises(EtherCATError):
+        check_mapping([Slave(), Slave()], JOINTS, [True, False])
+
+
 def test_a_slave_that_is_not_a_cia402_drive_is_named():
     with pytest.raises(EtherCATError) as caught:
         assign_process_data(Slave(device_type=0x00001389), 0, "joint0")
@@ -118,7 +132,7 @@ def test_the_package_rated_torque_comes_before_the_drive_and_gives_newton_metres
 
 def test_a_mapping_of_another_size_is_named():
     with pytest.raises(EtherCATError) as caught:
-        check_mapping([Slave(), Slave(outputs=9)], JOINTS)
+        check_mapping([Slave(), Slave(outputs=9)], JOINTS, [False, False])
     assert caught.value.summary == "slave 1 (drive, joint1) mapped 9 output and 15 input bytes"
 
 

@@ -190,6 +190,11 @@ class RemoteSimulator:
         """End a push."""
         self._client._send("simulate", {"action": "release"}).wait(ACCEPT_TIMEOUT_S)
 
+    def set_digital_inputs(self, joint: int, value: int) -> None:
+        """What a joint's drive reports as its digital inputs (0x60FD), as MockBus.set_digital_inputs."""
+        self._client._send("simulate", {"action": "digital_inputs", "joint": joint, "value": value}
+                           ).wait(ACCEPT_TIMEOUT_S)
+
     def mount_payload(self, mass: float, center_of_mass: Sequence[float] = (0.0, 0.0, 0.0)) -> None:
         """Add a point-mass payload at the simulated arm's flange (mass 0 takes it off)."""
         self._client._send("simulate", {"action": "mount_payload", "mass": mass,

@@ -107,6 +107,7 @@ INJECTIONS = {
     "drop-frames": ("drop_rate", "rate=0.01: the share of frames lost on the way"),
     "delay-frames": ("delay", "seconds=0.002: every answer comes back this late"),
     "push": ("push", "drive=N torque=T: an external torque of T N·m on drive N's joint (0 takes it away)"),
+    "inputs": ("inputs", "drive=N value=0x10000: what drive N reports as its digital inputs (0x60FD)"),
     "disappear": ("disappear", "slave=N: slave N neither answers nor counts"),
     "reappear": ("reappear", "slave=N: slave N is back on the line"),
     "state": ("state", "the emulated arm's true positions, the drives' statuswords and torque offsets"),

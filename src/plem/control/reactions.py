@@ -27,7 +27,9 @@ MAX_TERMS = C["PLEM_REACTION_TERMS"]
 _WRENCH = ("force x", "force y", "force z", "torque x", "torque y", "torque z")
 _UNITS = {C["PLEM_MEASURE_POSITION"]: "rad", C["PLEM_MEASURE_VELOCITY"]: "rad/s", C["PLEM_MEASURE_EFFORT"]: "N·m",
           C["PLEM_MEASURE_EXTERNAL_TORQUE"]: "N·m", C["PLEM_MEASURE_FOLLOWING_ERROR"]: "rad",
-          C["PLEM_MEASURE_MOTION_TIME"]: "s", C["PLEM_MEASURE_DRIVE_STATE"]: ""}
+          C["PLEM_MEASURE_MOTION_TIME"]: "s", C["PLEM_MEASURE_DRIVE_STATE"]: "", C["PLEM_MEASURE_DIGITAL_INPUT"]: ""}
+#: Bits of a drive's digital inputs (0x60FD is 32 bits wide).
+INPUT_BITS = 32
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,7 @@ class Term:
 
     op: int
     measure: int = 0
-    index: int | str = 0
+    index: int | str | tuple[int | str, int] = 0   # a digital input: (joint, bit)
     threshold: float = 0.0
 
 
@@ -78,7 +80,7 @@ class Quantity:
     """Something the core measures every cycle; compare it with a number to get a Condition."""
 
     measure: int
-    index: int | str
+    index: int | str | tuple[int | str, int]
     name: str
 
     def _compare(self, op: str, threshold: float) -> Condition:
@@ -145,6 +147,16 @@ class Measure:
     def drive_state(joint: int | str) -> Quantity:
         """A joint's drive state (compare with a plem.fieldbus.bus.DriveState, e.g. == DriveState.FAULT)."""
         return Quantity(C["PLEM_MEASURE_DRIVE_STATE"], joint, f"drive state of {joint}")
+
+    @staticmethod
+    def digital_input(joint: int | str, bit: int) -> Quantity:
+        """One bit of a joint's drive's digital inputs (0x60FD), 1 or 0 (compare == 1); never true on a drive that
+        does not report them. CiA402: bit 0 negative limit switch, 1 positive, 2 home, 3 interlock, 16-31 the
+        manufacturer's inputs."""
+        if isinstance(bit, bool) or not isinstance(bit, int) or not 0 <= bit < INPUT_BITS:
+            raise CommandRejected("not a digital input's bit", what=f"a bit from 0 to {INPUT_BITS - 1}",
+                                  why=f"got {bit!r}", how="e.g. Measure.digital_input('joint5', 16) == 1")
+        return Quantity(C["PLEM_MEASURE_DIGITAL_INPUT"], (joint, bit), f"digital input {bit} of {joint}")
 
 
 @dataclass(frozen=True)
@@ -221,10 +233,13 @@ def write_reaction(slot: np.void, token: int, condition: Condition, action: Acti
         row = slot["term"][k]
         row["op"], row["measure"], row["threshold"] = term.op, term.measure, term.threshold
         comparison = term.measure != 0
-        if comparison and term.measure not in (C["PLEM_MEASURE_WRENCH"], C["PLEM_MEASURE_MOTION_TIME"]):
-            row["index"] = _joint(term.index, joint_names, "a reaction's quantity")
+        if term.measure == C["PLEM_MEASURE_DIGITAL_INPUT"] and isinstance(term.index, tuple):
+            joint, bit = term.index
+            row["index"] = _joint(joint, joint_names, "a reaction's quantity") * INPUT_BITS + bit
+        elif comparison and term.measure not in (C["PLEM_MEASURE_WRENCH"], C["PLEM_MEASURE_MOTION_TIME"]):
+            row["index"] = _joint(term.index, joint_names, "a reaction's quantity")  # type: ignore[arg-type]
         else:
-            row["index"] = int(term.index)
+            row["index"] = int(term.index)  # type: ignore[arg-type]
 
 
 _ACTIONS: dict[int, type] = {C["PLEM_REACT_STOP"]: Stop, C["PLEM_REACT_HOLD"]: Hold,
@@ -234,8 +249,22 @@ _ACTIONS: dict[int, type] = {C["PLEM_REACT_STOP"]: Stop, C["PLEM_REACT_HOLD"]: H
 def reaction_json(condition: Condition, action: Action) -> dict[str, object]:
     """A reaction as a request carries it (checked again by `reaction_from_json` where it arrives)."""
     condition = _condition(condition)
-    return {"terms": [[t.op, t.measure, t.index, t.threshold] for t in condition.terms], "text": condition.text,
+    return {"terms": [[t.op, t.measure, list(t.index) if isinstance(t.index, tuple) else t.index, t.threshold]
+                      for t in condition.terms], "text": condition.text,
             "action": action.code, "target": list(action.target) if isinstance(action, MoveTo) else None}
+
+
+def _index_of(measure: object, index: object) -> int | str | tuple[int | str, int] | None:
+    """A request term's index: a joint (name or number), or for a digital input [joint, bit]; None when malformed."""
+    def joint(value: object) -> bool:
+        return isinstance(value, (int, str)) and not isinstance(value, bool)
+
+    if measure == C["PLEM_MEASURE_DIGITAL_INPUT"]:
+        if isinstance(index, list) and len(index) == 2 and joint(index[0]) and isinstance(index[1], int) \
+                and not isinstance(index[1], bool) and 0 <= index[1] < INPUT_BITS:
+            return index[0], index[1]
+        return None
+    return index if joint(index) else None  # type: ignore[return-value]
 
 
 def reaction_from_json(value: object, max_text: int = 400) -> tuple[Condition, Action]:
@@ -247,16 +276,18 @@ def reaction_from_json(value: object, max_text: int = 400) -> tuple[Condition, A
     terms = []
     ops = {C[f"PLEM_TERM_{name}"] for name in ("ABOVE", "BELOW", "EQUAL", "AND", "OR", "NOT")}
     measures = {C[f"PLEM_MEASURE_{name}"] for name in ("POSITION", "VELOCITY", "EFFORT", "EXTERNAL_TORQUE", "WRENCH",
-                                                       "FOLLOWING_ERROR", "MOTION_TIME", "DRIVE_STATE")}
+                                                       "FOLLOWING_ERROR", "MOTION_TIME", "DRIVE_STATE",
+                                                       "DIGITAL_INPUT")}
     for term in value["terms"]:
-        good = isinstance(term, list) and len(term) == 4 and term[0] in ops and isinstance(term[2], (int, str)) \
-            and not isinstance(term[2], bool) and isinstance(term[3], (int, float)) and not isinstance(term[3], bool) \
+        good = isinstance(term, list) and len(term) == 4 and term[0] in ops \
+            and _index_of(term[1], term[2]) is not None \
+            and isinstance(term[3], (int, float)) and not isinstance(term[3], bool) \
             and math.isfinite(term[3]) and (term[1] in measures or (term[1] == 0 and term[0] in ops - {
                 C["PLEM_TERM_ABOVE"], C["PLEM_TERM_BELOW"], C["PLEM_TERM_EQUAL"]}))
         if not good:
             raise CommandRejected("a reaction term is malformed", what="[op, measure, joint, finite threshold]",
                                   why=f"got {str(term)[:80]}", how="send reactions with robot.on() or until=")
-        terms.append(Term(int(term[0]), int(term[1]), term[2], float(term[3])))
+        terms.append(Term(int(term[0]), int(term[1]), _index_of(term[1], term[2]), float(term[3])))  # type: ignore[arg-type]
     text = value.get("text")
     code = value.get("action")
     if not isinstance(text, str) or len(text) > max_text or code not in ACTION_NAMES:

@@ -362,6 +362,20 @@ class MockBus:
         """The next successful read reports this joint's position off by `counts`, once."""
         self._view["spike"][self._joint(joint)] += int(counts)
 
+    def set_digital_inputs(self, joint: int, value: int) -> None:
+        """What a joint's drive reports as its digital inputs (0x60FD: bit 0 negative limit switch, 1 positive limit
+        switch, 2 home switch, 3 interlock, 16-31 the manufacturer's inputs)."""
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= value < 2**32:
+            raise CommandRejected("invalid digital inputs", what="an unsigned 32-bit number, one bit per input",
+                                  why=f"got {value!r}", how="e.g. set_digital_inputs(5, 1 << 16) for input 16 of "
+                                                            "joint 5's drive")
+        self._view["digital_inputs"][self._joint(joint)] = int(value)
+
+    @property
+    def digital_inputs(self) -> np.ndarray:
+        """What each drive reports as its digital inputs (0x60FD), a copy."""
+        return self._view["digital_inputs"][:self.dof].copy()
+
     def stick_joint(self, joint: int, stuck: bool = True) -> None:
         """Jam a joint (it stays where it is whatever the command) or free it again."""
         drive = self._joint(joint)

@@ -69,6 +69,15 @@ def number(value: Any, what: str, low: float, high: float, *, low_open: bool = F
     return result
 
 
+def whole(value: Any, what: str, low: int, high: int) -> int:
+    """`value` as an int if it is a whole number (not a bool, not a string) in [low, high]."""
+    checked = number(value, what, low, high)
+    if not checked.is_integer():
+        raise CommandRejected(f"{what} is not a whole number", what=f"{what} as a whole number",
+                              why=f"got {shown(value)}", how=f"send {what} without a fraction")
+    return int(checked)
+
+
 def numbers(values: Any, what: str, count: int, magnitude: float = MAX_MAGNITUDE) -> list[float]:
     """A list of exactly `count` numbers, each finite and within ±magnitude."""
     if not isinstance(values, list) or len(values) != count:

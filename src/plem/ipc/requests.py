@@ -47,9 +47,9 @@ OPERATIONS: dict[str, tuple[str, ...]] = {
     "react": ("reaction", "once", "goal"),
     "unreact": ("reaction",),
     "payload": ("body",),
-    "simulate": ("action", "link", "force", "torque", "point", "mass", "center_of_mass"),
+    "simulate": ("action", "link", "force", "torque", "point", "mass", "center_of_mass", "joint", "value"),
 }
-SIMULATIONS = ("push", "release", "mount_payload")
+SIMULATIONS = ("push", "release", "digital_inputs", "mount_payload")
 MOTIONS = ("move_joints", "execute_trajectory")
 TOLERANCE_KEYS = ("path", "goal", "goal_time", "stopped_velocity_tolerance")
 REPLY_STAGES = ("accepted", "rejected", "finished", "failed")
@@ -183,12 +183,15 @@ def _simulation(args: Mapping[str, Any]) -> dict[str, Any]:
     action = args.get("action")
     if action not in SIMULATIONS:
         raise _rejected("not a simulator action", what=f"one of {', '.join(SIMULATIONS)}", why=f"got {shown(action)}",
-                        how="use robot.simulator.push(), release() or mount_payload()")
+                        how="use robot.simulator.push(), release(), set_digital_inputs() or mount_payload()")
     checked: dict[str, Any] = {"action": action}
     if action == "push":
         checked["link"] = bounds.text(args.get("link"), "link", bounds.MAX_NAME_CHARS)
         for key in ("force", "torque", "point"):
             checked[key] = bounds.numbers(args.get(key, [0.0, 0.0, 0.0]), f"the push's {key}", 3)
+    elif action == "digital_inputs":
+        checked["joint"] = bounds.whole(args.get("joint"), "the joint", 0, 15)
+        checked["value"] = bounds.whole(args.get("value"), "the digital inputs", 0, 2**32 - 1)
     elif action == "mount_payload":
         checked["mass"] = bounds.number(args.get("mass"), "the payload's mass", 0.0, bounds.MAX_MAGNITUDE)
         checked["center_of_mass"] = bounds.numbers(args.get("center_of_mass", [0.0, 0.0, 0.0]),

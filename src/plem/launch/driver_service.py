@@ -165,12 +165,15 @@ class DriverService:
         self._answer_pending()
 
     def _simulate(self, command: dict[str, Any]) -> None:
-        """Push a link of the simulated arm, release it, or mount a payload on it (bus:=mock only)."""
+        """Push a link of the simulated arm, release it, set a drive's digital inputs, or mount a payload on it
+        (bus:=mock only)."""
         simulator = self.robot.simulator
         if command["action"] == "push":
             simulator.push(command["link"], command["force"], command["torque"], command["point"])
         elif command["action"] == "release":
             simulator.release()
+        elif command["action"] == "digital_inputs":
+            simulator.set_digital_inputs(command["joint"], command["value"])
         else:
             simulator.mount_payload(Payload(float(command["mass"]), tuple(command["center_of_mass"])))
 

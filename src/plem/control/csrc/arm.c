@@ -644,6 +644,11 @@ static double measured(const plem_arm *arm, const plem_term *t) {
     case PLEM_MEASURE_MOTION_TIME:
         return arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
     case PLEM_MEASURE_DRIVE_STATE: return joint ? (double)plem_decode_statusword(arm->io_statusword[i]) : NAN;
+    case PLEM_MEASURE_DIGITAL_INPUT: {
+        int drive = i / 32, bit = i % 32;
+        return i >= 0 && drive < n && (arm->io_inputs_reported >> drive & 1u)
+               ? (double)(arm->io_digital_inputs[drive] >> bit & 1u) : NAN;
+    }
     default: return NAN;
     }
 }
@@ -1005,6 +1010,8 @@ static int read_bus(plem_arm *arm, const plem_bus *bus) {
             memcpy(arm->io_torque, sim->io_torque, (size_t)n * sizeof(double));
             memcpy(arm->io_statusword, sim->io_statusword, (size_t)n * sizeof(uint16_t));
             memcpy(arm->io_error_code, sim->io_error_code, (size_t)n * sizeof(uint16_t));
+            memcpy(arm->io_digital_inputs, sim->digital_inputs, (size_t)n * sizeof(uint32_t));
+            arm->io_inputs_reported = (uint32_t)((1ULL << n) - 1);
         }
     } else {
         answered = plem_master_read(bus->master, arm);

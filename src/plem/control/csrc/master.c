@@ -31,6 +31,7 @@ static void put32(uint8_t *p, uint32_t v) {
 static int32_t saturate32(int64_t v) { return v > INT32_MAX ? INT32_MAX : v < INT32_MIN ? INT32_MIN : (int32_t)v; }
 
 static void decode(plem_master *m, plem_arm *arm) {
+    arm->io_inputs_reported = m->inputs_mapped;
     for (int i = 0; i < m->dof; i++) {
         const uint8_t *in = m->slaves[i + 1].inputs;
         /* 32-bit encoder counts unwrapped against the last reading: a continuous joint may turn forever */
@@ -41,6 +42,7 @@ static void decode(plem_master *m, plem_arm *arm) {
         arm->io_velocity[i] = (int32_t)get32(in + PLEM_TX_VELOCITY);
         arm->io_torque[i] = (int16_t)get16(in + PLEM_TX_TORQUE) * m->newton_metres_per_unit[i];
         arm->io_error_code[i] = get16(in + PLEM_TX_ERROR_CODE);
+        arm->io_digital_inputs[i] = m->inputs_mapped >> i & 1u ? get32(in + PLEM_TX_DIGITAL_INPUTS) : 0;
     }
 }
 

@@ -27,6 +27,7 @@ enum plem_rx_offsets {
 enum plem_tx_offsets {
     PLEM_TX_STATUSWORD = 0, PLEM_TX_POSITION = 2, PLEM_TX_VELOCITY = 6, PLEM_TX_TORQUE = 10, PLEM_TX_ERROR_CODE = 12,
     PLEM_TX_MODE_DISPLAY = 14, PLEM_TX_BYTES = 15,
+    PLEM_TX_DIGITAL_INPUTS = 15, PLEM_TX_BYTES_WITH_INPUTS = 19,   /* drives that map 0x60FD after the rest */
 };
 
 /* What the cycle tells Python about the bus (read in place, each counter written by the cycle alone). */
@@ -70,6 +71,8 @@ typedef struct plem_master {
     double newton_metres_per_unit[PLEM_MAX_JOINTS];   /* torque objects (per mille of rated) to N·m at the joint */
     double units_per_newton_metre[PLEM_MAX_JOINTS];   /* the torque offset sent per N·m; 0: none sent */
     int64_t wire_ns;                 /* the current cycle's time in receive and send */
+    uint32_t inputs_mapped;          /* bit j: drive j maps its digital inputs (0x60FD) */
+    int32_t pad;
     plem_master_status status;
     /* the keepalive: frames every period from OP until a core cycles, on a thread that needs no interpreter */
     pthread_t keepalive;

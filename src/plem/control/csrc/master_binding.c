@@ -388,9 +388,12 @@ static PyObject *master_prepare(Master *self, PyObject *args, PyObject *kwargs) 
     Py_ssize_t n = PySequence_Fast_GET_SIZE(sequence);
     int ok = n >= 1 && n == m->slave_count && bad >= 1 && timeout >= 0 && m->status.expected_working_counter > 0
              && (!sent || PySequence_Fast_GET_SIZE(sent) == n);
+    m->inputs_mapped = 0;
     for (Py_ssize_t i = 0; ok && i < n; i++) {
         const ec_slavet *s = &m->slaves[i + 1];
-        ok = s->Obytes == PLEM_RX_BYTES && s->Ibytes == PLEM_TX_BYTES && s->outputs && s->inputs;
+        ok = s->Obytes == PLEM_RX_BYTES && (s->Ibytes == PLEM_TX_BYTES || s->Ibytes == PLEM_TX_BYTES_WITH_INPUTS)
+             && s->outputs && s->inputs;
+        if (ok && s->Ibytes == PLEM_TX_BYTES_WITH_INPUTS) m->inputs_mapped |= 1u << i;
         double per_unit = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(sequence, i));
         int send = sent ? PyObject_IsTrue(PySequence_Fast_GET_ITEM(sent, i)) : 1;
         m->newton_metres_per_unit[i] = per_unit;
@@ -400,9 +403,9 @@ static PyObject *master_prepare(Master *self, PyObject *args, PyObject *kwargs) 
     Py_XDECREF(sent);
     if (PyErr_Occurred()) return NULL;
     if (!ok)
-        return PyErr_Format(PyExc_ValueError, "prepare: %zd drives, %d slaves, each mapping %d output and %d input "
-                            "bytes, bad cycles %d >= 1, timeout %d >= 0", n, m->slave_count, PLEM_RX_BYTES,
-                            PLEM_TX_BYTES, bad, timeout);
+        return PyErr_Format(PyExc_ValueError, "prepare: %zd drives, %d slaves, each mapping %d output and %d or %d "
+                            "input bytes, bad cycles %d >= 1, timeout %d >= 0", n, m->slave_count, PLEM_RX_BYTES,
+                            PLEM_TX_BYTES, PLEM_TX_BYTES_WITH_INPUTS, bad, timeout);
     m->dof = (int32_t)n;
     m->bad_cycles_to_fault = bad;
     m->receive_timeout_us = timeout;

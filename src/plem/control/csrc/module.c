@@ -576,7 +576,8 @@ static const field SIM_FIELDS[] = {
     FIELD(plem_sim, external), FIELD(plem_sim, push), FIELD(plem_sim, push_point), FIELD(plem_sim, push_body),
     FIELD(plem_sim, payload_pending), FIELD(plem_sim, payload_body), FIELD(plem_sim, stop_q), FIELD(plem_sim, stop_v), FIELD(plem_sim, spike),
     FIELD(plem_sim, stuck), FIELD(plem_sim, latched), FIELD(plem_sim, stopping), FIELD(plem_sim, state),
-    FIELD(plem_sim, statusword), FIELD(plem_sim, error_code), FIELD(plem_sim, controlword), FIELD(plem_sim, lost),
+    FIELD(plem_sim, statusword), FIELD(plem_sim, error_code), FIELD(plem_sim, controlword),
+    FIELD(plem_sim, digital_inputs), FIELD(plem_sim, lost),
     FIELD(plem_sim, answered),
     FIELD(plem_sim, lost_reads), FIELD(plem_sim, lost_frames), FIELD(plem_sim, io_target_position),
     FIELD(plem_sim, io_velocity_offset), FIELD(plem_sim, io_torque_offset), FIELD(plem_sim, io_mode),
@@ -653,7 +654,8 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, settings), FIELD(plem_arm, model), FIELD(plem_arm, io_position), FIELD(plem_arm, io_velocity),
     FIELD(plem_arm, io_torque), FIELD(plem_arm, io_statusword), FIELD(plem_arm, io_error_code),
     FIELD(plem_arm, io_target_position), FIELD(plem_arm, io_velocity_offset), FIELD(plem_arm, io_torque_offset),
-    FIELD(plem_arm, io_mode), FIELD(plem_arm, io_answered), FIELD(plem_arm, power_wanted),
+    FIELD(plem_arm, io_mode), FIELD(plem_arm, io_digital_inputs), FIELD(plem_arm, io_inputs_reported),
+    FIELD(plem_arm, io_answered), FIELD(plem_arm, power_wanted),
     FIELD(plem_arm, power_requests),
     FIELD(plem_arm, power_resets), FIELD(plem_arm, power), FIELD(plem_arm, cycle), FIELD(plem_arm, mode),
     FIELD(plem_arm, fault_cause), FIELD(plem_arm, communication_ok), FIELD(plem_arm, have_previous),
@@ -710,6 +712,7 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_REACTION_TERMS), CONSTANT(PLEM_MEASURE_POSITION), CONSTANT(PLEM_MEASURE_VELOCITY),
     CONSTANT(PLEM_MEASURE_EFFORT), CONSTANT(PLEM_MEASURE_EXTERNAL_TORQUE), CONSTANT(PLEM_MEASURE_WRENCH),
     CONSTANT(PLEM_MEASURE_FOLLOWING_ERROR), CONSTANT(PLEM_MEASURE_MOTION_TIME), CONSTANT(PLEM_MEASURE_DRIVE_STATE),
+    CONSTANT(PLEM_MEASURE_DIGITAL_INPUT),
     CONSTANT(PLEM_TERM_ABOVE), CONSTANT(PLEM_TERM_BELOW), CONSTANT(PLEM_TERM_EQUAL), CONSTANT(PLEM_TERM_AND),
     CONSTANT(PLEM_TERM_OR), CONSTANT(PLEM_TERM_NOT), CONSTANT(PLEM_REACT_STOP), CONSTANT(PLEM_REACT_HOLD),
     CONSTANT(PLEM_REACT_FREE_DRIVE), CONSTANT(PLEM_REACT_MOVE), CONSTANT(PLEM_REACT_RECORD),
@@ -733,7 +736,7 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_RX_TARGET_POSITION), CONSTANT(PLEM_RX_VELOCITY_OFFSET), CONSTANT(PLEM_RX_TORQUE_OFFSET),
     CONSTANT(PLEM_RX_MODE), CONSTANT(PLEM_RX_BYTES), CONSTANT(PLEM_TX_STATUSWORD), CONSTANT(PLEM_TX_POSITION),
     CONSTANT(PLEM_TX_VELOCITY), CONSTANT(PLEM_TX_TORQUE), CONSTANT(PLEM_TX_ERROR_CODE), CONSTANT(PLEM_TX_MODE_DISPLAY),
-    CONSTANT(PLEM_TX_BYTES), {NULL, 0}};
+    CONSTANT(PLEM_TX_BYTES), CONSTANT(PLEM_TX_DIGITAL_INPUTS), CONSTANT(PLEM_TX_BYTES_WITH_INPUTS), {NULL, 0}};
 
 static PyObject *constants_dict(void) {
     PyObject *table = PyDict_New();

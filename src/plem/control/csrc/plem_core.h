@@ -197,6 +197,7 @@ typedef struct {
     uint16_t error_code[PLEM_MAX_JOINTS];
     uint16_t controlword[PLEM_MAX_JOINTS]; /* the last one each drive received */
     uint16_t pad2[PLEM_MAX_JOINTS];
+    uint32_t digital_inputs[PLEM_MAX_JOINTS]; /* what each drive reports as 0x60FD, set from outside */
     /* communication */
     int32_t lost;                         /* 1 while the exchange is dropped */
     int32_t answered;                     /* the last read got an answer */
@@ -311,6 +312,7 @@ enum plem_cause {
 enum plem_measure {
     PLEM_MEASURE_POSITION = 1, PLEM_MEASURE_VELOCITY, PLEM_MEASURE_EFFORT, PLEM_MEASURE_EXTERNAL_TORQUE,
     PLEM_MEASURE_WRENCH, PLEM_MEASURE_FOLLOWING_ERROR, PLEM_MEASURE_MOTION_TIME, PLEM_MEASURE_DRIVE_STATE,
+    PLEM_MEASURE_DIGITAL_INPUT,      /* index: joint · 32 + bit of the drive's 0x60FD digital inputs */
 };
 enum plem_term_op { PLEM_TERM_ABOVE = 1, PLEM_TERM_BELOW, PLEM_TERM_EQUAL, PLEM_TERM_AND, PLEM_TERM_OR, PLEM_TERM_NOT };
 enum plem_reaction_action {
@@ -485,6 +487,9 @@ typedef struct {
     double io_torque_offset[PLEM_MAX_JOINTS];
     int8_t io_mode[PLEM_MAX_JOINTS];
     uint8_t pad0[PLEM_MAX_JOINTS];
+    uint32_t io_digital_inputs[PLEM_MAX_JOINTS]; /* 0x60FD of the drives that report it */
+    uint32_t io_inputs_reported;     /* bit j: drive j reports its digital inputs */
+    int32_t pad6;
     int32_t io_answered;             /* the bus answered this cycle's read */
     int32_t power_wanted;            /* what the drives were last asked for: switch on disabled or operation enabled */
     uint64_t power_requests;         /* power requests so far (a Python bus passes each one on as enable/disable) */

@@ -263,8 +263,9 @@ def _u32(data: bytes) -> int:
     return int(struct.unpack("<I", data[:4].ljust(4, b"\0"))[0])
 
 
-def assign_process_data(slave: Slave, position: int, joint: str) -> None:
-    """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode."""
+def assign_process_data(slave: Slave, position: int, joint: str) -> bool:
+    """Check that one slave is a CiA402 drive, write plem's PDO assignment by SDO (in PREOP) and set CSP mode;
+    whether the drive maps its digital inputs too (a drive that refuses them runs without)."""
     device_type = _read_u32(slave, position, joint, objects.DEVICE_TYPE)
     if device_type & 0xFFFF != objects.CIA402_DEVICE_TYPE & 0xFFFF:
         raise EtherCATError(
@@ -280,16 +281,30 @@ def assign_process_data(slave: Slave, position: int, joint: str) -> None:
         except RuntimeError as error:  # the master's SdoError: an abort, no answer or a mailbox error
             raise _sdo_error(slave, position, joint, index, subindex, error) from error
 
+    def accepted(index: int, subindex: int, data: bytes) -> bool:
+        try:
+            slave.sdo_write(index, subindex, data)
+        except RuntimeError:  # an abort: the drive does not map that object
+            return False
+        return True
+
+    inputs = False
     for assign, pdo, entries in ((objects.RX_ASSIGN, objects.RX_PDO, objects.RX_ENTRIES),
                                  (objects.TX_ASSIGN, objects.TX_PDO, objects.TX_ENTRIES)):
         write(assign, 0, b"\x00")
         write(pdo, 0, b"\x00")
         for subindex, entry in enumerate(entries, start=1):
             write(pdo, subindex, struct.pack("<I", entry.mapping))
-        write(pdo, 0, bytes([len(entries)]))
+        if pdo == objects.TX_PDO:
+            extra = len(entries) + 1
+            inputs = accepted(pdo, extra, struct.pack("<I", objects.DIGITAL_INPUTS.mapping)) \
+                and accepted(pdo, 0, bytes([extra]))
+        if not inputs:
+            write(pdo, 0, bytes([len(entries)]))
         write(assign, 1, struct.pack("<H", pdo))
         write(assign, 0, b"\x01")
     write(0x6060, 0, struct.pack("<b", 8))
+    return inputs
 
 
 @dataclass(frozen=True)
@@ -333,10 +348,12 @@ def per_mille_warning(joint_names: Sequence[str], rated: Sequence[RatedTorque]) 
             "ros2_control block")
 
 
-def check_mapping(slaves: Sequence[Slave], joint_names: Sequence[str]) -> None:
-    """Every slave's mapped process data has exactly the size of plem's PDOs."""
-    rx, tx = objects.pdo_bytes(objects.RX_ENTRIES), objects.pdo_bytes(objects.TX_ENTRIES)
-    for position, (slave, joint) in enumerate(zip(slaves, joint_names, strict=True)):
+def check_mapping(slaves: Sequence[Slave], joint_names: Sequence[str], digital_inputs: Sequence[bool]) -> None:
+    """Every slave's mapped process data has exactly the size of plem's PDOs (with its digital inputs where it
+    mapped them)."""
+    for position, (slave, joint, extra) in enumerate(zip(slaves, joint_names, digital_inputs, strict=True)):
+        rx = objects.pdo_bytes(objects.RX_ENTRIES)
+        tx = objects.pdo_bytes(objects.TX_ENTRIES + ((objects.DIGITAL_INPUTS,) if extra else ()))
         outputs, inputs = slave.outputs, slave.inputs
         if (outputs, inputs) != (rx, tx):
             raise EtherCATError(
@@ -416,6 +433,7 @@ class Segment:
     slaves: tuple[SegmentSlave, ...]
     rated_torque: tuple[RatedTorque, ...]
     distributed_clocks: tuple[bool, ...]
+    digital_inputs: tuple[bool, ...]   # per drive: it reports its digital inputs (0x60FD)
 
 
 def bring_up(interface: str, joint_names: Sequence[str], drives: Sequence[DriveParameters], cycle_time_ns: int,
@@ -436,17 +454,17 @@ def bring_up(interface: str, joint_names: Sequence[str], drives: Sequence[DriveP
         slaves = segment_slaves(master)
         check_topology(slaves, joint_names, drives)
         reach_state(master, PREOP_STATE, joint_names)
-        for position, slave in enumerate(slaves):
-            assign_process_data(slave, position, joint_names[position])
+        inputs = tuple(assign_process_data(slave, position, joint_names[position])
+                       for position, slave in enumerate(slaves))
         rated = tuple(rated_torque(slave, drive) for slave, drive in zip(slaves, drives, strict=True))
         master.config_map()
         slaves = segment_slaves(master)
-        check_mapping(slaves, joint_names)
+        check_mapping(slaves, joint_names, inputs)
         dc = setup_distributed_clocks(master, slaves, cycle_time_ns)
         reach_state(master, SAFEOP_STATE, joint_names)
         first_exchange(master)
         reach_state(master, OP_STATE, joint_names, while_waiting=lambda: first_exchange(master))
-        return Segment(master, slaves, rated, tuple(dc))
+        return Segment(master, slaves, rated, tuple(dc), inputs)
     except BaseException:
         close_master(master)
         raise

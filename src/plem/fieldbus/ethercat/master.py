@@ -63,7 +63,9 @@ def _check_pdo_layout() -> None:
     expected = {f"PLEM_RX_{name.upper()}": at for name, at in objects.offsets(objects.RX_ENTRIES).items()}
     expected |= {f"PLEM_TX_{name.removesuffix('_actual').upper()}": at
                  for name, at in objects.offsets(objects.TX_ENTRIES).items()}
-    expected |= {"PLEM_RX_BYTES": _RX_DTYPE.itemsize, "PLEM_TX_BYTES": _TX_DTYPE.itemsize}
+    expected |= {"PLEM_RX_BYTES": _RX_DTYPE.itemsize, "PLEM_TX_BYTES": _TX_DTYPE.itemsize,
+                 "PLEM_TX_DIGITAL_INPUTS": _TX_DTYPE.itemsize,
+                 "PLEM_TX_BYTES_WITH_INPUTS": _TX_DTYPE.itemsize + objects.DIGITAL_INPUTS.bits // 8}
     differing = sorted(name for name, at in expected.items() if CONSTANTS.get(name) != at)
     if differing:
         raise PlemError("the compiled core packs EtherCAT process data differently from plem's PDO assignment",
@@ -198,7 +200,8 @@ class EtherCATBus:
         segment, io = self.segment, self.io
         if segment is None:
             return
-        inputs = np.frombuffer(b"".join(segment.master.inputs(i + 1) for i in range(len(segment.slaves))),
+        size = _TX_DTYPE.itemsize   # the digital inputs some drives map after these are not read here
+        inputs = np.frombuffer(b"".join(segment.master.inputs(i + 1)[:size] for i in range(len(segment.slaves))),
                                dtype=_TX_DTYPE)
         io.statusword[:] = inputs["statusword"]
         io.position[:] = inputs["position_actual"]

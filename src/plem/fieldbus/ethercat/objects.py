@@ -45,6 +45,7 @@ NAMES: dict[int, str] = {
     0x606C: "Velocity actual value",
     RATED_TORQUE: "Rated torque",
     0x6077: "Torque actual value",
+    0x60FD: "Digital inputs",
     0x607A: "Target position",
     0x60B1: "Velocity offset",
     0x60B2: "Torque offset",
@@ -93,7 +94,12 @@ TX_ENTRIES: tuple[PdoEntry, ...] = (
     PdoEntry("mode_display", 0x6061, 0, 8, "<i1"),
 )
 
-ENTRIES_BY_OBJECT: dict[tuple[int, int], PdoEntry] = {(e.index, e.subindex): e for e in RX_ENTRIES + TX_ENTRIES}
+#: Mapped after the inputs above where the drive maps it: its digital inputs (CiA402 bits 0-3 limit switches, home
+#: and interlock; 16-31 the manufacturer's, often general-purpose inputs). A drive that refuses it runs without.
+DIGITAL_INPUTS = PdoEntry("digital_inputs", 0x60FD, 0, 32, "<u4")
+
+ENTRIES_BY_OBJECT: dict[tuple[int, int], PdoEntry] = {(e.index, e.subindex): e
+                                                      for e in RX_ENTRIES + TX_ENTRIES + (DIGITAL_INPUTS,)}
 
 
 def pdo_bytes(entries: tuple[PdoEntry, ...]) -> int:

@@ -30,6 +30,7 @@ class DriveApplication(Protocol):
     torque_actual: np.ndarray     # int16 (0x6077)
     error_code: np.ndarray        # uint16 (0x603F)
     mode_display: np.ndarray      # int8 (0x6061)
+    digital_inputs: np.ndarray    # uint32 (0x60FD)
     rated_torque: np.ndarray      # uint32 mN·m (0x6076), read-only
 
     def step(self, operational: np.ndarray) -> None:

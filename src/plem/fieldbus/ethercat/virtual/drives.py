@@ -62,6 +62,7 @@ class EmulatedDrives:
         self.torque_actual = np.zeros(n, dtype=np.int16)
         self.error_code = np.zeros(n, dtype=np.uint16)
         self.mode_display = np.zeros(n, dtype=np.int8)
+        self.digital_inputs = np.zeros(n, dtype=np.uint32)
         self.refusing_enable = np.zeros(n, dtype=bool)
         self._commands = np.zeros(n, dtype=np.uint16)  # what each drive obeys: the last outputs it received in OP
         self._latch_inputs()
@@ -123,3 +124,4 @@ class EmulatedDrives:
         torque = np.clip(np.rint(io.torque / self._joint_torque_per_unit), -32768, 32767)
         self.torque_actual[:] = torque.astype(np.int16)
         self.mode_display[:] = self.mode
+        self.digital_inputs[:] = arm.digital_inputs

@@ -184,6 +184,8 @@ class VirtualNetwork:
                 segment.delay_s = float(request["seconds"])
             elif op == "push":
                 drives.arm.apply_external_torque(int(request["drive"]), float(request["torque"]))
+            elif op == "inputs":
+                drives.arm.set_digital_inputs(int(request["drive"]), int(request["value"]))
             elif op == "disappear":
                 segment.disappear(int(request["slave"]))
             elif op == "reappear":
@@ -193,7 +195,7 @@ class VirtualNetwork:
             arm = drives.arm
             return {"ok": True, "frames": drives.frames, "positions": arm.true_positions.tolist(),
                     "velocities": arm.true_velocities.tolist(),
-                    "statuswords": drives.statusword.tolist(),
+                    "statuswords": drives.statusword.tolist(), "digital_inputs": drives.digital_inputs.tolist(),
                     "position_actual": drives.position_actual.tolist(),
                     "torque_offsets": drives.torque_offset.tolist()}
 

@@ -101,7 +101,8 @@ RX_PDOS = (objects.RX_PDO, objects.RX_PDO + 1)
 TX_PDOS = (objects.TX_PDO, objects.TX_PDO + 1)
 MAX_PDO_ENTRIES = 8
 
-_ENTRY = {entry.name: entry for entry in objects.RX_ENTRIES + objects.TX_ENTRIES}
+_TX_MAPPABLE = objects.TX_ENTRIES + (objects.DIGITAL_INPUTS,)
+_ENTRY = {entry.name: entry for entry in objects.RX_ENTRIES + _TX_MAPPABLE}
 #: The drive's own mapping: 0x1600 lacks the velocity and torque offsets, 0x1A00 the actual torque.
 DEFAULT_MAPPING: dict[int, tuple[objects.PdoEntry, ...]] = {
     RX_PDOS[0]: tuple(_ENTRY[name] for name in ("controlword", "target_position", "mode")),
@@ -113,7 +114,7 @@ DEFAULT_MAPPING: dict[int, tuple[objects.PdoEntry, ...]] = {
 DEFAULT_ASSIGNMENT = {objects.RX_ASSIGN: (RX_PDOS[0],), objects.TX_ASSIGN: (TX_PDOS[0],)}
 
 _MAPPABLE = {**{pdo: {e.mapping: e for e in objects.RX_ENTRIES} for pdo in RX_PDOS},
-             **{pdo: {e.mapping: e for e in objects.TX_ENTRIES} for pdo in TX_PDOS}}
+             **{pdo: {e.mapping: e for e in _TX_MAPPABLE} for pdo in TX_PDOS}}
 _ASSIGNABLE = {objects.RX_ASSIGN: RX_PDOS, objects.TX_ASSIGN: TX_PDOS}
 
 #: Sync managers 0-3 and their defaults, as the SII announces them (each raises a PDI event when accessed).
@@ -551,7 +552,7 @@ class DriveStack:
                                           self._pdo_entry_writer(index, sub))
                            for sub in range(1, MAX_PDO_ENTRIES + 1)})
             dictionary[index] = record
-        for entry in objects.RX_ENTRIES + objects.TX_ENTRIES:
+        for entry in objects.RX_ENTRIES + _TX_MAPPABLE:
             writer = self._array_writer(entry.name) if entry in objects.RX_ENTRIES else None
             dictionary.setdefault(entry.index, {})[entry.subindex] = _Variable(
                 _struct_code(entry.dtype), self._array_reader(entry.name), writer)
