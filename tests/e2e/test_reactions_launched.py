@@ -40,6 +40,22 @@ def test_until_and_a_standing_reaction_through_the_client(client: RobotClient) -
     assert fired and "force x > 20 N" in fired[0].reason
 
 
+def test_a_digital_input_set_in_the_simulator_ends_a_motion_through_the_client(client: RobotClient) -> None:
+    client.set_mode("hold")
+    start = client.live_state().command_position.copy()
+    move = client.move_joints(start + np.where(start > 0, -0.8, 0.8), speed_scale=0.3,
+                              until=Measure.digital_input("joint5", 16) == 1)
+    assert wait_for(lambda: client.live_state().mode is Mode.TRAJECTORY, 5.0)
+    client.simulator.set_digital_inputs(5, 1 << 16)
+    try:
+        result = move.wait(10.0)
+    finally:
+        client.simulator.set_digital_inputs(5, 0)
+    assert result.outcome.value == "succeeded" and "digital input 16 of joint5 == 1" in result.message
+    with pytest.raises(CommandRejected, match="not a whole number"):
+        client.simulator.set_digital_inputs(5.5, 1)  # type: ignore[arg-type]
+
+
 def test_a_hard_push_is_a_contact_stop_and_a_reset_holds_where_the_arm_is(client: RobotClient) -> None:
     client.set_mode("hold")
     client.simulator.push("link6", force=(150.0, 0.0, 0.0))
