@@ -2,8 +2,9 @@
 and the loop's wake-up latency with the continuous export on and off.
 
 Usage: python benchmarks/fleet_export.py [--seconds 60] [--segment 20] [--repeats 3] [--pairs 15] [--window 8]
-                                         [--quick]
+                                         [--loop-only] [--quick]
 Needs root (the launched loop runs SCHED_FIFO). --quick: 10 s recorded, one repeat, 2 pairs of 3 s windows.
+--loop-only: only the loop's pairs.
 
 What runs:
   recording   `plem launch bus:=mock robot_id:=bench_fx_<hex> bridge:=false planner:=false record:=true
@@ -134,6 +135,31 @@ def loop_pairs(robot_id: str, pairs: int, window: float, env: dict[str, str], lo
     return results
 
 
+def throughput_and_size(args: argparse.Namespace, env: dict[str, str], work: Path,
+                        children: list[subprocess.Popen]) -> None:
+    """Record a moving arm, then time the export against rosbags on its bags and compare the sizes."""
+    robot_id = f"bench_fx_{secrets.token_hex(3)}"
+    robot_dir = record(robot_id, args.seconds, args.segment, env, work, children)
+    segments = sorted(path for path in robot_dir.iterdir() if path.is_dir())
+    exports, baselines = [], []
+    for run in range(args.repeats):
+        seconds, rows, dataset = export_cpu(robot_dir, work, run)
+        exports.append(rows / seconds)
+        base_seconds, base_rows = rosbags_cpu(segments, robot_id)
+        baselines.append(base_rows / base_seconds)
+        assert rows == base_rows, f"export {rows} rt_raw rows, rosbags {base_rows}"
+        print(f"  repeat {run + 1}: export {rows / seconds:,.0f} rt_raw rows/s ({seconds:.2f} s CPU), rosbags "
+              f"{base_rows / base_seconds:,.0f} rows/s ({base_seconds:.2f} s CPU)", flush=True)
+    export_rate, base_rate = statistics.median(exports), statistics.median(baselines)
+    print(f"throughput ({rows} rt_raw rows in {len(segments)} segments): export {export_rate:,.0f} rows/s, "
+          f"rosbags alone {base_rate:,.0f} rows/s: {ratio(export_rate, base_rate)} "
+          f"(target >= 5x: {verdict(export_rate >= 5 * base_rate)})")
+    total, bags, tables = sizes(dataset, segments)
+    print(f"size: dataset {total / 1e6:.2f} MB, bags (.mcap) {bags / 1e6:.2f} MB: {total / bags:.3f} "
+          f"(target <= 0.5: {verdict(total <= 0.5 * bags)}); per table: "
+          + ", ".join(f"{name} {size / 1e6:.2f} MB" for name, size in sorted(tables.items())), flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=60.0)
@@ -141,6 +167,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pairs", type=int, default=15)
     parser.add_argument("--window", type=float, default=8.0)
+    parser.add_argument("--loop-only", action="store_true")
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
     if args.quick:
@@ -148,40 +175,23 @@ def main() -> None:
     machine = begin_run()
     print(f"machine: {machine}")
     print(f"command: .venv/bin/python benchmarks/fleet_export.py --seconds {args.seconds:g} --segment "
-          f"{args.segment:g} --repeats {args.repeats} --pairs {args.pairs} --window {args.window:g}", flush=True)
+          f"{args.segment:g} --repeats {args.repeats} --pairs {args.pairs} --window {args.window:g}"
+          + (" --loop-only" if args.loop_only else ""), flush=True)
     env = dict(os.environ)
     children: list[subprocess.Popen] = []
     work = Path(tempfile.mkdtemp(prefix="plem_fleet_bench_"))
     try:
-        robot_id = f"bench_fx_{secrets.token_hex(3)}"
-        robot_dir = record(robot_id, args.seconds, args.segment, env, work, children)
-        segments = sorted(path for path in robot_dir.iterdir() if path.is_dir())
-        exports, baselines = [], []
-        for run in range(args.repeats):
-            seconds, rows, dataset = export_cpu(robot_dir, work, run)
-            exports.append(rows / seconds)
-            base_seconds, base_rows = rosbags_cpu(segments, robot_id)
-            baselines.append(base_rows / base_seconds)
-            assert rows == base_rows, f"export {rows} rt_raw rows, rosbags {base_rows}"
-            print(f"  repeat {run + 1}: export {rows / seconds:,.0f} rt_raw rows/s ({seconds:.2f} s CPU), rosbags "
-                  f"{base_rows / base_seconds:,.0f} rows/s ({base_seconds:.2f} s CPU)", flush=True)
-        export_rate, base_rate = statistics.median(exports), statistics.median(baselines)
-        print(f"throughput ({rows} rt_raw rows in {len(segments)} segments): export {export_rate:,.0f} rows/s, "
-              f"rosbags alone {base_rate:,.0f} rows/s: {ratio(export_rate, base_rate)} "
-              f"(target >= 5x: {verdict(export_rate >= 5 * base_rate)})")
-        total, bags, tables = sizes(dataset, segments)
-        print(f"size: dataset {total / 1e6:.2f} MB, bags (.mcap) {bags / 1e6:.2f} MB: {total / bags:.3f} "
-              f"(target <= 0.5: {verdict(total <= 0.5 * bags)}); per table: "
-              + ", ".join(f"{name} {size / 1e6:.2f} MB" for name, size in sorted(tables.items())), flush=True)
+        if not args.loop_only:
+            throughput_and_size(args, env, work, children)
         print(f"loop: {args.pairs} pairs of {args.window:g} s windows, continuous export on / off", flush=True)
         pairs = loop_pairs(f"bench_fl_{secrets.token_hex(3)}", args.pairs, args.window, env, work, children)
         ratios = [on / off for on, off, _, _ in pairs]
         median = statistics.median(ratios)
         print(f"loop p99.9 on / off: median {median:.2f}x over {len(pairs)} pairs, spread {min(ratios):.2f}-"
               f"{max(ratios):.2f}x (target <= 1.05x: {verdict(median <= 1.05)}); p50 median "
-              f"{statistics.median(on / off for _, _, on, off in pairs):.2f}x; pooled p99.9 windows on "
+              f"{statistics.median(on / off for _, _, on, off in pairs):.2f}x; median window p99.9 on "
               f"{statistics.median(on for on, _, _, _ in pairs):.0f} µs, off "
-              f"{statistics.median(off for _, off, _, _ in pairs):.0f} µs (medians)")
+              f"{statistics.median(off for _, off, _, _ in pairs):.0f} µs")
     finally:
         stop_all(children)
         shutil.rmtree(work, ignore_errors=True)
