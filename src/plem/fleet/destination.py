@@ -2,7 +2,8 @@
 
 A file reaches a reader whole or not at all. Locally it is written under a hidden temporary name that does
 not end in `.parquet` (`.NAME.parquet.tmp-PID`) and renamed into place, so a reader globbing `**/*.parquet`
-never sees half a file; temporary files a killed export left behind are removed by the next export. On S3 an
+never sees half a file; the file and its directory are flushed, so the files of a segment are on disk before its
+`segments` row is written. Temporary files a killed export left behind are removed by the next export. On S3 an
 object appears only once its upload completes, so it is put whole under its final key.
 
 This module imports no pyarrow and no s3fs at import time: the launch validates `export_dir:=` with it.
@@ -91,6 +92,11 @@ class Destination:
                 handle.flush()
                 os.fsync(handle.fileno())
             os.replace(temporary, final)
+            directory = os.open(final.parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+            try:
+                os.fsync(directory)                  # the rename too survives a power loss before the next file
+            finally:
+                os.close(directory)
         except OSError as error:
             with contextlib.suppress(OSError):
                 temporary.unlink()
