@@ -16,7 +16,11 @@
 /* Cycles over which the last stretch to a target position is closed. */
 #define SETTLE 10.0
 
-static double clamp(double x, double low, double high) { return fmin(fmax(x, low), high); }
+/* fmin and fmax without their NaN rules, which keep the compiler from inlining them (a call each, in a loop over
+ * the joints every cycle); a NaN x still clamps to `low`, as fmax gives. */
+static double lesser(double a, double b) { return a < b ? a : b; }
+static double greater(double a, double b) { return a > b ? a : b; }
+static double clamp(double x, double low, double high) { return lesser(greater(x, low), high); }
 
 /* The highest speed from which a stop at acceleration A and jerk J, starting at zero acceleration, ends within d. */
 static double braking_speed(double d, double A, double J) {
@@ -42,7 +46,7 @@ void plem_follow(double *p, double *v, double *a, double target_position, double
     double ahead = *p + *v * ramp + *a * ramp * ramp / 2.0 - copysign(J, *a) * ramp * ramp * ramp / 6.0;
     if (isfinite(target_position)) {
         double error = clamp(target_position + target_velocity * ramp, low, high) - ahead;
-        double toward = fmin(braking_speed(fabs(error), BRAKE * A, BRAKE * J), fabs(error) / (SETTLE * dt));
+        double toward = lesser(braking_speed(fabs(error), BRAKE * A, BRAKE * J), fabs(error) / (SETTLE * dt));
         goal = target_velocity + copysign(toward, error);
     }
     goal = clamp(goal, -speed, speed);
@@ -50,12 +54,12 @@ void plem_follow(double *p, double *v, double *a, double target_position, double
     double a_brake = BRAKE * A, j_brake = BRAKE * J, w = fabs(goal);
     double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
                                                              + w * sqrt(w / j_brake);
-    if (goal > 0.0 && high - ahead < stop) goal = fmin(goal, braking_speed(high - ahead, a_brake, j_brake));
-    if (goal < 0.0 && ahead - low < stop) goal = fmax(goal, -braking_speed(ahead - low, a_brake, j_brake));
+    if (goal > 0.0 && high - ahead < stop) goal = lesser(goal, braking_speed(high - ahead, a_brake, j_brake));
+    if (goal < 0.0 && ahead - low < stop) goal = greater(goal, -braking_speed(ahead - low, a_brake, j_brake));
     double next = plem_approach(*v, *a, goal, A, J, dt);
     double velocity = clamp(*v + (*a + next) * dt / 2.0, -max_velocity, max_velocity);
     double position = *p + (*v + velocity) * dt / 2.0 + (*a - next) * dt * dt / 12.0;
-    *p = clamp(position, fmin(low, *p), fmax(high, *p));
+    *p = clamp(position, lesser(low, *p), greater(high, *p));
     *v = velocity;
     *a = next;
 }
