@@ -41,6 +41,7 @@ class Servo:
         self.twist = peer.node.publisher(f"{ns}/servo_node/delta_twist_cmds", TWIST, DEFAULT)
         self.slider = peer.node.client(f"{ns}/io_and_status_controller/set_speed_slider", SPEED_SLIDER)
         self.scaling = peer.subscribe("speed_scaling_state_broadcaster/speed_scaling", "std_msgs/msg/Float64")
+        self.status = peer.subscribe("servo_node/status", "std_msgs/msg/Int8")
         self.controller_state = peer.subscribe(f"{TRAJECTORY}/controller_state",
                                                "control_msgs/msg/JointTrajectoryControllerState")
         self.events = peer.rt_events()
@@ -175,6 +176,7 @@ def test_a_twist_stream_moves_the_tool_along_the_base_axis_it_names(servo: Servo
     start = tool_position(arm, client)
     twist = servo.peer.library.new(TWIST, header=servo.peer.library.new("std_msgs/msg/Header", frame_id=""))
     twist.twist.linear.z = -0.05
+    servo.status.take()
     began = time.monotonic()
     while tool_position(arm, client)[2] > start[2] - 0.02 and time.monotonic() - began < 10:
         servo.stream(twist, 0.1)
@@ -182,6 +184,8 @@ def test_a_twist_stream_moves_the_tool_along_the_base_axis_it_names(servo: Servo
     moved = tool_position(arm, client) - start
     assert moved[2] < -0.02 and np.all(np.abs(moved[:2]) < 0.1 * abs(moved[2])), moved
     assert client.last_fault() is None
+    codes = [m.data for m in servo.status.take()]   # moveit_servo's StatusCode after each sample: no warning
+    assert codes and set(codes) == {0}, codes
 
 
 def test_a_twist_in_a_frame_other_than_the_base_or_the_tool_is_refused(servo: Servo, client: RobotClient) -> None:

@@ -9,6 +9,8 @@
   `~/delta_twist_cmds`: each message is one sample of a tool twist stream (`RobotClient.speed_tool`), in m/s and
   rad/s, in the axes of `header.frame_id`: the arm's base (its root link, or empty) or its tool (the last frame
   of the URDF, the one `speed_tool`'s tool frame is), each with or without the frame prefix.
+- `/{robot_id}/servo_node/status` (std_msgs/msg/Int8), as moveit_servo's `~/status`: after each twist sample, its
+  StatusCode: 0 no warning, 1 slowing for an approaching singularity, 2 halted at it, 6 held at a joint limit.
 - `/{robot_id}/speed_scaling_state_broadcaster/speed_scaling` (std_msgs/msg/Float64): the speed override in
   force, in percent, as UR's speed_scaling_state_broadcaster publishes it.
 - `/{robot_id}/io_and_status_controller/set_speed_slider` (ur_msgs/srv/SetSpeedSliderFraction): sets the speed
@@ -27,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from plem.bridge.cartesian_streaming import CartesianStep
 from plem.bridge.client import RobotClient
 from plem.control.streaming import DEFAULT_TIMEOUT_S, MAX_TIMEOUT_S
 from plem.errors import CommandRejected, PlemError
@@ -38,6 +41,11 @@ _log = logging.getLogger("plem.bridge.servo_node")
 JOINT_JOG = "control_msgs/msg/JointJog"
 TWIST = "geometry_msgs/msg/TwistStamped"
 SPEED_SLIDER = "ur_msgs/srv/SetSpeedSliderFraction"
+SERVO_STATUS = "std_msgs/msg/Int8"
+#: moveit_servo's StatusCode values (moveit_servo/utils/datatype.hpp) that a Cartesian step can have.
+NO_WARNING, DECELERATE_FOR_APPROACHING_SINGULARITY, HALT_FOR_SINGULARITY, JOINT_BOUND = 0, 1, 2, 6
+#: A step at less than this share of the asked speed has halted.
+HALTED_SCALE = 0.01
 #: The nodes these endpoints belong to, named as moveit_servo and UR's ROS 2 driver name theirs.
 SERVO_NODE = "servo_node"
 SCALING_NODE = "speed_scaling_state_broadcaster"
@@ -144,6 +152,14 @@ def twist_values(message: Any) -> list[float]:
     return [linear.x, linear.y, linear.z, angular.x, angular.y, angular.z]
 
 
+def status_code(step: CartesianStep) -> int:
+    """moveit_servo's status of one Cartesian servo step: slowing for (or halted at) a singularity, held at a joint
+    limit, or no warning (a step slowed by the velocity or acceleration limits has no code of its own there)."""
+    if step.reason == "singularity":
+        return HALT_FOR_SINGULARITY if step.scale < HALTED_SCALE else DECELERATE_FOR_APPROACHING_SINGULARITY
+    return JOINT_BOUND if step.reason == "joint limit" else NO_WARNING
+
+
 class ServoEndpoints:
     """The joint jog topic and the speed slider service of one robot, for a bridge that takes commands."""
 
@@ -157,6 +173,7 @@ class ServoEndpoints:
                                                               JOINT_JOG, DEFAULT)
         self.twist: Subscription[Any] = node.subscription(f"{namespace}/{SERVO_NODE}/delta_twist_cmds", TWIST, DEFAULT)
         self.speed_slider = ServiceServer(node, f"{namespace}/{SLIDER_NODE}/set_speed_slider", SPEED_SLIDER)
+        self.status: Publisher[Any] = node.publisher(f"{namespace}/{SERVO_NODE}/status", SERVO_STATUS, DEFAULT)
         self._reports = Reports(refuse)
 
     @property
@@ -203,7 +220,8 @@ class ServoEndpoints:
             refused = self.accepts()
             if refused is not None:
                 raise refused
-            self.client.speed_tool(twist_values(message), self.frames.axes(message.header.frame_id))
+            step = self.client.speed_tool(twist_values(message), self.frames.axes(message.header.frame_id))
+            self.status.publish(self.status.message(data=status_code(step)))
         except PlemError as error:
             self._reports.refused("delta_twist_cmds", error)
 
