@@ -12,6 +12,7 @@ import logging
 from datetime import date, datetime
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
@@ -44,8 +45,11 @@ def _partition_array(path: str, name: str, rows: int) -> pa.Array:
 def read_file(path: str, filesystem: AbstractFileSystem, table: str, columns: list[str]) -> pa.Table:
     """One file's `columns`: partition columns from its path, columns the file lacks as null (as the views)."""
     wanted = current_schema(table)
-    present = set(pq.read_schema(path, filesystem=filesystem).names)
-    data = pq.read_table(path, filesystem=filesystem, columns=[name for name in columns if name in present])
+    local = "file" in (filesystem.protocol if isinstance(filesystem.protocol, tuple) else (filesystem.protocol,))
+    with (open(path, "rb") if local else filesystem.open(path, "rb")) as handle:   # pyarrow reads local files natively
+        parquet = pq.ParquetFile(handle)
+        present = set(parquet.schema_arrow.names)
+        data = parquet.read(columns=[name for name in columns if name in present])
     arrays = []
     for name in columns:
         if name in data.column_names:
@@ -72,11 +76,6 @@ def file_histogram(path: str, filesystem: AbstractFileSystem, since: datetime | 
                      "max_ns": grouped.column("latency_max")}).to_pandas()
 
 
-def file_frame(path: str, filesystem: AbstractFileSystem, table: str, columns: list[str]) -> pd.DataFrame:
-    """One file's `columns` as pandas (read_file's table)."""
-    return read_file(path, filesystem, table, columns).to_pandas()
-
-
 def _files(dataset: Dataset, table: str, since: datetime | None) -> list[str]:
     """The table's files, those of dates before `since` left out."""
     files = dataset.files[table]
@@ -87,32 +86,94 @@ def _files(dataset: Dataset, table: str, since: datetime | None) -> list[str]:
 
 
 def _from_files(function: Any, files: list[str], meta: pd.DataFrame, **arguments: Any) -> Any:
-    """A dask DataFrame of `function(file, **arguments)` for every file (just `meta` without files)."""
+    """A dask DataFrame of `function(file, **arguments)` for every file, one task per partition directory (a robot's
+    day: a task of a few tens of files keeps the scheduler's cost per task small); just `meta` without files."""
     import dask.dataframe as dd
 
     if not files:
         return dd.from_pandas(meta, npartitions=1)  # type: ignore[no-untyped-call]
-    return dd.from_map(function, files, meta=meta, enforce_metadata=False,  # type: ignore[no-untyped-call]
-                       **arguments)
+    directories: dict[str, list[str]] = {}
+    for path in files:
+        directories.setdefault(path.rsplit("/", 1)[0], []).append(path)
+    return dd.from_map(each_file, list(directories.values()), function=function, meta=meta,  # type: ignore[no-untyped-call]
+                       enforce_metadata=False, **arguments)
 
 
-def _increases(group: pd.DataFrame) -> pd.DataFrame:
-    """A robot's counters as increases in time order (a counter going down restarted: its value is all increase)."""
-    ordered = group.sort_values("time", kind="stable")
-    result = ordered[["time", "date"]].copy()
-    result.insert(0, "robot_id", group.name)   # the group's key (pandas leaves it out of the group's columns)
+def each_file(paths: list[str], function: Any, **arguments: Any) -> pd.DataFrame:
+    """`function` over the files of one task, concatenated."""
+    import pandas as pd
+
+    frames = [frame for frame in (function(path, **arguments) for path in paths) if not frame.empty]
+    return pd.concat(frames, ignore_index=True) if frames else function(paths[0], **arguments).iloc[:0]
+
+
+def increases(values: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """Each counter value's increase over the previous one: the whole value after a restart (a decrease) or with
+    no previous value (NaN); NaN where the value is null (health's definition, as DuckDB's query computes it)."""
+    with np.errstate(invalid="ignore"):
+        restarted = np.isnan(previous) | (values < previous)
+        return np.where(restarted, values, values - previous)
+
+
+def _total(values: np.ndarray) -> float:
+    """The sum of the known values; NaN when none is known (SQL's sum)."""
+    known = values[~np.isnan(values)]
+    return float(known.sum()) if len(known) else float("nan")
+
+
+def file_counters(path: str, filesystem: AbstractFileSystem, since: datetime | None) -> pd.DataFrame:
+    """One rt_monitor_stats file in a row: its first and last time and counter values, and the sum of the counters'
+    increases within it (rows from `since`); the first row's increase needs the robot's previous file."""
+    import pandas as pd
+
+    sources = [source for _, source in COUNTERS]
+    data = read_file(path, filesystem, "rt_monitor_stats", ["time", *sources]).sort_by("time")
+    if data.num_rows == 0:
+        return pd.DataFrame(columns=_COUNTER_PARTS)
+    times = data.column("time").cast(pa.int64()).to_numpy()
+    since_ns = -(2**63) if since is None else int(pa.scalar(since, schema.TIME).cast(pa.int64()).as_py())
+    partitions = _partitions(path)
+    row: dict[str, Any] = {"robot_id": partitions["robot_id"], "day": date.fromisoformat(partitions["date"]),
+                           "first_ns": int(times[0]), "first_counted": bool(times[0] >= since_ns),
+                           "in_range": bool(times[-1] >= since_ns)}
     for name, source in COUNTERS:
-        values = ordered[source].astype("float64")
-        previous = values.shift()
-        result[name] = values.where(previous.isna() | (values < previous), values - previous)
-    return result
+        values = data.column(source).cast(pa.float64()).to_numpy(zero_copy_only=False)
+        row[f"{name}_first"], row[f"{name}_last"] = values[0], values[-1]
+        row[f"{name}_inner"] = _total(increases(values[1:], values[:-1])[times[1:] >= since_ns])
+    return pd.DataFrame([row], columns=_COUNTER_PARTS)
+
+
+_COUNTER_PARTS = ["robot_id", "day", "first_ns", "first_counted", "in_range",
+                  *(f"{name}_{part}" for name, _ in COUNTERS for part in ("first", "last", "inner"))]
+
+
+def combine_counters(parts: pd.DataFrame) -> pd.DataFrame:
+    """The counters' daily increases from the files' rows: each robot's files in time order (a robot's segments
+    do not overlap), each file's first increase over the previous file's last value."""
+    import pandas as pd
+
+    rows = []
+    for robot, files in parts.sort_values(["robot_id", "first_ns"], kind="stable").groupby("robot_id", sort=True):
+        previous = {name: float("nan") for name, _ in COUNTERS}
+        for file in files.to_dict("records"):
+            row: dict[str, Any] = {"robot_id": robot, "day": file["day"]}
+            for name, _ in COUNTERS:
+                first = increases(np.array([file[f"{name}_first"]]), np.array([previous[name]]))
+                counted = first if file["first_counted"] else np.array([float("nan")])
+                row[name] = _total(np.array([counted[0], file[f"{name}_inner"]]))
+                previous[name] = file[f"{name}_last"]
+            if file["in_range"]:   # a file before `since` only gives the next one its last values
+                rows.append(row)
+    frame = pd.DataFrame(rows, columns=["robot_id", "day", *(name for name, _ in COUNTERS)])
+    return frame.groupby(["robot_id", "day"], as_index=False).sum(min_count=1)
 
 
 def aggregates(dataset: Dataset, since: datetime | None, client: Client) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The latency histogram and the counters' daily increases (as health.duckdb_aggregates), computed by Dask.
 
-    A day is the file's `date` partition, the UTC date of its rows (as DuckDB's), so each file's histogram is
-    counted where the file is read and only the small histograms travel."""
+    A day is the file's `date` partition, the UTC date of its rows (as DuckDB's). Each file is reduced where it is
+    read (its latency histogram; its counters' first and last values and inner increases), so only small frames
+    travel; the counters' increases across files are joined in time order here."""
     import pandas as pd
 
     histogram_meta = pd.DataFrame({"robot_id": pd.Series(dtype=str), "day": pd.Series(dtype=object),
@@ -120,22 +181,16 @@ def aggregates(dataset: Dataset, since: datetime | None, client: Client) -> tupl
                                    "max_ns": pd.Series(dtype="int64")})
     parts = _from_files(file_histogram, _files(dataset, "rt_raw", since), histogram_meta,
                         filesystem=dataset.filesystem, since=since)
-    histogram = parts.groupby(["robot_id", "day", "us"]).agg(n=("n", "sum"), max_ns=("max_ns", "max"))
-
-    columns = ["robot_id", "date", "time", *(source for _, source in COUNTERS)]
-    stats_meta = current_schema("rt_monitor_stats").empty_table().select(columns).to_pandas()
-    stats = _from_files(file_frame, dataset.files["rt_monitor_stats"], stats_meta, filesystem=dataset.filesystem,
-                        table="rt_monitor_stats", columns=columns)
-    meta = pd.DataFrame({"robot_id": pd.Series(dtype=str), "time": pd.Series(dtype="datetime64[ns, UTC]"),
-                         "date": pd.Series(dtype=object), **{name: pd.Series(dtype="float64") for name, _ in COUNTERS}})
-    increases = stats.groupby("robot_id", group_keys=False).apply(_increases, meta=meta)
-    if since is not None:
-        increases = increases[increases["time"] >= pd.Timestamp(since)]
-    counters = increases.rename(columns={"date": "day"}).groupby(["robot_id", "day"])[
-        [name for name, _ in COUNTERS]].sum(min_count=1)
-
-    histogram_frame, counters_frame = client.compute([histogram, counters], sync=True)  # type: ignore[no-untyped-call]
-    return histogram_frame.reset_index().reindex(columns=list(HISTOGRAM_COLUMNS)), counters_frame.reset_index()
+    histogram = parts.groupby(["robot_id", "day", "us"]).agg(n=("n", "sum"), max_ns=("max_ns", "max"), split_out=1)
+    counter_meta = pd.DataFrame({column: pd.Series(dtype=object if column in ("robot_id", "day") else
+                                                   bool if column in ("first_counted", "in_range") else
+                                                   "int64" if column == "first_ns" else "float64")
+                                 for column in _COUNTER_PARTS})
+    counter_parts = _from_files(file_counters, dataset.files["rt_monitor_stats"], counter_meta,
+                                filesystem=dataset.filesystem, since=since)
+    histogram_frame, counter_frame = client.compute([histogram, counter_parts], sync=True)  # type: ignore[no-untyped-call]
+    return (histogram_frame.reset_index().reindex(columns=list(HISTOGRAM_COLUMNS)),
+            combine_counters(counter_frame))
 
 
 def connect(scheduler: str | None) -> Client:
