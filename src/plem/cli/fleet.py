@@ -80,6 +80,10 @@ def _cell(value: Any) -> Any:
 
 
 def _text(value: Any) -> str:
+    """A value as a table cell: times to the millisecond in UTC, floats to 6 significant digits (CSV and JSON keep
+    every digit)."""
+    if isinstance(value, datetime) and value == value:   # NaT is not equal to itself
+        return value.astimezone(UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
     cell = _cell(value)
     if cell is None:
         return ""
@@ -96,7 +100,7 @@ def print_rows(title: str, columns: list[str], rows: list[tuple[Any, ...]], outp
     elif output is TableFormat.csv:
         writer = csv.writer(sys.stdout, lineterminator="\n")
         writer.writerow(columns)
-        writer.writerows([[_text(value) for value in row] for row in rows])
+        writer.writerows([["" if cell is None else str(cell) for cell in map(_cell, row)] for row in rows])
     elif not rows:
         stdout.print(empty, markup=False, highlight=False)
     else:
