@@ -215,3 +215,9 @@ def test_a_wrong_since_is_what_why_how(fleet: Path, capsys: pytest.CaptureFixtur
     code, _, err = plem(capsys, "fleet", "faults", str(fleet), "--since", "yesterday")
     assert code == 1 and err.startswith("ERROR: --since 'yesterday' is not a date or a duration")
     assert "HOW: pass e.g. --since 7d" in err
+
+
+def test_a_scheduler_without_the_dask_engine_is_a_usage_error(fleet: Path, capsys: pytest.CaptureFixture[str]):
+    code, _, err = plem(capsys, "fleet", "health", str(fleet), "--scheduler", "tcp://127.0.0.1:8786")
+    assert code == 2 and err.startswith("ERROR: --scheduler needs --engine dask")
+    assert "HOW: add --engine dask, or leave --scheduler out" in err
