@@ -94,7 +94,7 @@ def trend(report: pd.DataFrame) -> pd.DataFrame:
                 slope = float(np.polyfit(day_numbers[known], values[known], 1)[0]) * 7
                 if slope > 1e-9:
                     growing.append(figure)
-            row[f"{figure}_per_week"] = round(slope, 6)
+            row[f"{figure}_per_week"] = round(slope, 6) + 0.0   # + 0.0: no "-0" for a flat line
         row["grows"] = ", ".join(growing)
         rows.append(row)
     columns = ["robot_id", "days", *(f"{figure}_per_week" for figure, _ in TREND_FIGURES), "grows"]
