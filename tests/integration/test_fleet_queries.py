@@ -221,3 +221,17 @@ def test_a_scheduler_without_the_dask_engine_is_a_usage_error(fleet: Path, capsy
     code, _, err = plem(capsys, "fleet", "health", str(fleet), "--scheduler", "tcp://127.0.0.1:8786")
     assert code == 2 and err.startswith("ERROR: --scheduler needs --engine dask")
     assert "HOW: add --engine dask, or leave --scheduler out" in err
+
+
+def test_a_damaged_file_is_named_with_how_to_export_it_again(fleet: Path, tmp_path: Path,
+                                                            capsys: pytest.CaptureFixture[str]):
+    dataset = tmp_path / "dataset"
+    shutil.copytree(fleet, dataset)
+    damaged = sorted((dataset / "rt_raw").rglob("*.parquet"))[0]
+    damaged.write_bytes(damaged.read_bytes()[:5000])   # cut short, as a copy interrupted by hand leaves it
+    code, _, err = plem(capsys, "fleet", "health", str(dataset))
+    assert code == 1 and err.startswith("ERROR: A file of the dataset cannot be read")
+    assert f"WHY: {damaged}: DuckDB: " in err
+    assert f"HOW: move {damaged} out of {dataset} (the rest is read without it); to export its segment again, " \
+           f"move {dataset}/segments/robot_id=arm_a/date=*/{damaged.name} out too" in err
+    assert len(damaged.read_bytes()) == 5000   # left as it was

@@ -124,10 +124,9 @@ def query(
 ) -> None:
     """Run SQL over the dataset with DuckDB (each table is a view: robot_id and date are columns)."""
     dataset = _open(dest)
-    relation = dataset.sql(sql)
-    if relation is None:
-        return
-    print_rows("Query", list(relation.columns), relation.fetchall(), output, "The query returned no rows.")
+    columns, rows = dataset.rows(sql)
+    if columns:
+        print_rows("Query", columns, rows, output, "The query returned no rows.")
 
 
 def _print_frame(title: str, frame: Any, output: TableFormat, empty: str) -> None:

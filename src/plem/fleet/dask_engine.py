@@ -18,7 +18,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from plem.fleet import schema
-from plem.fleet.dataset import Dataset, FleetError, current_schema
+from plem.fleet.dataset import Dataset, FleetError, current_schema, partition_values
 from plem.fleet.health import COUNTERS, HISTOGRAM_COLUMNS
 
 if TYPE_CHECKING:
@@ -30,13 +30,8 @@ LOCAL_WORKERS = 2
 CONNECT_TIMEOUT_S = 10
 
 
-def _partitions(path: str) -> dict[str, str]:
-    """A file's Hive partition values from its path (`robot_id=…/date=…/`)."""
-    return dict(part.split("=", 1) for part in path.split("/") if "=" in part)
-
-
 def _partition_array(path: str, name: str, rows: int) -> pa.Array:
-    value = _partitions(path)[name]
+    value = partition_values(path)[name]
     if name == "date":
         return pa.array([date.fromisoformat(value)] * rows, pa.date32())
     return pa.array([value] * rows, pa.string())
@@ -82,7 +77,7 @@ def _files(dataset: Dataset, table: str, since: datetime | None) -> list[str]:
     if since is None:
         return files
     first = since.date().isoformat()
-    return [path for path in files if _partitions(path).get("date", first) >= first]
+    return [path for path in files if partition_values(path).get("date", first) >= first]
 
 
 def _from_files(function: Any, files: list[str], meta: pd.DataFrame, **arguments: Any) -> Any:
@@ -132,7 +127,7 @@ def file_counters(path: str, filesystem: AbstractFileSystem, since: datetime | N
         return pd.DataFrame(columns=_COUNTER_PARTS)
     times = data.column("time").cast(pa.int64()).to_numpy()
     since_ns = -(2**63) if since is None else int(pa.scalar(since, schema.TIME).cast(pa.int64()).as_py())
-    partitions = _partitions(path)
+    partitions = partition_values(path)
     row: dict[str, Any] = {"robot_id": partitions["robot_id"], "day": date.fromisoformat(partitions["date"]),
                            "first_ns": int(times[0]), "first_counted": bool(times[0] >= since_ns),
                            "in_range": bool(times[-1] >= since_ns)}

@@ -9,6 +9,9 @@ table) and always has every column of the current schema: a column that older fi
 from __future__ import annotations
 
 import os
+import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from typing import TYPE_CHECKING, Any
@@ -50,33 +53,47 @@ class Dataset:
     connection: duckdb.DuckDBPyConnection
     _empty: dict[str, pa.Table] = field(default_factory=dict)
 
-    def sql(self, query: str, parameters: list[Any] | None = None) -> duckdb.DuckDBPyRelation | None:
-        """Run `query` on the views; a failing query is a FleetError with DuckDB's message."""
-        import duckdb
-
-        try:
-            return self.connection.sql(query, params=parameters)
-        except duckdb.Error as error:
-            raise FleetError("The query failed", what="a query DuckDB can run over the dataset's tables",
-                             why=f"DuckDB: {error}".strip(),
-                             how=self.query_how()) from None
-
-    def query_how(self) -> str:
-        """The HOW of a failed query: the tables, and how to list a table's columns."""
-        return QUERY_HOW.format(tables=", ".join(schema.TABLES), dest=self.dest)
+    def rows(self, query: str, parameters: list[Any] | None = None) -> tuple[list[str], list[tuple[Any, ...]]]:
+        """Run `query` on the views: its columns and rows (none for a statement without a result)."""
+        with self._failures(query):
+            relation = self.connection.sql(query, params=parameters)
+            return ([], []) if relation is None else (list(relation.columns), relation.fetchall())
 
     def frame(self, query: str, parameters: list[Any] | None = None) -> Any:
         """The result of `query` as a pandas DataFrame, its times in UTC."""
-        relation = self.sql(query, parameters)
-        if relation is None:
-            raise FleetError("The query returned no rows", what="a query with a result (SELECT …)",
-                             why=f"{query!r} is a statement without a result",
-                             how=self.query_how())
-        frame = relation.df()
+        with self._failures(query):
+            relation = self.connection.sql(query, params=parameters)
+            if relation is None:
+                raise FleetError("The query returned no rows", what="a query with a result (SELECT …)",
+                                 why=f"{query!r} is a statement without a result", how=self.query_how())
+            frame = relation.df()
         for column in frame.columns:   # DuckDB hands TIMESTAMPTZ columns over as naive UTC
             if str(frame[column].dtype).startswith("datetime64[") and frame[column].dt.tz is None:
                 frame[column] = frame[column].dt.tz_localize("UTC")
         return frame
+
+    @contextmanager
+    def _failures(self, query: str) -> Iterator[None]:
+        """DuckDB's errors while a query binds or runs, as FleetErrors: a file of the dataset that is not whole
+        Parquet, or a query DuckDB refuses."""
+        import duckdb
+
+        try:
+            yield
+        except duckdb.Error as error:
+            text = str(error).strip()
+            damaged = re.search(r"[Ff]ile '([^']+)'", text)
+            if damaged and isinstance(error, duckdb.InvalidInputException | duckdb.IOException):
+                raise FleetError("A file of the dataset cannot be read", what="whole Parquet files under "
+                                 f"{self.dest} (an export renames each into place only once it is written)",
+                                 why=f"{damaged.group(1)}: DuckDB: {text}", how=_damaged_how(damaged.group(1),
+                                                                                             self.dest)) from None
+            raise FleetError("The query failed", what="a query DuckDB can run over the dataset's tables",
+                             why=f"DuckDB: {text}", how=self.query_how()) from None
+
+    def query_how(self) -> str:
+        """The HOW of a failed query: the tables, and how to list a table's columns."""
+        return QUERY_HOW.format(tables=", ".join(schema.TABLES), dest=self.dest)
 
     def url(self, path: str) -> str:
         """A file's path as DuckDB reads it (with its scheme on object storage)."""
@@ -85,6 +102,20 @@ class Dataset:
     def dest_scheme(self) -> str:
         """DEST's scheme (`s3`), empty for a local directory."""
         return self.dest.split("://", 1)[0] if "://" in self.dest else ""
+
+
+def _damaged_how(path: str, dest: str) -> str:
+    """How to set a damaged file aside and have its segment exported again (an export skips a segment whose
+    `segments` row is in the dataset)."""
+    parts = partition_values(path)
+    segment_row = f"{dest}/segments/robot_id={parts.get('robot_id', '…')}/date=*/{path.rsplit('/', 1)[-1]}"
+    return (f"move {path} out of {dest} (the rest is read without it); to export its segment again, move {segment_row} "
+            f"out too and rerun `plem bag export BAG_DIR --to {dest}` while the segment's bag is kept")
+
+
+def partition_values(path: str) -> dict[str, str]:
+    """A file's Hive partition values from its path (`robot_id=…/date=…/`)."""
+    return dict(part.split("=", 1) for part in path.split("/") if "=" in part)
 
 
 def open_dataset(dest: str, tables: tuple[str, ...] = schema.TABLES) -> Dataset:
@@ -159,10 +190,9 @@ def _check_versions(dataset: Dataset, tables: tuple[str, ...]) -> None:
     urls = [dataset.url(path) for table in tables for path in dataset.files[table]]
     if not urls:
         return
-    rows = dataset.sql("SELECT file_name, decode(value) FROM parquet_kv_metadata(?) WHERE decode(key) = ?",
-                       [urls, schema.VERSION_KEY.decode()])
-    assert rows is not None
-    newer = [(name, version) for name, version in rows.fetchall() if _version(version) > schema.SCHEMA_VERSION]
+    _, rows = dataset.rows("SELECT file_name, decode(value) FROM parquet_kv_metadata(?) WHERE decode(key) = ?",
+                           [urls, schema.VERSION_KEY.decode()])
+    newer = [(name, version) for name, version in rows if _version(version) > schema.SCHEMA_VERSION]
     if newer:
         name, version = newer[0]
         raise FleetError("The dataset holds files of a newer schema", what=f"files of schema version "
@@ -189,7 +219,7 @@ def _create_view(dataset: Dataset, table: str) -> None:
         dataset.connection.execute(f"CREATE VIEW {table} AS SELECT * FROM _{table}_columns")
         return
     listing = ", ".join("'" + url.replace("'", "''") + "'" for url in urls)
-    dataset.sql(f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], hive_partitioning = true, "
+    dataset.rows(f"CREATE VIEW {table} AS SELECT * FROM read_parquet([{listing}], hive_partitioning = true, "
                 f"union_by_name = true, hive_types = {{'robot_id': VARCHAR, 'date': DATE}}) "
                 f"UNION ALL BY NAME SELECT * FROM _{table}_columns")
 

@@ -34,7 +34,7 @@ _PEAKS = (("peak_velocity", "abs(velocity_{j})", "velocity_joint"),
 
 def joint_count(dataset: Dataset) -> int:
     """The most joints any robot of the dataset has (rt_raw's position_N columns)."""
-    names = [row[0] for row in dataset.sql("DESCRIBE rt_raw").fetchall()]  # type: ignore[union-attr]
+    names = [row[0] for row in dataset.rows("DESCRIBE rt_raw")[1]]
     return sum(1 for name in names if name.startswith("position_"))
 
 
