@@ -9,6 +9,8 @@ its AWS_* variables). The aggregates are those of plem.fleet.health.duckdb_aggre
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import date, datetime
 from typing import TYPE_CHECKING, Any
 
@@ -188,16 +190,20 @@ def aggregates(dataset: Dataset, since: datetime | None, client: Client) -> tupl
             combine_counters(counter_frame))
 
 
-def connect(scheduler: str | None) -> Client:
-    """A client of the cluster at `scheduler` (tcp://host:8786), or of a new local cluster of worker processes."""
+@contextmanager
+def connect(scheduler: str | None) -> Iterator[Client]:
+    """A client of the cluster at `scheduler` (tcp://host:8786), or of a local cluster of worker processes started
+    for the job and stopped after it."""
     from distributed import Client, LocalCluster
 
     if scheduler is None:
-        cluster = LocalCluster(n_workers=LOCAL_WORKERS, threads_per_worker=1, processes=True,  # type: ignore[no-untyped-call]
-                               dashboard_address=None, silence_logs=logging.ERROR)
-        return Client(cluster)  # type: ignore[no-untyped-call]
+        with LocalCluster(n_workers=LOCAL_WORKERS, threads_per_worker=1, processes=True,  # type: ignore[no-untyped-call]
+                          dashboard_address=None, silence_logs=logging.ERROR) as cluster, \
+                Client(cluster) as client:  # type: ignore[no-untyped-call]
+            yield client
+        return
     try:
-        return Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # type: ignore[no-untyped-call]
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError) as error:
         raise FleetError(f"Cannot reach the Dask scheduler at {scheduler}", what="a running Dask scheduler at "
                          "--scheduler, with workers that have plem installed and can read DEST",
@@ -205,4 +211,6 @@ def connect(scheduler: str | None) -> Client:
                          how="start it (`dask scheduler` on the host, `dask worker tcp://HOST:8786` on each worker) "
                              "and pass --scheduler tcp://HOST:8786, or leave --scheduler out for a local "
                              "cluster") from None
+    with client:
+        yield client
 

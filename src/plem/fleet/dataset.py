@@ -51,7 +51,8 @@ class Dataset:
     filesystem: AbstractFileSystem
     files: dict[str, list[str]]
     connection: duckdb.DuckDBPyConnection
-    _empty: dict[str, pa.Table] = field(default_factory=dict)
+    #: The empty tables of the current schemas the views union with (DuckDB reads registered tables by reference).
+    registered: dict[str, pa.Table] = field(default_factory=dict)
 
     def rows(self, query: str, parameters: list[Any] | None = None) -> tuple[list[str], list[tuple[Any, ...]]]:
         """Run `query` on the views: its columns and rows (none for a statement without a result)."""
@@ -212,7 +213,7 @@ def _create_view(dataset: Dataset, table: str) -> None:
     """The table's view: its files unioned by name with an empty table of the current schema (missing columns
     read as null; a table without files is an empty view of the right columns)."""
     empty = current_schema(table).empty_table()
-    dataset._empty[table] = empty
+    dataset.registered[table] = empty
     dataset.connection.register(f"_{table}_columns", empty)
     urls = [dataset.url(path) for path in dataset.files[table]]
     if not urls:
