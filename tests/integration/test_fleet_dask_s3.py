@@ -39,7 +39,7 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def client() -> Iterator[Client]:
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             Client(cluster) as connected:
         yield connected
 
@@ -132,3 +132,12 @@ def test_missing_s3_credentials_are_what_why_how(s3: dict[str, str], tmp_path: P
     assert result.returncode == 1 and result.stderr.startswith("ERROR: Cannot read s3://fleet/plant")
     assert "no credentials were found" in result.stderr and "HOW: set AWS_ACCESS_KEY_ID" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_the_dask_job_reads_the_dataset_on_s3(fleet: Path, s3: dict[str, str]):
+    local = open_dataset(str(fleet))
+    by_duckdb = health.days(*health.duckdb_aggregates(local, None))
+    # workers started now inherit the AWS_* variables, as a real cluster's workers need them
+    with dask_engine.connect(None) as s3_client:
+        by_dask = health.days(*dask_engine.aggregates(open_dataset("s3://fleet/plant"), None, s3_client))
+    pd.testing.assert_frame_equal(by_dask, by_duckdb, check_exact=True)

@@ -61,7 +61,7 @@ def test_health_of_the_recorded_session_by_duckdb_and_dask(exported: Path):
     assert by_duckdb[["robot_id", "cycles"]].values.tolist() == [["arm_a", 2500], ["arm_b", 2000]]
     _, rows = dataset.rows("SELECT robot_id, max(overruns) FROM rt_monitor_stats GROUP BY 1 ORDER BY 1")
     assert by_duckdb["overruns"].tolist() == [row[1] for row in rows]   # one run each: the counter's last value
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
             Client(cluster) as client:
         by_dask = health.days(*dask_engine.aggregates(dataset, None, client))
     pd.testing.assert_frame_equal(by_dask, by_duckdb, check_exact=True)
