@@ -328,3 +328,20 @@ def test_an_rtraw_of_an_unknown_layout_is_refused_with_what_why_how(tmp_path: Pa
     assert result.returncode == 1 and "Traceback" not in result.stderr
     assert "ERROR: rt_raw of arm_2027_01_16-00_00_00 has a layout this plem does not know" in result.stderr
     assert "speed_override, torque_scale" in result.stderr and "HOW: export it with the plem version" in result.stderr
+
+
+def test_malformed_identity_in_a_bag_reads_as_unknown(tmp_path: Path):
+    """custom_data edited by hand (joint names that are not a JSON list): the names come from joint_states."""
+    from plem.middleware.types import library
+
+    robot = tmp_path / "bags" / "arm"
+    robot.mkdir(parents=True)
+    writer = SegmentWriter(robot / "arm_2027_01_16-00_00_00", [("/arm/joint_states", "sensor_msgs/msg/JointState")],
+                           STORE, custom_data={"plem.joint_names": "[oops", "plem.serial": "PE07I7E0E001"})
+    message = library().new("sensor_msgs/msg/JointState", name=joints(6), position=[0.0] * 6)
+    writer.append("/arm/joint_states", MIDNIGHT, message.serialize())
+    writer.close()
+    report = export([tmp_path / "bags"], open_destination(str(tmp_path / "fleet")))
+    assert report.problems == [] and report.exported == ["arm/arm_2027_01_16-00_00_00"]
+    [row] = table(tmp_path / "fleet", "segments").to_pylist()
+    assert row["joint_names"] == joints(6) and row["serial"] == "PE07I7E0E001" and row["dof"] == 6

@@ -235,10 +235,8 @@ def _joint_state_rows(batches: Iterable[Payloads], store: Typestore) -> tuple[li
 def _fixed_bytes(encoder: JointStateEncoder) -> np.ndarray:
     """Which bytes of a JointState payload are the same in every message of the robot (all but stamp and values)."""
     fixed = np.ones(encoder.template.size, bool)
-    for name in encoder.dtype.names or ():
-        base, offset = encoder.dtype.fields[name][:2] if encoder.dtype.fields else (None, 0)
-        assert base is not None
-        fixed[offset:offset + base.itemsize] = False
+    for field_type, offset, *_ in (encoder.dtype.fields or {}).values():
+        fixed[offset:offset + field_type.itemsize] = False
     return fixed
 
 
@@ -299,8 +297,17 @@ def stats_table(batches: Iterable[Payloads], store: Typestore) -> pa.Table:
     return pa.Table.from_pylist(rows, schema=schema.rt_monitor_stats())
 
 
+def _listed_names(text: str) -> list[str] | None:
+    """The joint names the recorder wrote into a segment's metadata (a JSON list); None when absent or malformed."""
+    try:
+        names = json.loads(text) if text else None
+    except ValueError:
+        return None
+    return [str(name) for name in names] if isinstance(names, list) else None
+
+
 # -- a segment ------------------------------------------------------------------------------------------------------
-def decode_segment(info: SegmentInfo, robot_id: str) -> SegmentTables:
+def decode_segment(info: SegmentInfo) -> SegmentTables:
     """Every exported topic of one complete segment, decoded through the definitions it embeds."""
     store, custom = _bag_types(info)
     topics = {name: info.topic_of(ros_type) for name, ros_type in MONITOR_TOPICS.items()}
@@ -316,8 +323,7 @@ def decode_segment(info: SegmentInfo, robot_id: str) -> SegmentTables:
               "rt_monitor_stats": stats_table(batches("rt_monitor_stats"), store), "joint_states": states}
     identity = {key.removeprefix(IDENTITY_PREFIX): value for key, value in custom.items()
                 if key.startswith(IDENTITY_PREFIX)}
-    if identity.get("joint_names"):
-        names = list(json.loads(identity["joint_names"]))
+    names = _listed_names(identity.get("joint_names", "")) or names
     dof = (len(raw.schema) - len(schema.rt_raw(0))) // len(schema.RAW_JOINT_FIELDS) if raw.num_rows else \
         (len(names) if names is not None else None)
     return SegmentTables(tables, dof, names, missing_cycles(cycles), identity)

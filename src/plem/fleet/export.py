@@ -94,7 +94,7 @@ def segment_row(info: SegmentInfo, decoded: SegmentTables) -> pa.Table:
 
 def segment_files(info: SegmentInfo, robot_id: str) -> tuple[list[tuple[str, bytes]], int]:
     """Every file of one segment (relative path, bytes), its `segments` row last, and its rt_raw rows."""
-    decoded = decode_segment(info, robot_id)
+    decoded = decode_segment(info)
     files = [(file_path(name, robot_id, date, info.name), parquet_bytes(part))
              for name in schema.TABLES[:-1] for date, part in by_date(decoded.tables[name])]
     row = segment_row(info, decoded)
