@@ -345,3 +345,16 @@ def test_malformed_identity_in_a_bag_reads_as_unknown(tmp_path: Path):
     assert report.problems == [] and report.exported == ["arm/arm_2027_01_16-00_00_00"]
     [row] = table(tmp_path / "fleet", "segments").to_pylist()
     assert row["joint_names"] == joints(6) and row["serial"] == "PE07I7E0E001" and row["dof"] == 6
+
+
+def test_a_message_that_does_not_decode_skips_its_segment_with_what_why_how(bag_dir: Path, tmp_path: Path):
+    bags = tmp_path / "bags"
+    shutil.copytree(bag_dir / "arm_b", bags / "arm_b")
+    broken = bags / "arm_b" / "arm_b_2027_01_17-00_00_00"
+    writer = SegmentWriter(broken, [("/arm_b/rt_events", "plem_msgs/msg/RtEvent")], STORE)
+    writer.append("/arm_b/rt_events", MIDNIGHT + DAY, b"\x00\x01\x00\x00\x07\x00")    # cut after 2 bytes
+    writer.close()
+    result = run_plem("bag", "export", str(bags), "--to", str(tmp_path / "fleet"))
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+    assert f"ERROR: segment {broken.name} not exported: a message in it cannot be decoded" in result.stderr
+    assert "exported 2 segments" in result.stdout

@@ -11,6 +11,7 @@ damaged one is reported with the fix and the others are exported.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+from rosbags.serde import SerdeError
 
 from plem.errors import PlemError
 from plem.fleet import schema
@@ -159,6 +161,12 @@ def export_segments(robot_id: str, paths: Iterable[Path], destination: Destinati
                 f"segment {path.name} not exported: it was deleted while being exported",
                 what="the segment's files until their export ends", why=f"{path} went away meanwhile",
                 how="nothing to do for it; keep segments until exported by raising retention_minutes:="))
+            continue
+        except (SerdeError, ValueError, IndexError, KeyError, struct.error) as error:
+            report.problems.append(ExportError(
+                f"segment {path.name} not exported: a message in it cannot be decoded",
+                what="messages as their definitions in the bag describe them", why=f"{type(error).__name__}: {error}",
+                how=f"run `plem bag repair {path}` if it was damaged, or delete it; the other segments are exported"))
             continue
         size = sum(len(data) for _, data in files)
         if room is not None:
