@@ -65,7 +65,7 @@ def by_date(table: pa.Table) -> list[tuple[str, pa.Table]]:
     if not table.num_rows:
         return []
     days = table.column("time").cast(pa.int64()).to_numpy() // _DAY_NS
-    if days[0] == days[-1] and np.all(days == days[0]):
+    if np.all(days == days[0]):
         return [(_utc_date(int(days[0])), table)]
     return [(_utc_date(int(day)), table.filter(pa.array(days == day))) for day in np.unique(days)]
 
