@@ -15,7 +15,7 @@ import pytest
 
 from plem.cli.app import run
 from plem.fleet import schema
-from plem.fleet.synthetic import AMPLITUDE, EFFORT, FOLLOWING, PERIOD_S, Run, write_run
+from plem.fleet.synthetic import AMPLITUDE, EFFORT, FOLLOWING, PERIOD_S, Fault, Run, write_run
 from tests.integration.fleet_dataset import DAY_1, write_fleet
 
 OMEGA = 2 * math.pi / PERIOD_S
@@ -235,3 +235,12 @@ def test_a_damaged_file_is_named_with_how_to_export_it_again(fleet: Path, tmp_pa
     assert f"HOW: move {damaged} out of {dataset} (the rest is read without it); to export its segment again, " \
            f"move {dataset}/segments/robot_id=arm_a/date=*/{damaged.name} out too" in err
     assert len(damaged.read_bytes()) == 5000   # left as it was
+
+
+def test_a_fault_soon_after_start_expects_only_the_cycles_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
+    write_run(tmp_path, Run("arm_s", 6, DAY_1, 2, segment_seconds=2, faults=(Fault(0.3),)))
+    code, out, err = plem(capsys, "fleet", "faults", str(tmp_path), "--format", "json")
+    assert code == 0, err
+    [fault] = json.loads(out)
+    # 0.3 s after the loop started: 300 cycles ran (0 … 299), none lost
+    assert (fault["cycle"], fault["cycles"], fault["expected"], fault["lost"]) == (300, 300, 300, 0)

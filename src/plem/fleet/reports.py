@@ -3,7 +3,8 @@
 faults: every rt_events row of kind `fault`, with what rt_raw holds of the seconds before it (the window): the peak
 |velocity|, the peak following error |command_position − position| and the peak |effort| over the arm's joints
 (with the joint), the wake-up latency p99 (nearest rank, whole µs, as in the health report) and max, the largest
-compute time, and the cycles present against those expected at the robot's period (rt_monitor_stats' period_ns).
+compute time, and the cycles present against those expected: the window's length at the robot's period
+(rt_monitor_stats' period_ns), or fewer when the loop had run fewer (its cycle number, counted from 0 at its start).
 
 usage: per robot and joint, the travel Σ|Δposition| between consecutive cycles in time order, the reversals (the
 velocity's sign changing between samples beyond ±deadband; samples inside it are skipped) and the RMS effort.
@@ -85,7 +86,9 @@ def faults(dataset: Dataset, since: datetime | None, window_s: float) -> pd.Data
         .merge(period, on="robot_id", how="left")
     report["cycles"] = report["cycles"].fillna(0).astype("int64")
     periods = report["period_ns"].fillna(DEFAULT_PERIOD_NS).astype(float)
-    report["expected"] = (window_s * 1e9 / periods).round().astype("int64")
+    in_window = (window_s * 1e9 / periods).round()
+    run_so_far = report["cycle"].astype("float64").fillna(in_window)   # the loop counts cycles from 0 at its start
+    report["expected"] = in_window.where(in_window <= run_so_far, run_so_far).astype("int64")
     report["lost"] = (report["expected"] - report["cycles"]).clip(lower=0)
     names = joint_names(dataset)
     for column, _, joint_column in _PEAKS:

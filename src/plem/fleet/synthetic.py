@@ -65,7 +65,7 @@ class Run:
     segment_seconds: int = 60
     rate_hz: int = 1000
     model: str = "indy7"
-    first_cycle: int = 1
+    first_cycle: int = 0   # the loop counts cycles from 0 at its start
 
 
 def write_runs(dest: Path, runs: list[Run], compression: str = "zstd") -> list[Path]:
