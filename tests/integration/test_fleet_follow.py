@@ -74,3 +74,27 @@ def test_the_disk_threshold_holds_the_export_back_and_a_deleted_segment_is_repor
     assert exported(tmp_path / "fleet") == ["arm_2027_01_15-08_00_01", "arm_2027_01_15-08_00_02"]
     deleted = [record.getMessage() for record in caplog.records if "deleted before its export" in record.getMessage()]
     assert len(deleted) == 1 and "arm_2027_01_15-08_00_00" in deleted[0]
+
+
+def test_a_destination_that_cannot_be_opened_is_said_once_and_tried_again(tmp_path: Path,
+                                                                          caplog: pytest.LogCaptureFixture,
+                                                                          monkeypatch: pytest.MonkeyPatch):
+    import threading
+
+    from plem.fleet import continuous
+
+    (tmp_path / "file").write_text("")
+    waits: list[float] = []
+    stop = threading.Event()
+
+    def wait(seconds: float) -> bool:
+        waits.append(seconds)
+        if len(waits) == 3:
+            stop.set()
+        return stop.is_set()
+
+    monkeypatch.setattr(stop, "wait", wait)
+    with caplog.at_level(logging.INFO, "plem.export"):
+        continuous.follow(tmp_path / "bags" / "arm", str(tmp_path / "file"), 99.0, stop)
+    said = [record.getMessage() for record in caplog.records if "is not a directory" in record.getMessage()]
+    assert len(said) == 1 and waits == [continuous.RETRY_S] * 3

@@ -80,8 +80,10 @@ class Follower:
 
 
 def follow(robot_dir: Path, text: str, threshold: float, stop: threading.Event) -> None:
-    """Export the robot's closed segments until `stop`, then one last pass."""
+    """Export the robot's closed segments until `stop`, then one last pass; a destination that cannot be opened is
+    said once and tried again every `RETRY_S`."""
     follower: Follower | None = None
+    said: str | None = None
     while True:
         stopping = stop.is_set()
         try:
@@ -89,7 +91,9 @@ def follow(robot_dir: Path, text: str, threshold: float, stop: threading.Event) 
                 follower = Follower(robot_dir, open_destination(text, "export_dir:="), threshold)
             wait = PERIOD_S if follower.step() else RETRY_S
         except PlemError as error:
-            _log.warning("%s", error.log_text())
+            if error.summary != said:
+                _log.warning("%s", error.log_text())
+                said = error.summary
             wait = RETRY_S
         if stopping:
             return
