@@ -44,7 +44,7 @@ PLEM = [sys.executable, "-m", "plem.cli"]
 
 def dataset(directory: Path, robots: int, days: int, seconds: int) -> Path:
     """The synthetic dataset for these parameters, written unless DIR/complete.json says it is there."""
-    parameters = {"robots": robots, "days": days, "seconds": seconds, "layout": 1}
+    parameters = {"robots": robots, "days": days, "seconds": seconds, "layout": 2}   # layout: the generator's version
     marker = directory / "complete.json"
     if marker.exists() and json.loads(marker.read_text()) == parameters:
         return directory
