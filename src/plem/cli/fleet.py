@@ -64,15 +64,13 @@ def _since(text: str | None) -> datetime | None:
 
 def _cell(value: Any) -> Any:
     """A value as JSON/CSV shows it: NaN and NA as null, numpy scalars as Python ones, times as ISO text."""
-    if value is None:
+    if value is None or type(value).__name__ in {"NAType", "NaTType"}:
         return None
     if hasattr(value, "isoformat"):
         return value.isoformat()
     if hasattr(value, "item") and not isinstance(value, list | tuple | dict):
         value = value.item()
     if isinstance(value, float) and math.isnan(value):
-        return None
-    if type(value).__name__ in {"NAType", "NaTType"}:
         return None
     if hasattr(value, "tolist"):
         return value.tolist()
@@ -82,7 +80,7 @@ def _cell(value: Any) -> Any:
 def _text(value: Any) -> str:
     """A value as a table cell: times to the millisecond in UTC, floats to 6 significant digits (CSV and JSON keep
     every digit)."""
-    if isinstance(value, datetime) and value == value:   # NaT is not equal to itself
+    if isinstance(value, datetime) and _cell(value) is not None:
         return value.astimezone(UTC).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
     cell = _cell(value)
     if cell is None:
