@@ -29,6 +29,7 @@ def test_a_launched_robot_exports_its_closed_segments(tmp_path: Path):
             assert wait_until(lambda: len(exported(fleet)) >= 2, timeout=60, period=0.2), launch.output
             open_segments = [path.name for path in (bags / robot_id).iterdir() if (path / ".reserve").exists()]
             assert open_segments and not {row["segment"] for row in exported(fleet)} & set(open_segments)
+            assert f"[export] INFO: exported {robot_id}/" in launch.errors, "the launch shows what was exported"
         assert launch.stop() == 0
     segments = robot_segments(find_bags(bags / robot_id)[0])
     rows = {str(row["segment"]): row for row in exported(fleet)}
