@@ -5,6 +5,7 @@ real S3 server (moto), bags of an older plem, and the WHAT/WHY/HOW errors."""
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
 import signal
 import subprocess
@@ -286,19 +287,20 @@ def test_export_to_a_real_s3_server_equals_the_local_export(bag_dir: Path, datas
     import s3fs
 
     store = s3fs.S3FileSystem(client_kwargs={"endpoint_url": s3_server["AWS_ENDPOINT_URL"]})
-    result = run_plem("bag", "export", str(bag_dir), "--to", "s3://fleet/plant1", env=s3_server)
-    assert result.returncode == 1 and "ERROR: bucket fleet does not exist" in result.stderr
-    assert "HOW: create it (aws s3 mb s3://fleet)" in result.stderr and "Traceback" not in result.stderr
-    store.mkdir("fleet")
-    result = run_plem("bag", "export", str(bag_dir), "--to", "s3://fleet/plant1", env=s3_server)
+    bucket = f"fleet-{secrets.token_hex(4)}"   # moto keeps buckets per process, across its servers: a fresh name
+    result = run_plem("bag", "export", str(bag_dir), "--to", f"s3://{bucket}/plant1", env=s3_server)
+    assert result.returncode == 1 and f"ERROR: bucket {bucket} does not exist" in result.stderr
+    assert f"HOW: create it (aws s3 mb s3://{bucket})" in result.stderr and "Traceback" not in result.stderr
+    store.mkdir(bucket)
+    result = run_plem("bag", "export", str(bag_dir), "--to", f"s3://{bucket}/plant1", env=s3_server)
     assert result.returncode == 0, result.stderr
     assert "exported 5 segments (4500 rt_raw rows" in result.stdout
     store.invalidate_cache()
-    objects = {key.removeprefix("fleet/plant1/"): store.cat_file(key) for key in store.find("fleet/plant1")}
+    objects = {key.removeprefix(f"{bucket}/plant1/"): store.cat_file(key) for key in store.find(f"{bucket}/plant1")}
     assert objects == files(dataset)
-    raw = ds.dataset("fleet/plant1/rt_raw", filesystem=store, format="parquet", partitioning="hive").to_table()
+    raw = ds.dataset(f"{bucket}/plant1/rt_raw", filesystem=store, format="parquet", partitioning="hive").to_table()
     assert raw.num_rows == 4500 and set(raw.column("robot_id").to_pylist()) == set(ROBOTS)
-    again = export([bag_dir], open_destination("s3://fleet/plant1"))
+    again = export([bag_dir], open_destination(f"s3://{bucket}/plant1"))
     assert again.exported == [] and len(again.already) == 5
 
 

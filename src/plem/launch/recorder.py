@@ -68,11 +68,11 @@ def record(arguments: dict[str, str], stop: threading.Event, nice: int | None = 
     plan = plan_robot(arguments, generate=False)
     settings = replace(plan.recording(), group=plan.shm_group)
     interfaces = library()
-    client = connect(plan.robot_id, plan.config.dof)
-    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,
+    recorder = Recorder(settings, plan.robot_id, MONITOR_TOPICS, interfaces.store,   # the bag_dir is checked first
                         description=plan.robot_description,
                         identity=identity(plan.robot_id, plan.config.robot_serial, plan.config.MODEL.name
-                                          if plan.config.MODEL else plan.robot_name, client.joint_names))
+                                          if plan.config.MODEL else plan.robot_name, plan.joint_names))
+    client = connect(plan.robot_id, plan.config.dof)
     exporter = start_export(arguments, settings)
     feed = RecordingFeed(client, interfaces, plan.joint_state_rate())
     try:
