@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
-import socket
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -21,13 +20,6 @@ CHROMIUM_FLAGS = ("--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first
                   "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist")
 VIEWPORT = {"width": 1000, "height": 700}
 PAGE_TIMEOUT_S = 120.0
-
-
-def free_port() -> int:
-    """A TCP port nobody listens on now, for a view of its own."""
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def chromium_path() -> str:

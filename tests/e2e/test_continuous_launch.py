@@ -3,7 +3,6 @@ the driver, the command service, the planner and the view's teach panel take the
 
 from __future__ import annotations
 
-import socket
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,15 +18,9 @@ from plem.view.scene import ArmScene
 from plem.view.teach import TeachPanel
 from tests.e2e.launched import Launch, launched_robot
 from tests.integration.arm_shapes import continuous_wrist
+from tests.local_servers import free_port
 
 START = [0.0, 0.3, 0.4, 0.1, 0.2, 5.0]
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
 
 
 @pytest.fixture(scope="module")

@@ -17,9 +17,10 @@ import pytest
 from plem.bridge.client import RobotClient, connect
 from plem.control.modes import Mode
 from plem.planning import Box, Pose, SceneObject
-from tests.e2e.browser import arm_pixels, coloured, free_port, page_of, screenshot, wait_for_image, wait_for_text
+from tests.e2e.browser import arm_pixels, coloured, page_of, screenshot, wait_for_image, wait_for_text
 from tests.e2e.cli import plem_executable
 from tests.e2e.launched import Launch, launched_robot, process_gone
+from tests.local_servers import free_port
 
 #: The view's colours of scene objects and of the planned path (plem.view.scene), as the page draws them lit.
 OBJECT_RGB, PATH_RGB = (217, 115, 51), (26, 179, 77)

@@ -20,9 +20,10 @@ from plem.launch.rt_driver import driving
 from plem.recording.archive import read_event_log
 from plem.recording.summary import find_bags
 from plem.view.replay import Replay
-from tests.e2e.browser import arm_pixels, free_port, page_of, wait_for_image, wait_for_text
+from tests.e2e.browser import arm_pixels, page_of, wait_for_image, wait_for_text
 from tests.e2e.cli import plem_executable, run_plem
 from tests.e2e.launched import new_robot_id, wait_until
+from tests.local_servers import free_port
 
 TARGET = np.radians([35.0, -25.0, 50.0, 0.0, 30.0, 0.0])
 

@@ -5,7 +5,6 @@ unreachable scheduler are WHAT/WHY/HOW errors."""
 from __future__ import annotations
 
 import os
-import socket
 import subprocess
 from collections.abc import Iterator
 from datetime import UTC, datetime
@@ -14,7 +13,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from distributed import Client, LocalCluster
-from moto.server import ThreadedMotoServer
 
 from plem.cli.app import run
 from plem.fleet import dask_engine, health
@@ -22,6 +20,7 @@ from plem.fleet.dataset import open_dataset
 from plem.fleet.synthetic import Run, write_runs
 from tests.e2e.cli import plem_executable
 from tests.integration.fleet_dataset import write_fleet
+from tests.local_servers import free_port, moto_server
 
 
 @pytest.fixture(scope="module")
@@ -79,37 +78,25 @@ def test_an_unreachable_scheduler_is_what_why_how(fleet: Path, capsys: pytest.Ca
     assert "HOW: start it (`dask scheduler`" in err
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        port: int = probe.getsockname()[1]
-        return port
-
-
 @pytest.fixture(scope="module")
 def s3(fleet: Path) -> Iterator[dict[str, str]]:
     """A moto S3 server holding the dataset under s3://fleet/plant; yields its AWS_* environment."""
     import s3fs
 
-    port = free_port()
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=port, verbose=False)
-    server.start()
-    environment = {"AWS_ACCESS_KEY_ID": "test", "AWS_SECRET_ACCESS_KEY": "test", "AWS_DEFAULT_REGION": "us-east-1",
-                   "AWS_ENDPOINT_URL": f"http://127.0.0.1:{port}"}
-    saved = {name: os.environ.get(name) for name in environment}
-    os.environ.update(environment)
-    try:
-        store = s3fs.S3FileSystem(skip_instance_cache=True)
-        store.mkdir("fleet")
-        store.put(f"{fleet}/", "fleet/plant/", recursive=True)
-        yield environment
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
-        server.stop()
+    with moto_server() as environment:
+        saved = {name: os.environ.get(name) for name in environment}
+        os.environ.update(environment)
+        try:
+            store = s3fs.S3FileSystem(skip_instance_cache=True)
+            store.mkdir("fleet")
+            store.put(f"{fleet}/", "fleet/plant/", recursive=True)
+            yield environment
+        finally:
+            for name, value in saved.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
 
 
 def test_a_dataset_on_s3_is_queried_like_a_directory(fleet: Path, s3: dict[str, str],

@@ -27,6 +27,7 @@ from plem.fleet.export import export
 from plem.recording.segment import SegmentWriter
 from tests.e2e.cli import plem_executable, run_plem
 from tests.integration.fleet_bags import MS, STORE, S, joints, record_old_raw, record_robot
+from tests.local_servers import moto_server
 
 DAY = 86_400 * S
 MIDNIGHT = 1_800_057_600 * S                    # 2027-01-16T00:00:00Z
@@ -268,19 +269,10 @@ def test_missing_s3_credentials_are_what_why_how(bag_dir: Path, tmp_path: Path):
 @pytest.fixture
 def s3_server(monkeypatch: pytest.MonkeyPatch) -> Any:
     """A real S3-compatible server (moto's server mode) on a free local port, with the usual AWS variables."""
-    from moto.server import ThreadedMotoServer
-
-    server = ThreadedMotoServer(ip_address="127.0.0.1", port=0)
-    server.start()
-    host, port = server.get_host_and_port()
-    environment = {"AWS_ACCESS_KEY_ID": "fleet", "AWS_SECRET_ACCESS_KEY": "secret",
-                   "AWS_ENDPOINT_URL": f"http://{host}:{port}", "AWS_DEFAULT_REGION": "us-east-1"}
-    for name, value in environment.items():
-        monkeypatch.setenv(name, value)
-    try:
+    with moto_server() as environment:
+        for name, value in environment.items():
+            monkeypatch.setenv(name, value)
         yield environment
-    finally:
-        server.stop()
 
 
 def test_export_to_a_real_s3_server_equals_the_local_export(bag_dir: Path, dataset: Path, s3_server: Any):

@@ -48,14 +48,19 @@ def test_a_250_hz_stream_with_jumps_and_gaps_keeps_every_limit_and_reaches_its_t
     assert_within_limits(robot, trace.commands())
 
 
-def test_a_stream_that_stops_arriving_brings_the_arm_to_rest_and_ends(robot: Robot) -> None:
-    trace = Trace.attach(robot)
+def speed_up(robot: Robot, joint: int, samples: int) -> None:
+    """Stream 1 rad/s on one joint, a sample every SAMPLE_CYCLES, until the command moves at it."""
     velocities = np.zeros(robot.limits.dof)
-    velocities[0] = 1.0
-    for _ in range(200):
+    velocities[joint] = 1.0
+    for _ in range(samples):
         robot.speed_joints(velocities)
         robot.step(SAMPLE_CYCLES)
-    assert robot.state().command_velocity[0] == pytest.approx(1.0, abs=1e-9)
+    assert robot.state().command_velocity[joint] == pytest.approx(1.0, abs=1e-9)
+
+
+def test_a_stream_that_stops_arriving_brings_the_arm_to_rest_and_ends(robot: Robot) -> None:
+    trace = Trace.attach(robot)
+    speed_up(robot, 0, samples=200)
     _, handle, _ = robot._stream
     result = handle.wait(5.0)
     assert result.outcome is TrajectoryOutcome.SUCCEEDED and "no sample for 0.1 s" in result.message
@@ -68,12 +73,7 @@ def test_stop_brings_a_fast_stream_to_rest_within_every_limit_without_a_contact(
     """The stop takes the next step of its own plan in the cycle it starts: a cycle that kept the moving command
     would be a step in velocity, which the drives' stiff servo turns into an effort the contact stop catches."""
     trace = Trace.attach(robot)
-    velocities = np.zeros(robot.limits.dof)
-    velocities[1] = 1.0
-    for _ in range(150):
-        robot.speed_joints(velocities)
-        robot.step(SAMPLE_CYCLES)
-    assert robot.state().command_velocity[1] == pytest.approx(1.0, abs=1e-9)
+    speed_up(robot, 1, samples=150)
     robot.stop().wait(1.0)
     robot.step(1000)
     assert robot.mode is Mode.HOLD and robot.fault_reason == ""
