@@ -6,13 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from plem.control.commands import ArmReaction, CommandHandle
 from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.control.motion import plan_stop
 from plem.control.payload import Payload
-from plem.control.reactions import FreeDrive, Hold, Measure, MoveTo, Record, Stop
+from plem.control.reactions import Condition, FreeDrive, Hold, Measure, MoveTo, Record, Stop
 from plem.control.trajectory import JointTrajectory, TrajectoryOutcome
 from plem.errors import CommandRejected, PlemError
+from plem.fieldbus.bus import DriveState
 from plem.fieldbus.mock import MockBus
 from plem.robot import Indy7V2, Robot
 from tests.integration.robot_fixtures import RAW_ZERO, Trace, simulated_robot
@@ -158,6 +160,56 @@ def test_bad_reactions_and_payloads_are_refused_with_what_why_how(robot: Robot, 
     with pytest.raises(PlemError) as raised:
         build(robot)
     assert words in str(raised.value) and "HOW" in str(raised.value)
+
+
+def _expression(rng: np.random.Generator, atoms: list[tuple[Condition, bool]], depth: int) -> tuple[Condition, bool]:
+    """A random condition over atoms of known truth, and its truth as Python evaluates the same combination."""
+    if depth == 0 or rng.random() < 0.25:
+        return atoms[int(rng.integers(len(atoms)))]
+    kind = int(rng.integers(3))
+    left, left_truth = _expression(rng, atoms, depth - 1)
+    if kind == 0:
+        return ~left, not left_truth
+    right, right_truth = _expression(rng, atoms, depth - 1)
+    return (left & right, left_truth and right_truth) if kind == 1 else (left | right, left_truth or right_truth)
+
+
+def test_conditions_combine_in_the_core_as_in_python(robot: Robot) -> None:
+    robot.step(20)
+    q = robot.state().position
+    atoms = [(Measure.position(1) > q[1] - 0.05, True), (Measure.position(2) > q[2] + 0.05, False),
+             (Measure.velocity(0) < 1.0, True), (Measure.following_error(3) > 1.0, False),
+             (Measure.MOTION_TIME > -1.0, False),   # no motion while holding: no value, never true
+             (Measure.drive_state(4) == DriveState.OPERATION_ENABLED, True), (Measure.FORCE_Z > 1e4, False),
+             (Measure.effort(5) < 1e4, True)]
+    gate = Measure.digital_input(0, 0) == 1   # holds every condition false until all 16 are armed
+    rng = np.random.default_rng(7)
+    for _ in range(8):   # 8 rounds of the 16 slots
+        conditions: list[tuple[Condition, bool]] = []
+        while len(conditions) < 16:   # as long as a condition may be, with the gate
+            condition, truth = _expression(rng, atoms, 4)
+            if len(condition.terms) <= 14:
+                conditions.append((gate & condition, truth))
+        armed = [(robot.on(condition, Record(), once=True), truth) for condition, truth in conditions]
+        slots = [robot.runtime.reactions[handle.token].slot for handle, _ in armed]
+        robot.bus.set_digital_inputs(0, 1)
+        robot.step(2)
+        for (handle, truth), slot in zip(armed, slots, strict=True):
+            fired = not robot.runtime.arm[0]["reactions"][slot]["armed"]
+            assert fired == truth, robot.runtime.reactions[handle.token].text
+            handle.remove()
+        robot.bus.set_digital_inputs(0, 0)
+        robot.step(2)
+
+
+def test_the_core_refuses_to_arm_a_condition_it_cannot_evaluate(robot: Robot) -> None:
+    token = robot.runtime.write_reaction(Measure.FORCE_X > 1.0, Record())
+    slot = robot.runtime.reactions[token].slot
+    robot.runtime.arm[0]["reactions"][slot]["term"][0]["index"] = 6   # a seventh wrench component
+    with pytest.raises(CommandRejected) as raised:
+        robot._send(ArmReaction(slot, CommandHandle("arm a reaction", robot._pump))).wait(5.0)
+    assert "cannot be evaluated" in str(raised.value) and f"slot {slot}" in str(raised.value)
+    assert robot.runtime.arm[0]["reacting"] == 0
 
 
 def test_a_payload_given_at_build_is_in_the_core_model_from_the_first_cycle() -> None:

@@ -120,12 +120,17 @@ SETTINGS = _checked("plem_settings", _SETTINGS_FIELDS)
 BASIS = _checked("plem_basis", _BASIS_FIELDS)
 OVERRIDE = _checked("plem_override", _OVERRIDE_FIELDS)
 STREAM = _checked("plem_stream", _STREAM_FIELDS)
-TERM = _checked("plem_term", [("op", "<i4"), ("measure", "<i4"), ("index", "<i4"), ("pad", "<i4"),
+TERM = _checked("plem_term", [("op", "<i2"), ("measure", "<i2"), ("index", "<i2"), ("pad", "<i2"),
                               ("threshold", "<f8")])
 #: One reaction slot of the core (plem.control.reactions writes them).
 REACTION = _checked("plem_reaction", [("token", "<u8"), ("motion", "<u8"), ("armed", "<i4"), ("terms", "<i4"),
-                                      ("action", "<i4"), ("once", "<i4"), ("was_true", "<i4"), ("pad", "<i4"),
+                                      ("action", "<i4"), ("once", "<i4"),
                                       ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"]), ("target", "<f8", J)])
+#: The armed reactions as the core walks them (its own: Python only reserves the room).
+PROGRAM = _checked("plem_program", [
+    ("slot", _checked("plem_armed", [("motion", "<u8"), ("start", "<i2"), ("terms", "<i2"), ("was_true", "<i2"),
+                                     ("pad", "<i2")]), CONSTANTS["PLEM_REACTIONS"]),
+    ("term", TERM, CONSTANTS["PLEM_REACTIONS"] * CONSTANTS["PLEM_REACTION_TERMS"]), ("uses", "<u4"), ("pad", "<i4")])
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
 RING = _checked("plem_ring", _RING_FIELDS)
@@ -153,7 +158,7 @@ ARM = _checked("plem_arm", [
     ("stop_final", "<f8", 3 * J), ("stop_segments", "<i4"), ("pad4", "<i4"), ("basis", BASIS), ("override", OVERRIDE),
     ("stream", STREAM), ("feeling", "<i4"), ("reacting", "<u4"), ("unsettled", "<i4"), ("commanded", "<i4"),
     ("external", "<f8", J), ("wrench", "<f8", 6),
-    ("reactions", REACTION, CONSTANTS["PLEM_REACTIONS"]),
+    ("reactions", REACTION, CONSTANTS["PLEM_REACTIONS"]), ("program", PROGRAM),
     ("commands_index", RING), ("commands", COMMAND, CONSTANTS["PLEM_COMMAND_SLOTS"]),
     ("outcomes_index", RING), ("outcomes", OUTCOME, CONSTANTS["PLEM_OUTCOME_SLOTS"]),
     ("events_index", RING), ("events", EVENT, CONSTANTS["PLEM_EVENT_SLOTS"]),
@@ -172,9 +177,16 @@ MASTER_STATUS = _checked("plem_master_status", [
     ("exchange", SERIES)])
 
 
+#: Bytes of a cache line: structures start on one, so fields that different threads write stay on lines apart.
+CACHE_LINE = 64
+
+
 def new(dtype: np.dtype[Any]) -> np.ndarray:
-    """One zeroed structure of `dtype`, as the 1-element array the core's functions take."""
-    return np.zeros(1, dtype=dtype)
+    """One zeroed structure of `dtype` starting on a cache line, as the 1-element array the core's functions take."""
+    raw = np.zeros(dtype.itemsize + CACHE_LINE, np.uint8)
+    start = -raw.ctypes.data % CACHE_LINE
+    structure: np.ndarray = raw[start:start + dtype.itemsize].view(dtype)
+    return structure
 
 
 def joints(structure: np.ndarray, field: str, dof: int) -> np.ndarray:

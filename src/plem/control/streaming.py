@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from plem.control.compiled import CONSTANTS as C
-from plem.control.compiled import STREAM_BLOCK
+from plem.control.compiled import STREAM_BLOCK, new
 from plem.ipc import request_bounds as bounds
 from plem.ipc.segment import SharedSegment
 
@@ -87,7 +87,7 @@ class StreamBlock:
     @classmethod
     def private(cls, dof: int) -> StreamBlock:
         """A block in this process's own memory."""
-        return cls(np.zeros(1, STREAM_BLOCK), dof)
+        return cls(new(STREAM_BLOCK), dof)
 
     @classmethod
     def create(cls, name: str, dof: int) -> StreamBlock:

@@ -183,6 +183,12 @@ class Wording:
                                    why="the arm follows streamed samples, whose future is not known to plan from",
                                    how="stop the stream (robot.stop(), or stop sending samples: it ends after its "
                                        "timeout), then move")
+        if code == C["PLEM_ANSWER_MALFORMED_REACTION"]:
+            return CommandRejected("the reaction's condition cannot be evaluated",
+                                   what="comparisons of this arm's measures, combined with &, | and ~",
+                                   why=f"reaction slot {answer.detail} holds a term the core does not know, an index "
+                                       "beyond the arm or an incomplete combination",
+                                   how="build conditions from plem.control.reactions.Measure")
         if code == C["PLEM_ANSWER_INVALID_VALUE"]:
             return CommandRejected("a value of the request is out of range", what="a value the core accepts",
                                    why=f"got {answer.values[0]:.6g}", how="check the request against its documentation")

@@ -185,11 +185,54 @@ static int active_motion(plem_arm *arm, const plem_slab *slab, plem_motion *moti
     return 1;
 }
 
-/* Arm or disarm a reaction slot: its flag (which Python reads) and its bit in the set the cycle walks. */
+/* A slot's condition is a whole postfix program over quantities the arm has: every term known, every index within
+ * its measure, every combination with its operands, one truth at the end. */
+static int well_formed(const plem_arm *arm, const plem_reaction *r) {
+    int n = arm->settings.dof, depth = 0;
+    if (r->terms < 1 || r->terms > PLEM_REACTION_TERMS) return 0;
+    for (int k = 0; k < r->terms; k++) {
+        const plem_term *t = &r->term[k];
+        int i = t->index;
+        switch (t->op) {
+        case PLEM_TERM_AND:
+        case PLEM_TERM_OR:
+            if (depth-- < 2) return 0;
+            break;
+        case PLEM_TERM_NOT:
+            if (depth < 1) return 0;
+            break;
+        case PLEM_TERM_ABOVE:
+        case PLEM_TERM_BELOW:
+        case PLEM_TERM_EQUAL: {
+            int limit = t->measure == PLEM_MEASURE_WRENCH ? 6 : t->measure == PLEM_MEASURE_MOTION_TIME ? 1
+                      : t->measure == PLEM_MEASURE_DIGITAL_INPUT ? 32 * n : n;
+            if (t->measure < PLEM_MEASURE_POSITION || t->measure >= PLEM_MEASURES || i < 0 || i >= limit) return 0;
+            depth++;
+            break;
+        }
+        default: return 0;
+        }
+    }
+    return depth == 1;
+}
+
+/* Arm or disarm a reaction slot: its flag (which Python reads), its bit in the set the cycle walks, and the
+ * program, rebuilt from every armed slot. Arming starts with its condition false. */
 static void set_armed(plem_arm *arm, int slot, int armed) {
+    plem_program *p = &arm->program;
     arm->reactions[slot].armed = armed;
-    if (armed) arm->reacting |= 1u << slot;
+    if (armed) arm->reacting |= 1u << slot, p->slot[slot].was_true = 0;
     else arm->reacting &= ~(1u << slot);
+    int next = 0;
+    p->uses = 0;
+    for (uint32_t left = arm->reacting; left; left &= left - 1) {
+        int k = __builtin_ctz(left);
+        const plem_reaction *r = &arm->reactions[k];
+        p->slot[k].motion = r->motion, p->slot[k].start = (int16_t)next, p->slot[k].terms = (int16_t)r->terms;
+        memcpy(&p->term[next], r->term, (size_t)r->terms * sizeof(plem_term));
+        for (int t = 0; t < r->terms; t++) p->uses |= 1u << r->term[t].measure;   /* 0 for a combination */
+        next += r->terms;
+    }
 }
 
 static int override_ramping(const plem_override *o) { return o->factor != o->target || o->rate != 0.0; }
@@ -576,8 +619,9 @@ static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c)
     case PLEM_OP_UNREACT:
         if (c->slot < 0 || c->slot >= PLEM_REACTIONS)
             return reject(arm, c->token, PLEM_ANSWER_INVALID_VALUE, 0, -1, c->slot, 0);
+        if (c->op == PLEM_OP_REACT && !well_formed(arm, &arm->reactions[c->slot]))
+            return reject(arm, c->token, PLEM_ANSWER_MALFORMED_REACTION, c->slot, -1, 0, 0);
         set_armed(arm, c->slot, c->op == PLEM_OP_REACT);
-        arm->reactions[c->slot].was_true = 0;
         answer(arm, c->token, PLEM_FINISHED, PLEM_ANSWER_DONE, arm->mode, 0, -1, 0, 0);
         break;
     case PLEM_OP_PAYLOAD: set_payload(arm, c); break;
@@ -630,50 +674,64 @@ static void feel(plem_arm *arm, const plem_slab *slab) {
         }
 }
 
-/* One measured quantity of a comparison; NaN when it has no value (an estimate not current, a joint beyond). */
-static double measured(const plem_arm *arm, const plem_term *t) {
-    int n = arm->settings.dof, i = t->index;
-    int joint = i >= 0 && i < n;
-    switch (t->measure) {
-    case PLEM_MEASURE_POSITION: return joint ? arm->work[POSITION][i] : NAN;
-    case PLEM_MEASURE_VELOCITY: return joint ? arm->work[VELOCITY][i] : NAN;
-    case PLEM_MEASURE_EFFORT: return joint ? arm->work[EFFORT][i] : NAN;
-    case PLEM_MEASURE_EXTERNAL_TORQUE: return joint && arm->feeling ? arm->external[i] : NAN;
-    case PLEM_MEASURE_WRENCH: return i >= 0 && i < 6 && arm->feeling ? arm->wrench[i] : NAN;
-    case PLEM_MEASURE_FOLLOWING_ERROR: return joint ? fabs(arm->work[COMMAND][i] - arm->work[POSITION][i]) : NAN;
-    case PLEM_MEASURE_MOTION_TIME:
-        return arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
-    case PLEM_MEASURE_DRIVE_STATE: return joint ? (double)plem_decode_statusword(arm->io_statusword[i]) : NAN;
-    case PLEM_MEASURE_DIGITAL_INPUT: {
-        int drive = i / 32, bit = i % 32;
-        return i >= 0 && drive < n && (arm->io_inputs_reported >> drive & 1u)
-               ? (double)(arm->io_digital_inputs[drive] >> bit & 1u) : NAN;
-    }
-    default: return NAN;
-    }
+/* Where each measure's values are this cycle, indexed by the term's index (a joint, or a wrench component); NaN
+ * for a quantity without a value: an estimate not current, a motion time with no motion. Digital inputs are read
+ * by `digital_input`. `derived` holds what is computed for the cycle: following errors, drive states, the time. */
+typedef struct {
+    const double *of[PLEM_MEASURES];
+    double following[PLEM_MAX_JOINTS], states[PLEM_MAX_JOINTS], motion_time;
+} measures;
+
+static const double NOT_MEASURED[PLEM_MAX_JOINTS] = {
+    NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN, NAN};
+
+/* This cycle's measures, computing only those an armed reaction compares. */
+static void measure(const plem_arm *arm, measures *m) {
+    int n = arm->settings.dof;
+    uint32_t uses = arm->program.uses;
+    m->of[PLEM_MEASURE_POSITION] = arm->work[POSITION];
+    m->of[PLEM_MEASURE_VELOCITY] = arm->work[VELOCITY];
+    m->of[PLEM_MEASURE_EFFORT] = arm->work[EFFORT];
+    m->of[PLEM_MEASURE_EXTERNAL_TORQUE] = arm->feeling ? arm->external : NOT_MEASURED;
+    m->of[PLEM_MEASURE_WRENCH] = arm->feeling ? arm->wrench : NOT_MEASURED;
+    m->of[PLEM_MEASURE_FOLLOWING_ERROR] = m->following;
+    m->of[PLEM_MEASURE_MOTION_TIME] = &m->motion_time;
+    m->of[PLEM_MEASURE_DRIVE_STATE] = m->states;
+    m->of[PLEM_MEASURE_DIGITAL_INPUT] = NOT_MEASURED;
+    if (uses >> PLEM_MEASURE_FOLLOWING_ERROR & 1u)
+        for (int i = 0; i < n; i++) m->following[i] = fabs(arm->work[COMMAND][i] - arm->work[POSITION][i]);
+    if (uses >> PLEM_MEASURE_DRIVE_STATE & 1u)
+        for (int i = 0; i < n; i++) m->states[i] = (double)plem_decode_statusword(arm->io_statusword[i]);
+    m->motion_time = arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
 }
 
-/* A reaction's condition now; a malformed program is false. `first` gets the first comparison's quantity. */
-static int holds(const plem_arm *arm, const plem_reaction *r, double *first) {
-    int stack[PLEM_REACTION_TERMS], depth = 0;
-    *first = NAN;
-    for (int k = 0; k < r->terms && k < PLEM_REACTION_TERMS; k++) {
-        const plem_term *t = &r->term[k];
-        if (t->op == PLEM_TERM_AND || t->op == PLEM_TERM_OR) {
-            if (depth < 2) return 0;
-            depth--;
-            stack[depth - 1] = t->op == PLEM_TERM_AND ? stack[depth - 1] && stack[depth] : stack[depth - 1] || stack[depth];
-        } else if (t->op == PLEM_TERM_NOT) {
-            if (depth < 1) return 0;
-            stack[depth - 1] = !stack[depth - 1];
+/* A drive's digital input (index joint · 32 + bit), NaN from a drive that does not report them. */
+static double digital_input(const plem_arm *arm, int index) {
+    int drive = index / 32, bit = index % 32;
+    return arm->io_inputs_reported >> drive & 1u ? (double)(arm->io_digital_inputs[drive] >> bit & 1u) : NAN;
+}
+
+static double value_of(const plem_arm *arm, const measures *m, const plem_term *t) {
+    return t->measure == PLEM_MEASURE_DIGITAL_INPUT ? digital_input(arm, t->index) : m->of[t->measure][t->index];
+}
+
+/* A checked program's truth now: its stack of truths as bits, the top one lowest. */
+static int holds(const plem_arm *arm, const measures *m, const plem_term *t, int terms) {
+    uint32_t stack = 0;
+    for (const plem_term *end = t + terms; t < end; t++) {
+        int op = t->op;
+        if (op >= PLEM_TERM_AND) {
+            uint32_t top = stack & 1u, below = stack >> 1 & 1u;
+            stack = op == PLEM_TERM_NOT ? stack ^ 1u
+                                        : (stack >> 2) << 1 | (op == PLEM_TERM_AND ? top & below : top | below);
         } else {
-            double value = measured(arm, t);
-            if (isnan(*first)) *first = value;
-            stack[depth++] = t->op == PLEM_TERM_ABOVE ? value > t->threshold : t->op == PLEM_TERM_BELOW
-                             ? value < t->threshold : t->op == PLEM_TERM_EQUAL && value == t->threshold;
+            double value = value_of(arm, m, t), threshold = t->threshold;
+            uint32_t truth = ((op == PLEM_TERM_ABOVE) & (value > threshold)) | ((op == PLEM_TERM_BELOW)
+                             & (value < threshold)) | ((op == PLEM_TERM_EQUAL) & (value == threshold));
+            stack = stack << 1 | truth;
         }
     }
-    return depth == 1 && stack[0];
+    return (int)(stack & 1u);
 }
 
 static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, double threshold) {
@@ -708,21 +766,23 @@ static void fire(plem_arm *arm, const plem_slab *slab, int slot, double value, d
     }
 }
 
-/* Every armed reaction, on what this cycle measured: an action starts in the cycle its condition rises. */
+/* Every armed reaction, on what this cycle measured: an action starts in the cycle its condition rises. The event
+ * carries the first comparison's quantity and threshold. */
 static void react(plem_arm *arm, const plem_slab *slab) {
+    if (!arm->reacting) return;
+    measures m;
+    measure(arm, &m);
     for (uint32_t left = arm->reacting; left; left &= left - 1) {   /* the armed slots only: their bits */
         int slot = __builtin_ctz(left);
-        plem_reaction *r = &arm->reactions[slot];
-        if (r->motion && !(arm->active && arm->active_token == r->motion)) {
+        plem_armed *a = &arm->program.slot[slot];
+        if (a->motion && !(arm->active && arm->active_token == a->motion)) {
             set_armed(arm, slot, 0);   /* its motion ended (or never ran) */
             continue;
         }
-        double value;
-        int now = holds(arm, r, &value), rose = now && !r->was_true;
-        r->was_true = now;
-        if (!rose) continue;
-        double threshold = r->terms > 0 ? r->term[0].threshold : 0.0;
-        fire(arm, slab, slot, value, threshold);
+        const plem_term *first = &arm->program.term[a->start];
+        int now = holds(arm, &m, first, a->terms), rose = now && !a->was_true;
+        a->was_true = (int16_t)now;
+        if (rose) fire(arm, slab, slot, value_of(arm, &m, first), first->threshold);
     }
 }
 
@@ -827,7 +887,7 @@ static void step_override(plem_arm *arm, int on_motion) {
         change = fmin(change, 0.9 * fmax(J - P3 * f * f * f - 3.0 * P2 * f * fabs(r), 0.0) / P1);
     }
     double next = plem_approach(f, r, o->target, room, change, dt);
-    double factor = fmin(fmax(f + (r + next) * dt / 2.0, 0.0), 1.0);
+    double factor = plem_clamp(f + (r + next) * dt / 2.0, 0.0, 1.0);
     if (fabs(o->target - factor) < 1e-12 && fabs(next) < 1e-9) factor = o->target, next = 0.0;
     o->factor = factor, o->rate = next;
 }
@@ -872,6 +932,7 @@ static void read_stream(plem_arm *arm, plem_stream_block *block) {
     int n = arm->settings.dof;
     if (!block) return;
     _Atomic uint64_t *sequence = (_Atomic uint64_t *)&block->sequence;
+    __builtin_prefetch(block->target);   /* a new sample's second line is fetched while its first is */
     uint64_t before = atomic_load_explicit(sequence, memory_order_acquire);
     uint64_t session = block->session, count = block->count;
     if ((before & 1) || session != st->session || count == st->last_count) return;   /* nothing new: one line read */
@@ -884,14 +945,15 @@ static void read_stream(plem_arm *arm, plem_stream_block *block) {
         || checksum != stream_checksum(session, count, kind, stamp, target, n)
         || (kind != PLEM_STREAM_POSITION && kind != PLEM_STREAM_VELOCITY))
         return;
-    for (int i = 0; i < n; i++)
-        if (!isfinite(target[i])) return;
+    int finite = 1;
+    for (int i = 0; i < n; i++) finite &= isfinite(target[i]) != 0;
+    if (!finite) return;
     int feed = kind == PLEM_STREAM_POSITION && st->kind == PLEM_STREAM_POSITION && st->last_count
                && stamp > st->last_stamp;
-    double span = feed ? (double)(stamp - st->last_stamp) * 1e-9 : 0.0;
+    double span = feed ? (double)(stamp - st->last_stamp) * 1e-9 : 0.0, rate = feed ? 1.0 / span : 0.0;
     for (int i = 0; i < n; i++) {
-        double speed = feed ? (target[i] - st->target[i]) / span : 0.0, limit = arm->settings.max_velocity[i];
-        st->feed[i] = fmin(fmax(speed, -limit), limit);
+        double limit = arm->settings.max_velocity[i];
+        st->feed[i] = plem_clamp((target[i] - st->target[i]) * rate, -limit, limit);
         st->target[i] = target[i];
     }
     st->feed_until = arm->cycle + (feed ? (int64_t)ceil(span / arm->settings.dt) : 0);
@@ -908,16 +970,22 @@ static void follow_stream(plem_arm *arm, plem_stream_block *block) {
     if (!st->internal && arm->cycle - st->last_cycle > st->timeout_cycles) st->timed_out = 1;
     int n = s->dof, position = st->kind == PLEM_STREAM_POSITION && !st->timed_out, at_rest = 1;
     int feeding = position && arm->cycle <= st->feed_until;
+    double none[PLEM_MAX_JOINTS], rest[PLEM_MAX_JOINTS], speed[PLEM_MAX_JOINTS], limits[3][PLEM_MAX_JOINTS];
     for (int i = 0; i < n; i++) {
-        double velocity = st->timed_out ? 0.0 : position ? (feeding ? st->feed[i] : 0.0) : st->target[i];
-        plem_follow(&row(arm, COMMAND)[i], &row(arm, COMMAND + 1)[i], &row(arm, COMMAND + 2)[i],
-                    position ? st->target[i] : NAN, velocity, s->max_velocity[i] * INSIDE * arm->override.factor,
-                    s->max_velocity[i] * INSIDE, s->max_acceleration[i] * INSIDE, s->max_jerk[i] * INSIDE,
-                    arm->reach[0][i], arm->reach[1][i], s->dt);
-        at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12
-                   && (!st->internal || fabs(row(arm, COMMAND)[i] - fmin(fmax(st->target[i], arm->reach[0][i]),
-                                                                       arm->reach[1][i])) < 1e-9);
+        none[i] = NAN, rest[i] = 0.0;
+        limits[0][i] = s->max_velocity[i] * INSIDE, limits[1][i] = s->max_acceleration[i] * INSIDE;
+        limits[2][i] = s->max_jerk[i] * INSIDE, speed[i] = limits[0][i] * arm->override.factor;
     }
+    plem_follow_targets targets = {
+        .target_position = position ? st->target : none,
+        .target_velocity = st->timed_out ? rest : position ? (feeding ? st->feed : rest) : st->target,
+        .speed = speed, .max_velocity = limits[0], .max_acceleration = limits[1], .max_jerk = limits[2],
+        .low = arm->reach[0], .high = arm->reach[1]};
+    plem_follow(n, row(arm, COMMAND), row(arm, COMMAND + 1), row(arm, COMMAND + 2), &targets, s->dt);
+    for (int i = 0; i < n; i++)
+        at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12
+                   && (!st->internal || fabs(row(arm, COMMAND)[i] - plem_clamp(st->target[i], arm->reach[0][i],
+                                                                             arm->reach[1][i])) < 1e-9);
     if (st->internal && at_rest) return end_motion(arm, PLEM_ANSWER_SUCCEEDED, -1, 0, 0);
     if (st->timed_out && at_rest) {
         memset(row(arm, COMMAND + 1), 0, (size_t)n * sizeof(double));

@@ -1,4 +1,4 @@
-/* An online jerk-limited follower: each cycle, one joint's command moves toward a target position or velocity as
+/* An online jerk-limited follower: each cycle, each joint's command moves toward a target position or velocity as
  * fast as its velocity, acceleration and jerk limits allow, and stops before its position limits.
  *
  * Two nested laws. The wanted velocity is the target's own plus the speed from which the joint can still brake to
@@ -6,6 +6,9 @@
  * first-order approach over SETTLE cycles. The acceleration then brings the velocity to the wanted one: the
  * acceleration for the coming cycle is the one from which a jerk-limited ramp back to zero acceleration lands on
  * it, computed for the cycle's own trapezoidal integration, so it settles in two cycles instead of buzzing.
+ *
+ * The joints are independent; each law is one short loop over them, so the processor works on several joints at
+ * once instead of waiting on one joint's chain of roots and divisions.
  */
 #include <math.h>
 
@@ -15,12 +18,6 @@
 #define BRAKE 0.5
 /* Cycles over which the last stretch to a target position is closed. */
 #define SETTLE 10.0
-
-/* fmin and fmax without their NaN rules, which keep the compiler from inlining them (a call each, in a loop over
- * the joints every cycle); a NaN x still clamps to `low`, as fmax gives. */
-static double lesser(double a, double b) { return a < b ? a : b; }
-static double greater(double a, double b) { return a > b ? a : b; }
-static double clamp(double x, double low, double high) { return lesser(greater(x, low), high); }
 
 /* The highest speed from which a stop at acceleration A and jerk J, starting at zero acceleration, ends within d. */
 static double braking_speed(double d, double A, double J) {
@@ -35,31 +32,41 @@ double plem_approach(double v, double a, double goal, double A, double J, double
     double rest = goal - v - a * dt / 2.0, x;
     if (!(fabs(rest) > J * dt * dt)) x = rest / dt;
     else x = copysign(J * (sqrt(dt * dt / 4.0 + 2.0 * fabs(rest) / J) - dt / 2.0), rest);
-    return clamp(clamp(x, a - J * dt, a + J * dt), -A, A);
+    return plem_clamp(plem_clamp(x, a - J * dt, a + J * dt), -A, A);
 }
 
-void plem_follow(double *p, double *v, double *a, double target_position, double target_velocity, double speed,
-                 double max_velocity, double max_acceleration, double max_jerk, double low, double high, double dt) {
-    double A = max_acceleration, J = max_jerk, goal = target_velocity;
-    /* where the joint is once its acceleration is ramped back to zero: the velocity laws act from there */
-    double ramp = isinf(J) ? 0.0 : fabs(*a) / J;
-    double ahead = *p + *v * ramp + *a * ramp * ramp / 2.0 - copysign(J, *a) * ramp * ramp * ramp / 6.0;
-    if (isfinite(target_position)) {
-        double error = clamp(target_position + target_velocity * ramp, low, high) - ahead;
-        double toward = lesser(braking_speed(fabs(error), BRAKE * A, BRAKE * J), fabs(error) / (SETTLE * dt));
-        goal = target_velocity + copysign(toward, error);
+void plem_follow(int n, double *p, double *v, double *a, const plem_follow_targets *t, double dt) {
+    double ahead[PLEM_MAX_JOINTS], goal[PLEM_MAX_JOINTS];
+    /* where each joint is once its acceleration is ramped back to zero: the velocity laws act from there */
+    for (int i = 0; i < n; i++) {
+        double J = t->max_jerk[i], ramp = isinf(J) ? 0.0 : fabs(a[i]) / J;
+        ahead[i] = p[i] + v[i] * ramp + a[i] * ramp * ramp / 2.0 - copysign(J, a[i]) * ramp * ramp * ramp / 6.0;
+        goal[i] = t->target_velocity[i];
+        if (isfinite(t->target_position[i])) {
+            double error = plem_clamp(t->target_position[i] + t->target_velocity[i] * ramp, t->low[i], t->high[i])
+                           - ahead[i];
+            double toward = plem_lesser(braking_speed(fabs(error), BRAKE * t->max_acceleration[i], BRAKE * J),
+                                        fabs(error) / (SETTLE * dt));
+            goal[i] = t->target_velocity[i] + copysign(toward, error);
+        }
     }
-    goal = clamp(goal, -speed, speed);
     /* a limit closer than a stop from the wanted speed takes: brake for it (farther, it cannot bind) */
-    double a_brake = BRAKE * A, j_brake = BRAKE * J, w = fabs(goal);
-    double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
-                                                             + w * sqrt(w / j_brake);
-    if (goal > 0.0 && high - ahead < stop) goal = lesser(goal, braking_speed(high - ahead, a_brake, j_brake));
-    if (goal < 0.0 && ahead - low < stop) goal = greater(goal, -braking_speed(ahead - low, a_brake, j_brake));
-    double next = plem_approach(*v, *a, goal, A, J, dt);
-    double velocity = clamp(*v + (*a + next) * dt / 2.0, -max_velocity, max_velocity);
-    double position = *p + (*v + velocity) * dt / 2.0 + (*a - next) * dt * dt / 12.0;
-    *p = clamp(position, lesser(low, *p), greater(high, *p));
-    *v = velocity;
-    *a = next;
+    for (int i = 0; i < n; i++) {
+        double wanted = plem_clamp(goal[i], -t->speed[i], t->speed[i]), w = fabs(wanted);
+        double a_brake = BRAKE * t->max_acceleration[i], j_brake = BRAKE * t->max_jerk[i];
+        double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
+                                                                 + w * sqrt(w / j_brake);
+        double high = t->high[i] - ahead[i], low = ahead[i] - t->low[i];
+        if (wanted > 0.0 && high < stop) wanted = plem_lesser(wanted, braking_speed(high, a_brake, j_brake));
+        if (wanted < 0.0 && low < stop) wanted = plem_greater(wanted, -braking_speed(low, a_brake, j_brake));
+        goal[i] = wanted;
+    }
+    for (int i = 0; i < n; i++) {
+        double next = plem_approach(v[i], a[i], goal[i], t->max_acceleration[i], t->max_jerk[i], dt);
+        double velocity = plem_clamp(v[i] + (a[i] + next) * dt / 2.0, -t->max_velocity[i], t->max_velocity[i]);
+        double position = p[i] + (v[i] + velocity) * dt / 2.0 + (a[i] - next) * dt * dt / 12.0;
+        p[i] = plem_clamp(position, plem_lesser(t->low[i], p[i]), plem_greater(t->high[i], p[i]));
+        v[i] = velocity;
+        a[i] = next;
+    }
 }

@@ -17,6 +17,8 @@
 /* Nested structures travel as buffers of their own, which the core takes only 8-byte aligned. */
 _Static_assert(offsetof(plem_sim, power) % 8 == 0, "plem_sim.power must be 8-byte aligned");
 _Static_assert(offsetof(plem_sim, model) % 8 == 0, "plem_sim.model must be 8-byte aligned");
+_Static_assert(offsetof(plem_stream_block, used_session) % 64 == 0,
+               "the stream block's core-written fields must start a cache line: the writer's are not on it");
 
 /* A borrowed view of a buffer argument, released by `release`. */
 typedef struct { Py_buffer view; int held; } argument;
@@ -85,8 +87,8 @@ static PyObject *follow(PyObject *self, PyObject *args) {
         return NULL;
     argument held = {{0}, 0};
     double *state = take(object, &held, 3 * sizeof(double), 1, "state");
-    if (state) plem_follow(&state[0], &state[1], &state[2], target, velocity, speed, max_velocity, max_acceleration,
-                           max_jerk, low, high, dt);
+    plem_follow_targets targets = {&target, &velocity, &speed, &max_velocity, &max_acceleration, &max_jerk, &low, &high};
+    if (state) plem_follow(1, &state[0], &state[1], &state[2], &targets, dt);
     release(&held, 1);
     return state ? Py_NewRef(Py_None) : NULL;
 }
@@ -611,8 +613,15 @@ static const field TERM_FIELDS[] = {
 
 static const field REACTION_FIELDS[] = {
     FIELD(plem_reaction, token), FIELD(plem_reaction, motion), FIELD(plem_reaction, armed), FIELD(plem_reaction, terms),
-    FIELD(plem_reaction, action), FIELD(plem_reaction, once), FIELD(plem_reaction, was_true),
-    FIELD(plem_reaction, term), FIELD(plem_reaction, target), {NULL, 0, 0}};
+    FIELD(plem_reaction, action), FIELD(plem_reaction, once), FIELD(plem_reaction, term), FIELD(plem_reaction, target),
+    {NULL, 0, 0}};
+
+static const field ARMED_FIELDS[] = {
+    FIELD(plem_armed, motion), FIELD(plem_armed, start), FIELD(plem_armed, terms), FIELD(plem_armed, was_true),
+    {NULL, 0, 0}};
+
+static const field PROGRAM_FIELDS[] = {
+    FIELD(plem_program, slot), FIELD(plem_program, term), FIELD(plem_program, uses), {NULL, 0, 0}};
 
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
@@ -671,7 +680,7 @@ static const field ARM_FIELDS[] = {
     FIELD(plem_arm, stop_final), FIELD(plem_arm, stop_segments), FIELD(plem_arm, basis), FIELD(plem_arm, override),
     FIELD(plem_arm, stream), FIELD(plem_arm, feeling), FIELD(plem_arm, reacting), FIELD(plem_arm, unsettled), FIELD(plem_arm, commanded),
     FIELD(plem_arm, external), FIELD(plem_arm, wrench),
-    FIELD(plem_arm, reactions),
+    FIELD(plem_arm, reactions), FIELD(plem_arm, program),
     FIELD(plem_arm, commands_index), FIELD(plem_arm, commands), FIELD(plem_arm, outcomes_index),
     FIELD(plem_arm, outcomes), FIELD(plem_arm, events_index), FIELD(plem_arm, events), {NULL, 0, 0}};
 
@@ -707,7 +716,7 @@ static const constant CONSTANTS[] = {
     CONSTANT(PLEM_ANSWER_CANCELED), CONSTANT(PLEM_ANSWER_INVALID_SLOT), CONSTANT(PLEM_ANSWER_UNKNOWN_OP),
     CONSTANT(PLEM_ANSWER_STREAMING), CONSTANT(PLEM_ANSWER_STREAM_TIMED_OUT), CONSTANT(PLEM_ANSWER_INVALID_VALUE),
     CONSTANT(PLEM_OP_STREAM), CONSTANT(PLEM_OP_OVERRIDE), CONSTANT(PLEM_OP_REACT), CONSTANT(PLEM_OP_UNREACT),
-    CONSTANT(PLEM_OP_PAYLOAD), CONSTANT(PLEM_ANSWER_REACTED), CONSTANT(PLEM_EVENT_REACTION),
+    CONSTANT(PLEM_OP_PAYLOAD), CONSTANT(PLEM_ANSWER_REACTED), CONSTANT(PLEM_ANSWER_MALFORMED_REACTION), CONSTANT(PLEM_EVENT_REACTION),
     CONSTANT(PLEM_CAUSE_CONTACT), CONSTANT(PLEM_CAUSE_REACTION), CONSTANT(PLEM_REACTIONS),
     CONSTANT(PLEM_REACTION_TERMS), CONSTANT(PLEM_MEASURE_POSITION), CONSTANT(PLEM_MEASURE_VELOCITY),
     CONSTANT(PLEM_MEASURE_EFFORT), CONSTANT(PLEM_MEASURE_EXTERNAL_TORQUE), CONSTANT(PLEM_MEASURE_WRENCH),
@@ -766,6 +775,7 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
         {"plem_override", OVERRIDE_FIELDS, sizeof(plem_override)}, {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
         {"plem_term", TERM_FIELDS, sizeof(plem_term)}, {"plem_reaction", REACTION_FIELDS, sizeof(plem_reaction)},
+        {"plem_armed", ARMED_FIELDS, sizeof(plem_armed)}, {"plem_program", PROGRAM_FIELDS, sizeof(plem_program)},
         {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},

@@ -115,11 +115,27 @@ int plem_plan_stop(int dof, const double *p, const double *v, const double *a, c
 
 /* ---- streaming: an online jerk-limited follower ------------------------------------------------------------ */
 
-/* One joint's next command (p, v, a) one cycle on, toward a position at rest (finite target_position; it may move
- * at target_velocity) or a velocity (target_position NaN), never faster than speed, past max_velocity,
- * max_acceleration or max_jerk, or outside [low, high]: a jump or a gap in the targets is smoothed, never passed on. */
-void plem_follow(double *p, double *v, double *a, double target_position, double target_velocity, double speed,
-                 double max_velocity, double max_acceleration, double max_jerk, double low, double high, double dt);
+/* fmin, fmax and a clamp without the NaN rules that keep the compiler from inlining fmin and fmax (a call each, in
+ * loops over the joints every cycle); a NaN x still clamps to `low`, as fmax gives. */
+static inline double plem_lesser(double a, double b) { return a < b ? a : b; }
+static inline double plem_greater(double a, double b) { return a > b ? a : b; }
+static inline double plem_clamp(double x, double low, double high) {
+    return plem_lesser(plem_greater(x, low), high);
+}
+
+/* What the follower works toward this cycle and within which limits: arrays over the joints. */
+typedef struct {
+    const double *target_position;   /* a position to come to rest at (moving at target_velocity); NaN: none */
+    const double *target_velocity;   /* the target's own velocity, or with no position the velocity to reach */
+    const double *speed;             /* the speed not to pass (the override's share of max_velocity) */
+    const double *max_velocity, *max_acceleration, *max_jerk;
+    const double *low, *high;        /* the positions to stop within */
+} plem_follow_targets;
+
+/* Each of n joints' next command (p, v, a arrays) one cycle on, toward its target position or velocity, never
+ * faster than its speed, past its limits or outside [low, high]: a jump or a gap in the targets is smoothed, never
+ * passed on. */
+void plem_follow(int n, double *p, double *v, double *a, const plem_follow_targets *t, double dt);
 
 /* The rate at the end of the coming cycle that brings `value` (now changing at `rate`) to `goal` as fast as
  * |rate| <= max_rate and |change of rate| <= max_change allow, landing with the rate at zero: deadbeat for the
@@ -141,7 +157,7 @@ typedef struct {
     uint64_t checksum;               /* xor of session, count, kind, stamp and every target's bits */
     uint64_t pad0[2];
     double target[PLEM_MAX_JOINTS];  /* rad, or rad/s */
-    /* written by the core */
+    /* written by the core, on cache lines of their own (checked in module.c) */
     uint64_t used_session;           /* the stream the core follows, 0 for none */
     uint64_t used_count;             /* the last sample a cycle used */
     int64_t used_cycle;
@@ -279,6 +295,7 @@ enum plem_answer {
     PLEM_ANSWER_STREAM_TIMED_OUT,  /* stream ended: no sample for (detail) cycles, the arm came to rest */
     PLEM_ANSWER_INVALID_VALUE,     /* rejected: a number outside its range (values[0]) */
     PLEM_ANSWER_REACTED,           /* motion ended by a reaction (detail: its slot) */
+    PLEM_ANSWER_MALFORMED_REACTION, /* rejected arming: the slot's condition is not a whole program (detail: slot) */
 };
 
 /* What happened in the loop (the event ring). */
@@ -313,6 +330,7 @@ enum plem_measure {
     PLEM_MEASURE_POSITION = 1, PLEM_MEASURE_VELOCITY, PLEM_MEASURE_EFFORT, PLEM_MEASURE_EXTERNAL_TORQUE,
     PLEM_MEASURE_WRENCH, PLEM_MEASURE_FOLLOWING_ERROR, PLEM_MEASURE_MOTION_TIME, PLEM_MEASURE_DRIVE_STATE,
     PLEM_MEASURE_DIGITAL_INPUT,      /* index: joint · 32 + bit of the drive's 0x60FD digital inputs */
+    PLEM_MEASURES                    /* one past the last */
 };
 enum plem_term_op { PLEM_TERM_ABOVE = 1, PLEM_TERM_BELOW, PLEM_TERM_EQUAL, PLEM_TERM_AND, PLEM_TERM_OR, PLEM_TERM_NOT };
 enum plem_reaction_action {
@@ -323,10 +341,10 @@ enum plem_reaction_action {
     PLEM_REACT_RECORD,               /* an event only */
 };
 typedef struct {
-    int32_t op;                      /* enum plem_term_op */
-    int32_t measure;                 /* comparisons: enum plem_measure */
-    int32_t index;                   /* comparisons: the joint, or the wrench component */
-    int32_t pad;
+    int16_t op;                      /* enum plem_term_op */
+    int16_t measure;                 /* comparisons: enum plem_measure */
+    int16_t index;                   /* comparisons: the joint, the wrench component, or joint · 32 + bit */
+    int16_t pad;
     double threshold;
 } plem_term;
 typedef struct {
@@ -336,11 +354,27 @@ typedef struct {
     int32_t terms;
     int32_t action;                  /* enum plem_reaction_action */
     int32_t once;                    /* removed once it fired; else it fires on each rise of its condition */
-    int32_t was_true;
-    int32_t pad;
-    plem_term term[PLEM_REACTION_TERMS];   /* next to the header: a cycle reads both together */
+    plem_term term[PLEM_REACTION_TERMS];
     double target[PLEM_MAX_JOINTS];  /* move: the joint target */
 } plem_reaction;
+
+/* An armed reaction as the cycle walks it. */
+typedef struct {
+    uint64_t motion;                 /* the slot's motion, copied when armed */
+    int16_t start;                   /* its first term in the program */
+    int16_t terms;
+    int16_t was_true;                /* its condition last cycle: an action starts on a rise */
+    int16_t pad;
+} plem_armed;
+
+/* The armed reactions' conditions, checked when armed and laid end to end (a cycle reads a few lines, not a slot
+ * each); rebuilt whenever a reaction is armed or disarmed. `uses` has bit m set when a term compares measure m. */
+typedef struct {
+    plem_armed slot[PLEM_REACTIONS];
+    plem_term term[PLEM_REACTIONS * PLEM_REACTION_TERMS];
+    uint32_t uses;
+    int32_t pad;
+} plem_program;
 
 #define PLEM_COMMAND_SLOTS 64
 #define PLEM_OUTCOME_SLOTS 256
@@ -548,6 +582,7 @@ typedef struct {
     double external[PLEM_MAX_JOINTS];
     double wrench[6];
     plem_reaction reactions[PLEM_REACTIONS];
+    plem_program program;
     /* rings */
     plem_ring commands_index;
     plem_command commands[PLEM_COMMAND_SLOTS];
