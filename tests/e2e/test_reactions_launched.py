@@ -40,6 +40,20 @@ def test_until_and_a_standing_reaction_through_the_client(client: RobotClient) -
     assert fired and "force x > 20 N" in fired[0].reason
 
 
+def test_an_until_condition_true_from_the_start_is_watched_from_the_motions_first_cycle(client: RobotClient) -> None:
+    client.set_mode("hold")
+    start = client.live_state().command_position.copy()
+    events = client.events(timeout=0.5)
+    move = client.move_joints(start + np.where(start > 0, -0.5, 0.5), until=Measure.position(0) > -10.0)
+    result = move.wait(10.0)
+    assert result.outcome.value == "succeeded" and "until condition: position of 0 > -10 rad" in result.message
+    seen = list(events)
+    started = [event for event in seen if event.kind.value == "motion_started"]
+    fired = [event for event in seen if event.kind.value == "reaction"]
+    assert len(started) == 1 and len(fired) == 1
+    assert fired[0].cycle == started[0].cycle + 1   # the first measurement after the motion's first command
+
+
 def test_a_digital_input_set_in_the_simulator_ends_a_motion_through_the_client(client: RobotClient) -> None:
     client.set_mode("hold")
     start = client.live_state().command_position.copy()

@@ -62,6 +62,29 @@ def test_until_stops_a_motion_which_succeeds_and_the_arm_holds(robot: Robot) -> 
     assert not np.allclose(robot.state().command_position, start + 0.8, atol=1e-3)
 
 
+def test_an_until_condition_true_from_the_start_stops_the_motion_after_its_first_cycle(robot: Robot) -> None:
+    start = robot.state().position.copy()
+    begun = robot.runtime.cycle_count
+    handle = robot.move_joints(start + 0.8, until=Measure.position(0) > start[0] - 1.0)
+    result = handle.wait(10.0)
+    assert result.outcome is TrajectoryOutcome.SUCCEEDED and "until condition" in result.message
+    started = [e for e in robot.events.recent({EventKind.MOTION_STARTED}) if e.cycle >= begun]
+    fired = [e for e in robot.events.recent({EventKind.REACTION}) if e.cycle >= begun]
+    assert len(started) == 1 and len(fired) == 1
+    assert fired[0].cycle == started[0].cycle + 1   # the first measurement after the motion's first command
+    assert np.max(np.abs(robot.state().command_position - start)) < 1e-3
+
+
+def test_an_until_condition_of_a_refused_motion_is_disarmed_with_it() -> None:
+    robot = simulated_robot()   # idle: the motion is refused
+    robot.step(5)
+    with pytest.raises(CommandRejected):
+        robot.move_joints(robot.state().position + 0.1, until=Measure.FORCE_X > 20.0)
+    robot.step(2)
+    assert robot.runtime.arm[0]["reacting"] == 0
+    assert not any(slot["armed"] for slot in robot.runtime.arm[0]["reactions"])
+
+
 def test_a_digital_input_stops_a_motion_in_the_cycle_the_drive_reports_it(robot: Robot) -> None:
     start = robot.state().position.copy()
     handle = robot.move_joints(start + 0.8, speed_scale=0.3, until=Measure.digital_input("joint5", 16) == 1)

@@ -37,7 +37,15 @@ from plem.ipc.channels import RobotChannels
 from plem.ipc.command_socket import CommandSocketError, FrameReader, frame
 from plem.ipc.records import RawSample, event_from_record
 from plem.ipc.request_bounds import MAX_REQUEST_BYTES
-from plem.ipc.requests import check_request, encode, error_from_json, new_request_id, result_from_json, tolerances_json
+from plem.ipc.requests import (
+    check_request,
+    encode,
+    error_from_json,
+    new_request_id,
+    result_from_json,
+    tolerances_json,
+    until_json,
+)
 from plem.ipc.ring import RingReader
 from plem.ipc.robot_description import read_description
 
@@ -341,9 +349,9 @@ class RobotClient(PlanningCalls, StreamingCalls, ReactionCalls):
         return self._send("speed_override", {"factor": factor})
 
     # -- reactions, the payload and the simulator ----------------------------------------------------------
-    def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
-        handle = self._send("react", {"reaction": reaction_json(condition, action), "once": once,
-                                      "goal": None if motion is None else motion.id}, accept_within=ACCEPT_TIMEOUT_S)
+    def _arm_reaction(self, condition: Condition, action: Action, once: bool) -> int:
+        handle = self._send("react", {"reaction": reaction_json(condition, action), "once": once},
+                            accept_within=ACCEPT_TIMEOUT_S)
         return int(handle.accepted_result["reaction"])
 
     def _remove_reaction(self, token: int) -> None:
@@ -376,10 +384,10 @@ class RobotClient(PlanningCalls, StreamingCalls, ReactionCalls):
         `speed_scale` in [MIN_SPEED_SCALE, 1] (plem.ipc.request_bounds) scales time: 0.5 takes twice as long.
         With `until` (plem.control.reactions), the motion stops as soon as the condition holds, and succeeds.
         """
-        return self._stop_when(self._send("move_joints", {"target": list(arguments.reals(target, "target")),
-                                                          "speed_scale": arguments.real(speed_scale, "speed_scale"),
-                                                          "tolerances": _tolerances(tolerances)},
-                                          accept_within=ACCEPT_TIMEOUT_S), until)
+        return self._send("move_joints", {"target": list(arguments.reals(target, "target")),
+                                          "speed_scale": arguments.real(speed_scale, "speed_scale"),
+                                          "tolerances": _tolerances(tolerances), **until_json(until)},
+                          accept_within=ACCEPT_TIMEOUT_S)
 
     def execute_trajectory(self, trajectory: JointTrajectory,
                            tolerances: TrajectoryTolerances | Mapping[str, Any] | None = None,
@@ -394,9 +402,10 @@ class RobotClient(PlanningCalls, StreamingCalls, ReactionCalls):
                    **({"velocities": list(p.velocities)} if p.velocities is not None else {}),
                    **({"accelerations": list(p.accelerations)} if p.accelerations is not None else {})}
                   for p in trajectory.points]
-        request = {"joint_names": list(trajectory.joint_names), "points": points, "tolerances": _tolerances(tolerances)}
-        return self._stop_when(self._send("execute_trajectory", request, accept_within=ACCEPT_TIMEOUT_S
-                                          + RETIMING_S_PER_POINT * len(points)), until)
+        request = {"joint_names": list(trajectory.joint_names), "points": points, "tolerances": _tolerances(tolerances),
+                   **until_json(until)}
+        return self._send("execute_trajectory", request,
+                          accept_within=ACCEPT_TIMEOUT_S + RETIMING_S_PER_POINT * len(points))
 
     def set_mode(self, mode: str | Mode, timeout: float = 5.0) -> Mode:
         """Change mode (idle, hold, free_drive) and wait until it took effect."""

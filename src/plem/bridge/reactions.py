@@ -10,18 +10,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from plem.control.limits import ArmLimits
 from plem.control.payload import Payload
-from plem.control.reactions import Action, Condition, Stop
+from plem.control.reactions import Action, Condition
 
 if TYPE_CHECKING:   # pinocchio is imported where a payload is set or estimated, not with the client
     from plem.control.kinematics import ArmDynamics
 
-H = TypeVar("H")
 
 #: How long estimate_payload lets the arm settle at each pose before averaging its efforts (s), and for how long.
 SETTLE_S = 0.5
@@ -44,8 +43,8 @@ class ReactionCalls:
     """Reactions and the payload; subclasses provide the requests and the arm's model."""
 
     # -- what a subclass provides --------------------------------------------------------------------
-    def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
-        """Arm a reaction (bound to the motion of handle `motion`, or standing); its token."""
+    def _arm_reaction(self, condition: Condition, action: Action, once: bool) -> int:
+        """Arm a standing reaction; its token."""
         raise NotImplementedError
 
     def _remove_reaction(self, token: int) -> None:
@@ -71,13 +70,7 @@ class ReactionCalls:
         """Arm a standing reaction: whenever `condition` becomes true, the core starts `action` in that same cycle
         (`once`: only the first time). It stays until `remove()`d; the event log says when it fired and what it
         measured. Conditions come from `plem.control.reactions.Measure`, actions from the same module."""
-        return ReactionHandle(self, self._arm_reaction(condition, action, None, once))
-
-    def _stop_when(self, handle: H, until: Condition | None) -> H:
-        """Bind `until` to the motion of `handle` (it stops the motion, which then succeeds); the handle."""
-        if until is not None:
-            self._arm_reaction(until, Stop(), handle, once=True)
-        return handle
+        return ReactionHandle(self, self._arm_reaction(condition, action, once))
 
     # -- the payload ---------------------------------------------------------------------------------
     def set_payload(self, mass: float, center_of_mass: Sequence[float] = (0.0, 0.0, 0.0),

@@ -18,6 +18,7 @@ import numpy as np
 from plem.control.modes import Mode
 from plem.control.motion import StartState
 from plem.control.polynomial import PolynomialMotion
+from plem.control.reactions import Condition
 from plem.control.trajectory import TrajectoryOutcome, TrajectoryResult, TrajectoryTolerances
 from plem.errors import CommandRejected, PlemError, RobotFault
 
@@ -184,6 +185,7 @@ class StartMotion:
     note: str = ""  # how the motion differs from what was asked (re-timed to the limits), for the result
     slot: int | None = None
     segments: int = 0
+    until: Condition | None = None   # stops the motion once it holds (armed in the core just before it starts)
 
 
 @dataclass

@@ -41,7 +41,7 @@ from plem.control.limits import CONTACT_SHARE, ArmLimits
 from plem.control.loop import OverrunWindow
 from plem.control.modes import Mode
 from plem.control.polynomial import ORDER, PolynomialMotion
-from plem.control.reactions import ACTION_NAMES, Action, Condition, write_reaction
+from plem.control.reactions import ACTION_NAMES, Action, Condition, Stop, write_reaction
 from plem.control.state import StateBlock
 from plem.control.streaming import StreamBlock
 from plem.control.trajectory import ErrorCode, TrajectoryOutcome, TrajectoryResult
@@ -349,32 +349,43 @@ class ArmRuntime:
             refusal: CommandRejected | None = getattr(self.bus, "free_drive_refusal", None)
             if refusal is not None:   # e.g. drives whose torque units are unknown: no gravity torque reaches them
                 raise refusal
-        token = next(self._tokens)
+        with self._submitting:   # tokens rise in the order requests are queued: the core relies on it
+            if isinstance(command, StartMotion) and command.until is not None:
+                token = next(self._tokens)
+                reaction = self._write_reaction(command.until, Stop(), token, once=True)
+                self._enqueue(ArmReaction(self.reactions[reaction].slot,
+                                          CommandHandle(f"{command.label}'s until condition")))
+                self._enqueue(command, token)   # right behind its reaction: watched from its first cycle
+            else:
+                self._enqueue(command)
+        return command.handle
+
+    def _enqueue(self, command: Command, token: int | None = None) -> None:
+        """Put one request into the core's ring (with `_submitting` held), waiting while the ring is full."""
+        token = next(self._tokens) if token is None else token
         command.handle.token = token
         request = _Request(command)
-        with self._submitting:
-            index, records = self._rings["commands"]
-            head = int(index["head"])
-            waited = threading.Event()
-            deadline = time.monotonic() + QUEUE_WAIT_S
-            # the loop takes a few each cycle; a stop never waits for answers to other requests
-            while (head - int(index["tail"]) >= len(records)
-                   or (not isinstance(command, StopMotion) and len(self._pending) >= MAX_UNANSWERED)):
-                if time.monotonic() > deadline:
-                    raise CommandRejected("the robot's request queue is full",
-                                          what=f"at most {len(records)} requests waiting for the loop and "
-                                               f"{MAX_UNANSWERED} waiting for its answer",
-                                          why=f"no request was taken or answered for {QUEUE_WAIT_S:g} s: the loop "
-                                              "is not running",
-                                          how="start the robot (robot.start()), or step it, and send fewer requests")
-                waited.wait(0.0005)
-            record = records[head % len(records)]
-            record.fill(0)
-            record["token"] = token
-            self._fill(record, command, request)
-            self._pending[token] = request
-            index["head"] = head + 1
-        return command.handle
+        index, records = self._rings["commands"]
+        head = int(index["head"])
+        waited = threading.Event()
+        deadline = time.monotonic() + QUEUE_WAIT_S
+        # the loop takes a few each cycle; a stop never waits for answers to other requests
+        while (head - int(index["tail"]) >= len(records)
+               or (not isinstance(command, StopMotion) and len(self._pending) >= MAX_UNANSWERED)):
+            if time.monotonic() > deadline:
+                raise CommandRejected("the robot's request queue is full",
+                                      what=f"at most {len(records)} requests waiting for the loop and "
+                                           f"{MAX_UNANSWERED} waiting for its answer",
+                                      why=f"no request was taken or answered for {QUEUE_WAIT_S:g} s: the loop "
+                                          "is not running",
+                                      how="start the robot (robot.start()), or step it, and send fewer requests")
+            waited.wait(0.0005)
+        record = records[head % len(records)]
+        record.fill(0)
+        record["token"] = token
+        self._fill(record, command, request)
+        self._pending[token] = request
+        index["head"] = head + 1
 
     def _fill(self, record: np.ndarray, command: Command, request: _Request) -> None:
         if isinstance(command, SetMode):
@@ -431,19 +442,23 @@ class ArmRuntime:
         """Write a reaction into a free slot of the core (not yet armed: submit ArmReaction with the slot); its
         token. Bound to `motion` (a motion's token), it ends with that motion."""
         with self._submitting:
-            slots = self.arm[0]["reactions"]
-            free = [k for k in range(len(slots)) if not slots[k]["armed"] and k not in self._arming]
-            if not free:
-                raise CommandRejected("too many reactions", what=f"at most {len(slots)} armed at once",
-                                      why="every reaction slot of the core is in use",
-                                      how="remove reactions that are no longer needed (their handle's remove())")
-            token = next(self._tokens)
-            write_reaction(slots[free[0]], token, condition, action, self.joint_names, motion, once)
-            self._arming.add(free[0])
-            for old in [t for t, r in self.reactions.items() if r.slot == free[0]]:   # the slot's last reaction
-                del self.reactions[old]
-            self.reactions[token] = ReactionRecord(free[0], condition.text, ACTION_NAMES[action.code], motion)
-            return token
+            return self._write_reaction(condition, action, motion, once)
+
+    def _write_reaction(self, condition: Condition, action: Action, motion: int, once: bool) -> int:
+        """write_reaction with `_submitting` held."""
+        slots = self.arm[0]["reactions"]
+        free = [k for k in range(len(slots)) if not slots[k]["armed"] and k not in self._arming]
+        if not free:
+            raise CommandRejected("too many reactions", what=f"at most {len(slots)} armed at once",
+                                  why="every reaction slot of the core is in use",
+                                  how="remove reactions that are no longer needed (their handle's remove())")
+        token = next(self._tokens)
+        write_reaction(slots[free[0]], token, condition, action, self.joint_names, motion, once)
+        self._arming.add(free[0])
+        for old in [t for t, r in self.reactions.items() if r.slot == free[0]]:   # the slot's last reaction
+            del self.reactions[old]
+        self.reactions[token] = ReactionRecord(free[0], condition.text, ACTION_NAMES[action.code], motion)
+        return token
 
     # -- reports -----------------------------------------------------------------------------------
     def drain(self) -> None:

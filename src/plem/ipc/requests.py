@@ -21,7 +21,7 @@ import numpy as np
 
 from plem.control.limits import ArmLimits
 from plem.control.modes import Mode
-from plem.control.reactions import reaction_from_json
+from plem.control.reactions import Condition, Stop, reaction_from_json, reaction_json
 from plem.control.spline import JointNamesRejected
 from plem.control.streaming import DEFAULT_TIMEOUT_S, override_factor, stream_timeout
 from plem.control.trajectory import (
@@ -37,14 +37,14 @@ from plem.ipc.request_bounds import shown
 
 #: Operations and the keys each accepts (all optional keys have defaults).
 OPERATIONS: dict[str, tuple[str, ...]] = {
-    "move_joints": ("target", "speed_scale", "tolerances"),
-    "execute_trajectory": ("joint_names", "points", "tolerances"),
+    "move_joints": ("target", "speed_scale", "tolerances", "until"),
+    "execute_trajectory": ("joint_names", "points", "tolerances", "until"),
     "set_mode": ("mode",),
     "reset_fault": (),
     "stop": ("goal",),
     "stream": ("timeout",),
     "speed_override": ("factor",),
-    "react": ("reaction", "once", "goal"),
+    "react": ("reaction", "once"),
     "unreact": ("reaction",),
     "payload": ("body",),
     "simulate": ("action", "link", "force", "torque", "point", "mass", "center_of_mass", "joint", "value"),
@@ -167,15 +167,32 @@ def check_request(payload: Mapping[str, Any], limits: ArmLimits) -> CheckedReque
         checked = {"factor": override_factor(args.get("factor"))}
     elif op == "react":
         condition, action = reaction_from_json(args.get("reaction"))
-        checked = {"condition": condition, "action": action, "once": args.get("once") is True,
-                   "goal": None if args.get("goal") is None else bounds.request_id(args["goal"])}
+        checked = {"condition": condition, "action": action, "once": args.get("once") is True}
     elif op == "unreact":
         checked = {"reaction": int(bounds.number(args.get("reaction"), "the reaction", 1, 2.0**63))}
     elif op == "payload":
         checked = {"body": bounds.numbers(args.get("body"), "the payload body", 13)}
     elif op == "simulate":
         checked = _simulation(args)
+    if op in MOTIONS:
+        checked["until"] = until_from_json(args.get("until"))
     return CheckedRequest(request_id, op, checked)
+
+
+def until_json(until: Condition | None) -> dict[str, Any]:
+    """A motion request's `until` condition as it carries it (a Stop reaction); nothing without one."""
+    return {} if until is None else {"until": reaction_json(until, Stop())}
+
+
+def until_from_json(value: object) -> Condition | None:
+    """The `until` condition of a motion request, checked; None without one."""
+    if value is None:
+        return None
+    condition, action = reaction_from_json(value)
+    if not isinstance(action, Stop):
+        raise _rejected("an until condition stops its motion", what="the Stop action", why="got another action",
+                        how="give the condition as move_joints(..., until=...) does")
+    return condition
 
 
 def _simulation(args: Mapping[str, Any]) -> dict[str, Any]:

@@ -53,6 +53,7 @@ from plem.ipc.requests import (
     reply_of_json,
     request_id_of,
     tolerances_json,
+    until_json,
 )
 from plem.launch.component import announce, begin
 from plem.planning import fit_to_limits
@@ -289,13 +290,8 @@ class CommandService:
         elif request.op == "stop" and "goal" in request.args:
             record["goal"] = client.goals[request.args["goal"]]
         elif request.op == "react":
-            goal = request.args["goal"]
-            if goal is not None and goal not in client.goals:
-                raise CommandRejected("the motion of this until condition has ended",
-                                      what="a motion still running", why=f"goal {goal} finished",
-                                      how="give until= with the motion, as move_joints(..., until=...) does")
             record.update(reaction=reaction_json(request.args["condition"], request.args["action"]),
-                          once=request.args["once"], motion=0 if goal is None else client.goals[goal])
+                          once=request.args["once"])
         elif request.op in ("stream", "speed_override", "unreact", "payload", "simulate"):
             record.update(request.args)
         self._commands[token] = _Command(client, request.id, counted=counted)
@@ -327,7 +323,8 @@ class CommandService:
             self._write_intake({"op": "start", "token": token, "prepared": prepared, "slot": slot,
                                 "segments": segments, "label": label, "note": note,
                                 "tolerances": None if request.args["tolerances"] is None
-                                else tolerances_json(request.args["tolerances"])})
+                                else tolerances_json(request.args["tolerances"]),
+                                **until_json(request.args["until"])})
             answer = self._await(token)
             if answer.get("stale"):
                 self._release(answer)

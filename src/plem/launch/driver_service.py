@@ -29,7 +29,7 @@ from plem.errors import CommandRejected, PlemError
 from plem.fieldbus.cia402 import decode_statusword
 from plem.ipc.channels import RobotChannels
 from plem.ipc.request_bounds import truncated
-from plem.ipc.requests import error_json, result_json
+from plem.ipc.requests import error_json, result_json, until_from_json
 from plem.robot.robot import Robot
 
 POLL_S = 0.001
@@ -133,12 +133,7 @@ class DriverService:
             self._pending[token] = _Pending(handle, accepted={"session": handle.token})
         elif op == "react":
             condition, action = reaction_from_json(command["reaction"])
-            motion = self._pending.get(int(command["motion"])) if command["motion"] else None
-            if command["motion"] and motion is None:
-                raise CommandRejected("the motion of this until condition has ended", what="a motion still running",
-                                      why="it finished before its condition was armed", how="move again")
-            reaction, handle = robot.request_reaction(condition, action, motion.handle.token if motion else 0,
-                                                      bool(command["once"]))
+            reaction, handle = robot.request_reaction(condition, action, once=bool(command["once"]))
             self._pending[token] = _Pending(handle, accepted={"reaction": reaction})
         elif op == "unreact":
             removal = robot.request_reaction_removal(int(command["reaction"]))
@@ -213,7 +208,8 @@ class DriverService:
         self._pending[token] = _Pending(handle, slot)
         self.robot.runtime.submit(StartMotion(motion, basis, activation,
                                               TrajectoryTolerances(**tolerances) if tolerances
-                                              else TrajectoryTolerances(), handle, label, note, slot, motion.segments))
+                                              else TrajectoryTolerances(), handle, label, note, slot, motion.segments,
+                                              until=until_from_json(command.get("until"))))
 
     def _answer_pending(self) -> None:
         for token, pending in list(self._pending.items()):

@@ -353,9 +353,8 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
         """
         goal = self.limits.check_vector(arguments.reals(target, "target"), "the target")
         speed_scale = arguments.real(speed_scale, "speed_scale")
-        return self._stop_when(self._submit(lambda start: (plan_point_to_point(self.limits, start, goal,
-                                                                               speed_scale).polynomial(), ""),
-                                            tolerances, "move_joints"), until)
+        return self._submit(lambda start: (plan_point_to_point(self.limits, start, goal, speed_scale).polynomial(), ""),
+                            tolerances, "move_joints", until)
 
     def execute_trajectory(self, trajectory: JointTrajectory, tolerances: TrajectoryTolerances | None = None,
                            until: Condition | None = None) -> CommandHandle:
@@ -372,11 +371,12 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
             timed = fit_to_limits(trajectory, self.limits.reaching(start[0]), start, self.runtime.dt)
             return timed.motion, timed.note()
 
-        return self._stop_when(self._submit(plan, tolerances, "trajectory"), until)
+        return self._submit(plan, tolerances, "trajectory", until)
 
     def _submit(self, plan: Callable[[StartState], tuple[PolynomialMotion, str]],
-                tolerances: TrajectoryTolerances | None, label: str) -> CommandHandle:
-        """Plan from the loop's current basis and hand the motion over; re-plan when the basis moved on."""
+                tolerances: TrajectoryTolerances | None, label: str, until: Condition | None = None) -> CommandHandle:
+        """Plan from the loop's current basis and hand the motion over, armed with its `until` condition (a Stop
+        reaction the core arms just before the motion starts); re-plan when the basis moved on."""
         if tolerances is not None:
             arguments.instance(tolerances, TrajectoryTolerances, "tolerances", "a TrajectoryTolerances or None")
         tolerances = tolerances or TrajectoryTolerances()
@@ -388,7 +388,7 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
             motion, note = plan(start)
             planning_s = time.monotonic() - began
             handle = CommandHandle(label, self._pump)
-            self._send(StartMotion(motion, basis, activation, tolerances, handle, label, note))
+            self._send(StartMotion(motion, basis, activation, tolerances, handle, label, note, until=until))
             handle.wait_accepted(ACCEPT_TIMEOUT_S + (0 if activation is None else lead_s))
             if not handle.stale:
                 return handle
@@ -443,8 +443,8 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
                                   how="push and load a simulated arm only: plem launch bus:=mock")
         return self.bus
 
-    def _arm_reaction(self, condition: Condition, action: Action, motion: Any, once: bool) -> int:
-        token, handle = self.request_reaction(condition, action, motion.token if motion is not None else 0, once)
+    def _arm_reaction(self, condition: Condition, action: Action, once: bool) -> int:
+        token, handle = self.request_reaction(condition, action, once=once)
         handle.wait(ACCEPT_TIMEOUT_S)
         return token
 

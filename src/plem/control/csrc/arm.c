@@ -603,7 +603,10 @@ static void reset(plem_arm *arm, const plem_command *c) {
 
 static void execute(plem_arm *arm, const plem_slab *slab, const plem_command *c) {
     switch (c->op) {
-    case PLEM_OP_START: activate(arm, slab, c); break;
+    case PLEM_OP_START:
+        arm->last_start = c->token;
+        activate(arm, slab, c);
+        break;
     case PLEM_OP_SET_MODE: request_mode(arm, slab, c); break;
     case PLEM_OP_STOP:
         if (arm->active && arm->active_token && (c->goal == 0 || c->goal == arm->active_token)) {
@@ -776,8 +779,8 @@ static void react(plem_arm *arm, const plem_slab *slab) {
         int slot = __builtin_ctz(left);
         plem_armed *a = &arm->program.slot[slot];
         if (a->motion && !(arm->active && arm->active_token == a->motion)) {
-            set_armed(arm, slot, 0);   /* its motion ended (or never ran) */
-            continue;
+            if (a->motion <= arm->last_start) set_armed(arm, slot, 0);   /* its motion ended, or was refused */
+            continue;   /* else its motion is yet to start: armed before it, it watches from the motion's first cycle */
         }
         const plem_term *first = &arm->program.term[a->start];
         int now = holds(arm, &m, first, a->terms), rose = now && !a->was_true;

@@ -549,6 +549,8 @@ typedef struct {
     int32_t active_slot;
     int32_t active_segments;
     uint64_t active_token;           /* 0 for the core's own stop */
+    uint64_t last_start;             /* the newest start request taken (tokens rise in the order requests are
+                                        queued): a reaction bound to a later motion waits for it */
     int64_t active_start_cycle;
     int64_t settle_deadline;         /* -1 until the motion's end */
     int32_t active_cursor;
