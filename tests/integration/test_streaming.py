@@ -110,7 +110,7 @@ def test_the_follower_settles_on_a_step_without_buzzing_and_stops_before_a_posit
     state = np.zeros(3)
     trail = []
     for _ in range(3000):
-        core.follow(state, 1.0, 0.0, 2.0, 2.0, 10.0, 200.0, -0.5, 0.8, 0.001)
+        core.follow(state, 1.0, 0.0, 1.0, 2.0, 10.0, 200.0, -0.5, 0.8, 0.001)
         trail.append(state.copy())
     trail_ = np.array(trail)
     assert trail_[-1] == pytest.approx([0.8, 0.0, 0.0], abs=1e-9)   # the target past the limit: the limit

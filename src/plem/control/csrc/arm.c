@@ -226,12 +226,22 @@ static void set_armed(plem_arm *arm, int slot, int armed) {
     int next = 0;
     p->uses = 0;
     for (uint32_t left = arm->reacting; left; left &= left - 1) {
-        int k = __builtin_ctz(left);
+        int k = __builtin_ctz(left), shift = 0;
         const plem_reaction *r = &arm->reactions[k];
-        p->slot[k].motion = r->motion, p->slot[k].start = (int16_t)next, p->slot[k].terms = (int16_t)r->terms;
-        memcpy(&p->term[next], r->term, (size_t)r->terms * sizeof(plem_term));
-        for (int t = 0; t < r->terms; t++) p->uses |= 1u << r->term[t].measure;   /* 0 for a combination */
-        next += r->terms;
+        p->slot[k].motion = r->motion, p->slot[k].start = (int16_t)next;
+        for (int t = 0; t < r->terms; t++) {   /* a checked program starts with a comparison */
+            const plem_term *term = &r->term[t];
+            if (term->op >= PLEM_TERM_AND) {
+                p->step[next - 1].then |= (uint32_t)(term->op - PLEM_TERM_AND + 1) << shift;
+                shift += 2;
+                continue;
+            }
+            p->step[next++] = (plem_step){.compare = (int8_t)term->op, .measure = (int8_t)term->measure,
+                                          .index = term->index, .then = 0, .threshold = term->threshold};
+            p->uses |= 1u << term->measure;
+            shift = 0;
+        }
+        p->slot[k].steps = (int16_t)(next - p->slot[k].start);
     }
 }
 
@@ -714,24 +724,22 @@ static double digital_input(const plem_arm *arm, int index) {
     return arm->io_inputs_reported >> drive & 1u ? (double)(arm->io_digital_inputs[drive] >> bit & 1u) : NAN;
 }
 
-static double value_of(const plem_arm *arm, const measures *m, const plem_term *t) {
-    return t->measure == PLEM_MEASURE_DIGITAL_INPUT ? digital_input(arm, t->index) : m->of[t->measure][t->index];
+static double value_of(const plem_arm *arm, const measures *m, const plem_step *s) {
+    return s->measure == PLEM_MEASURE_DIGITAL_INPUT ? digital_input(arm, s->index) : m->of[s->measure][s->index];
 }
 
 /* A checked program's truth now: its stack of truths as bits, the top one lowest. */
-static int holds(const plem_arm *arm, const measures *m, const plem_term *t, int terms) {
+static int holds(const plem_arm *arm, const measures *m, const plem_step *s, int steps) {
     uint32_t stack = 0;
-    for (const plem_term *end = t + terms; t < end; t++) {
-        int op = t->op;
-        if (op >= PLEM_TERM_AND) {
-            uint32_t top = stack & 1u, below = stack >> 1 & 1u;
-            stack = op == PLEM_TERM_NOT ? stack ^ 1u
-                                        : (stack >> 2) << 1 | (op == PLEM_TERM_AND ? top & below : top | below);
-        } else {
-            double value = value_of(arm, m, t), threshold = t->threshold;
-            uint32_t truth = ((op == PLEM_TERM_ABOVE) & (value > threshold)) | ((op == PLEM_TERM_BELOW)
-                             & (value < threshold)) | ((op == PLEM_TERM_EQUAL) & (value == threshold));
-            stack = stack << 1 | truth;
+    for (const plem_step *end = s + steps; s < end; s++) {
+        double value = value_of(arm, m, s), threshold = s->threshold;
+        int op = s->compare;
+        stack = stack << 1 | (uint32_t)(((op == PLEM_TERM_ABOVE) & (value > threshold))
+                                        | ((op == PLEM_TERM_BELOW) & (value < threshold))
+                                        | ((op == PLEM_TERM_EQUAL) & (value == threshold)));
+        for (uint32_t then = s->then; then; then >>= 2) {
+            uint32_t top = stack & 1u, below = stack >> 1 & 1u, combination = then & 3u;
+            stack = combination == 3u ? stack ^ 1u : (stack >> 2) << 1 | (combination == 1u ? top & below : top | below);
         }
     }
     return (int)(stack & 1u);
@@ -782,8 +790,8 @@ static void react(plem_arm *arm, const plem_slab *slab) {
             if (a->motion <= arm->last_start) set_armed(arm, slot, 0);   /* its motion ended, or was refused */
             continue;   /* else its motion is yet to start: armed before it, it watches from the motion's first cycle */
         }
-        const plem_term *first = &arm->program.term[a->start];
-        int now = holds(arm, &m, first, a->terms), rose = now && !a->was_true;
+        const plem_step *first = &arm->program.step[a->start];
+        int now = holds(arm, &m, first, a->steps), rose = now && !a->was_true;
         a->was_true = (int16_t)now;
         if (rose) fire(arm, slab, slot, value_of(arm, &m, first), first->threshold);
     }
@@ -973,17 +981,11 @@ static void follow_stream(plem_arm *arm, plem_stream_block *block) {
     if (!st->internal && arm->cycle - st->last_cycle > st->timeout_cycles) st->timed_out = 1;
     int n = s->dof, position = st->kind == PLEM_STREAM_POSITION && !st->timed_out, at_rest = 1;
     int feeding = position && arm->cycle <= st->feed_until;
-    double none[PLEM_MAX_JOINTS], rest[PLEM_MAX_JOINTS], speed[PLEM_MAX_JOINTS], limits[3][PLEM_MAX_JOINTS];
-    for (int i = 0; i < n; i++) {
-        none[i] = NAN, rest[i] = 0.0;
-        limits[0][i] = s->max_velocity[i] * INSIDE, limits[1][i] = s->max_acceleration[i] * INSIDE;
-        limits[2][i] = s->max_jerk[i] * INSIDE, speed[i] = limits[0][i] * arm->override.factor;
-    }
     plem_follow_targets targets = {
-        .target_position = position ? st->target : none,
-        .target_velocity = st->timed_out ? rest : position ? (feeding ? st->feed : rest) : st->target,
-        .speed = speed, .max_velocity = limits[0], .max_acceleration = limits[1], .max_jerk = limits[2],
-        .low = arm->reach[0], .high = arm->reach[1]};
+        .target_position = position ? st->target : NULL,
+        .target_velocity = st->timed_out ? NULL : position ? (feeding ? st->feed : NULL) : st->target,
+        .max_velocity = s->max_velocity, .max_acceleration = s->max_acceleration, .max_jerk = s->max_jerk,
+        .share = INSIDE, .speed = arm->override.factor, .low = arm->reach[0], .high = arm->reach[1]};
     plem_follow(n, row(arm, COMMAND), row(arm, COMMAND + 1), row(arm, COMMAND + 2), &targets, s->dt);
     for (int i = 0; i < n; i++)
         at_rest &= fabs(row(arm, COMMAND + 1)[i]) < 1e-12 && fabs(row(arm, COMMAND + 2)[i]) < 1e-12

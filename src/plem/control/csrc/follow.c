@@ -36,24 +36,26 @@ double plem_approach(double v, double a, double goal, double A, double J, double
 }
 
 void plem_follow(int n, double *p, double *v, double *a, const plem_follow_targets *t, double dt) {
-    double ahead[PLEM_MAX_JOINTS], goal[PLEM_MAX_JOINTS];
+    double ahead[PLEM_MAX_JOINTS], goal[PLEM_MAX_JOINTS], A[PLEM_MAX_JOINTS], J[PLEM_MAX_JOINTS];
     /* where each joint is once its acceleration is ramped back to zero: the velocity laws act from there */
     for (int i = 0; i < n; i++) {
-        double J = t->max_jerk[i], ramp = isinf(J) ? 0.0 : fabs(a[i]) / J;
-        ahead[i] = p[i] + v[i] * ramp + a[i] * ramp * ramp / 2.0 - copysign(J, a[i]) * ramp * ramp * ramp / 6.0;
-        goal[i] = t->target_velocity[i];
-        if (isfinite(t->target_position[i])) {
-            double error = plem_clamp(t->target_position[i] + t->target_velocity[i] * ramp, t->low[i], t->high[i])
-                           - ahead[i];
-            double toward = plem_lesser(braking_speed(fabs(error), BRAKE * t->max_acceleration[i], BRAKE * J),
+        A[i] = t->max_acceleration[i] * t->share, J[i] = t->max_jerk[i] * t->share;
+        double ramp = isinf(J[i]) ? 0.0 : fabs(a[i]) / J[i];
+        double velocity = t->target_velocity ? t->target_velocity[i] : 0.0;
+        ahead[i] = p[i] + v[i] * ramp + a[i] * ramp * ramp / 2.0 - copysign(J[i], a[i]) * ramp * ramp * ramp / 6.0;
+        goal[i] = velocity;
+        if (t->target_position) {
+            double error = plem_clamp(t->target_position[i] + velocity * ramp, t->low[i], t->high[i]) - ahead[i];
+            double toward = plem_lesser(braking_speed(fabs(error), BRAKE * A[i], BRAKE * J[i]),
                                         fabs(error) / (SETTLE * dt));
-            goal[i] = t->target_velocity[i] + copysign(toward, error);
+            goal[i] = velocity + copysign(toward, error);
         }
     }
     /* a limit closer than a stop from the wanted speed takes: brake for it (farther, it cannot bind) */
     for (int i = 0; i < n; i++) {
-        double wanted = plem_clamp(goal[i], -t->speed[i], t->speed[i]), w = fabs(wanted);
-        double a_brake = BRAKE * t->max_acceleration[i], j_brake = BRAKE * t->max_jerk[i];
+        double speed = t->max_velocity[i] * t->share * t->speed;
+        double wanted = plem_clamp(goal[i], -speed, speed), w = fabs(wanted);
+        double a_brake = BRAKE * A[i], j_brake = BRAKE * J[i];
         double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
                                                                  + w * sqrt(w / j_brake);
         double high = t->high[i] - ahead[i], low = ahead[i] - t->low[i];
@@ -62,8 +64,8 @@ void plem_follow(int n, double *p, double *v, double *a, const plem_follow_targe
         goal[i] = wanted;
     }
     for (int i = 0; i < n; i++) {
-        double next = plem_approach(v[i], a[i], goal[i], t->max_acceleration[i], t->max_jerk[i], dt);
-        double velocity = plem_clamp(v[i] + (a[i] + next) * dt / 2.0, -t->max_velocity[i], t->max_velocity[i]);
+        double next = plem_approach(v[i], a[i], goal[i], A[i], J[i], dt), limit = t->max_velocity[i] * t->share;
+        double velocity = plem_clamp(v[i] + (a[i] + next) * dt / 2.0, -limit, limit);
         double position = p[i] + (v[i] + velocity) * dt / 2.0 + (a[i] - next) * dt * dt / 12.0;
         p[i] = plem_clamp(position, plem_lesser(t->low[i], p[i]), plem_greater(t->high[i], p[i]));
         v[i] = velocity;

@@ -6,6 +6,7 @@
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <math.h>
 #include <pthread.h>
 #include <stddef.h>
 #include <string.h>
@@ -77,7 +78,8 @@ static PyObject *dynamics_call(PyObject *args, int which) {
 }
 
 /* follow(state, target_position, target_velocity, speed, max_velocity, max_acceleration, max_jerk, low, high, dt):
- * one joint's (p, v, a) in a float64 buffer of 3, one follower cycle on. */
+ * one joint's (p, v, a) in a float64 buffer of 3, one follower cycle on; speed is the share of max_velocity not to
+ * pass, a NaN target_position none. */
 static PyObject *follow(PyObject *self, PyObject *args) {
     (void)self;
     PyObject *object;
@@ -87,7 +89,9 @@ static PyObject *follow(PyObject *self, PyObject *args) {
         return NULL;
     argument held = {{0}, 0};
     double *state = take(object, &held, 3 * sizeof(double), 1, "state");
-    plem_follow_targets targets = {&target, &velocity, &speed, &max_velocity, &max_acceleration, &max_jerk, &low, &high};
+    plem_follow_targets targets = {.target_position = isfinite(target) ? &target : NULL, .target_velocity = &velocity,
+                                   .max_velocity = &max_velocity, .max_acceleration = &max_acceleration,
+                                   .max_jerk = &max_jerk, .share = 1.0, .speed = speed, .low = &low, .high = &high};
     if (state) plem_follow(1, &state[0], &state[1], &state[2], &targets, dt);
     release(&held, 1);
     return state ? Py_NewRef(Py_None) : NULL;
@@ -617,11 +621,15 @@ static const field REACTION_FIELDS[] = {
     {NULL, 0, 0}};
 
 static const field ARMED_FIELDS[] = {
-    FIELD(plem_armed, motion), FIELD(plem_armed, start), FIELD(plem_armed, terms), FIELD(plem_armed, was_true),
+    FIELD(plem_armed, motion), FIELD(plem_armed, start), FIELD(plem_armed, steps), FIELD(plem_armed, was_true),
     {NULL, 0, 0}};
 
+static const field STEP_FIELDS[] = {
+    FIELD(plem_step, compare), FIELD(plem_step, measure), FIELD(plem_step, index), FIELD(plem_step, then),
+    FIELD(plem_step, threshold), {NULL, 0, 0}};
+
 static const field PROGRAM_FIELDS[] = {
-    FIELD(plem_program, slot), FIELD(plem_program, term), FIELD(plem_program, uses), {NULL, 0, 0}};
+    FIELD(plem_program, slot), FIELD(plem_program, step), FIELD(plem_program, uses), {NULL, 0, 0}};
 
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
@@ -776,7 +784,8 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_basis", BASIS_FIELDS, sizeof(plem_basis)}, {"plem_ring", RING_FIELDS, sizeof(plem_ring)},
         {"plem_override", OVERRIDE_FIELDS, sizeof(plem_override)}, {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
         {"plem_term", TERM_FIELDS, sizeof(plem_term)}, {"plem_reaction", REACTION_FIELDS, sizeof(plem_reaction)},
-        {"plem_armed", ARMED_FIELDS, sizeof(plem_armed)}, {"plem_program", PROGRAM_FIELDS, sizeof(plem_program)},
+        {"plem_armed", ARMED_FIELDS, sizeof(plem_armed)},
+        {"plem_step", STEP_FIELDS, sizeof(plem_step)}, {"plem_program", PROGRAM_FIELDS, sizeof(plem_program)},
         {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},

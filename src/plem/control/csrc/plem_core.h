@@ -125,10 +125,12 @@ static inline double plem_clamp(double x, double low, double high) {
 
 /* What the follower works toward this cycle and within which limits: arrays over the joints. */
 typedef struct {
-    const double *target_position;   /* a position to come to rest at (moving at target_velocity); NaN: none */
-    const double *target_velocity;   /* the target's own velocity, or with no position the velocity to reach */
-    const double *speed;             /* the speed not to pass (the override's share of max_velocity) */
+    const double *target_position;   /* positions to come to rest at (moving at target_velocity); NULL: none */
+    const double *target_velocity;   /* the targets' own velocities, or without positions the velocities to reach;
+                                        NULL: at rest */
     const double *max_velocity, *max_acceleration, *max_jerk;
+    double share;                    /* of those limits the follower uses */
+    double speed;                    /* of the velocity it uses, the share not to pass (the speed override) */
     const double *low, *high;        /* the positions to stop within */
 } plem_follow_targets;
 
@@ -361,17 +363,27 @@ typedef struct {
 /* An armed reaction as the cycle walks it. */
 typedef struct {
     uint64_t motion;                 /* the slot's motion, copied when armed */
-    int16_t start;                   /* its first term in the program */
-    int16_t terms;
+    int16_t start;                   /* its first step in the program */
+    int16_t steps;
     int16_t was_true;                /* its condition last cycle: an action starts on a rise */
     int16_t pad;
 } plem_armed;
 
-/* The armed reactions' conditions, checked when armed and laid end to end (a cycle reads a few lines, not a slot
- * each); rebuilt whenever a reaction is armed or disarmed. `uses` has bit m set when a term compares measure m. */
+/* A comparison of an armed condition with the combinations that follow it in the postfix program. */
+typedef struct {
+    int8_t compare;                  /* enum plem_term_op: ABOVE, BELOW or EQUAL */
+    int8_t measure;                  /* enum plem_measure */
+    int16_t index;
+    uint32_t then;                   /* the combinations, 2 bits each from the lowest: 1 AND, 2 OR, 3 NOT, 0 none */
+    double threshold;
+} plem_step;
+
+/* The armed reactions' conditions, checked when armed and laid end to end as steps (a cycle reads a few lines, not
+ * a slot each); rebuilt whenever a reaction is armed or disarmed. `uses` has bit m set when a step compares
+ * measure m. */
 typedef struct {
     plem_armed slot[PLEM_REACTIONS];
-    plem_term term[PLEM_REACTIONS * PLEM_REACTION_TERMS];
+    plem_step step[PLEM_REACTIONS * PLEM_REACTION_TERMS];
     uint32_t uses;
     int32_t pad;
 } plem_program;
