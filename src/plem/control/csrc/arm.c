@@ -691,9 +691,9 @@ static void feel(plem_arm *arm, const plem_slab *slab) {
         }
 }
 
-/* Where each measure's values are this cycle, indexed by the term's index (a joint, or a wrench component); NaN
+/* Where each measure's values are this cycle, indexed by a step's index (a joint, or a wrench component); NaN
  * for a quantity without a value: an estimate not current, a motion time with no motion. Digital inputs are read
- * by `digital_input`. `derived` holds what is computed for the cycle: following errors, drive states, the time. */
+ * by `digital_input`. The rest holds what is worked out for the cycle: following errors, drive states, the time. */
 typedef struct {
     const double *of[PLEM_MEASURES];
     double following[PLEM_MAX_JOINTS], states[PLEM_MAX_JOINTS], motion_time;
@@ -947,7 +947,6 @@ static void read_stream(plem_arm *arm, plem_stream_block *block) {
     int n = arm->settings.dof;
     if (!block) return;
     _Atomic uint64_t *sequence = (_Atomic uint64_t *)&block->sequence;
-    __builtin_prefetch(block->target);   /* a new sample's second line is fetched while its first is */
     uint64_t before = atomic_load_explicit(sequence, memory_order_acquire);
     uint64_t session = block->session, count = block->count;
     if ((before & 1) || session != st->session || count == st->last_count) return;   /* nothing new: one line read */
