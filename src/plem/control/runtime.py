@@ -438,14 +438,15 @@ class ArmRuntime:
         self._busy_slots.add(free[0])
         return free[0]
 
-    def write_reaction(self, condition: Condition, action: Action, motion: int = 0, once: bool = False) -> int:
-        """Write a reaction into a free slot of the core (not yet armed: submit ArmReaction with the slot); its
-        token. Bound to `motion` (a motion's token), it ends with that motion."""
+    def write_reaction(self, condition: Condition, action: Action, once: bool = False) -> int:
+        """Write a standing reaction into a free slot of the core (not yet armed: submit ArmReaction with the slot);
+        its token."""
         with self._submitting:
-            return self._write_reaction(condition, action, motion, once)
+            return self._write_reaction(condition, action, 0, once)
 
     def _write_reaction(self, condition: Condition, action: Action, motion: int, once: bool) -> int:
-        """write_reaction with `_submitting` held."""
+        """Write a reaction (bound to the motion whose token is `motion`, ending with it; 0: standing), with
+        `_submitting` held; its token."""
         slots = self.arm[0]["reactions"]
         free = [k for k in range(len(slots)) if not slots[k]["armed"] and k not in self._arming]
         if not free:

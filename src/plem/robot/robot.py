@@ -412,11 +412,10 @@ class Robot(PlanningCalls, StreamingCalls, ReactionCalls):
             time.sleep(runtime.dt)
 
     # -- reactions and the payload ------------------------------------------------------------------------
-    def request_reaction(self, condition: Condition, action: Action, motion: int = 0,
-                         once: bool = False) -> tuple[int, CommandHandle]:
-        """Arm a reaction without waiting (bound to the motion whose core token is `motion`, or standing): its
-        token, and the handle the core answers when it took it."""
-        token = self.runtime.write_reaction(condition, action, motion, once)
+    def request_reaction(self, condition: Condition, action: Action, once: bool = False) -> tuple[int, CommandHandle]:
+        """Arm a standing reaction without waiting: its token, and the handle the core answers when it took it.
+        (A motion's `until` travels with the motion: `move_joints(..., until=...)`.)"""
+        token = self.runtime.write_reaction(condition, action, once)
         return token, self._send(ArmReaction(self.runtime.reactions[token].slot,
                                              CommandHandle("arm a reaction", self._pump)))
 

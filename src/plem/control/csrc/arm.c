@@ -714,12 +714,12 @@ static void measure(const plem_arm *arm, measures *m) {
     m->of[PLEM_MEASURE_FOLLOWING_ERROR] = m->following;
     m->of[PLEM_MEASURE_MOTION_TIME] = &m->motion_time;
     m->of[PLEM_MEASURE_DRIVE_STATE] = m->states;
-    m->of[PLEM_MEASURE_DIGITAL_INPUT] = NOT_MEASURED;
     if (uses >> PLEM_MEASURE_FOLLOWING_ERROR & 1u)
         for (int i = 0; i < n; i++) m->following[i] = fabs(arm->work[COMMAND][i] - arm->work[POSITION][i]);
     if (uses >> PLEM_MEASURE_DRIVE_STATE & 1u)
         for (int i = 0; i < n; i++) m->states[i] = (double)plem_decode_statusword(arm->io_statusword[i]);
-    m->motion_time = arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
+    if (uses >> PLEM_MEASURE_MOTION_TIME & 1u)
+        m->motion_time = arm->active ? (double)(arm->cycle - arm->active_start_cycle) * arm->settings.dt : NAN;
 }
 
 /* A drive's digital input (index joint · 32 + bit), NaN from a drive that does not report them. */

@@ -56,8 +56,8 @@ void plem_follow(int n, double *p, double *v, double *a, const plem_follow_targe
         double speed = t->max_velocity[i] * t->share * t->speed;
         double wanted = plem_clamp(goal[i], -speed, speed), w = fabs(wanted);
         double a_brake = BRAKE * A[i], j_brake = BRAKE * J[i];
-        double stop = isinf(j_brake) ? w * w / (2.0 * a_brake) : w * w / (2.0 * a_brake) + w * a_brake / (2.0 * j_brake)
-                                                                 + w * sqrt(w / j_brake);
+        double stop = w * w / (2.0 * a_brake);
+        if (!isinf(j_brake)) stop = stop + w * a_brake / (2.0 * j_brake) + w * sqrt(w / j_brake);
         double high = t->high[i] - ahead[i], low = ahead[i] - t->low[i];
         if (wanted > 0.0 && high < stop) wanted = plem_lesser(wanted, braking_speed(high, a_brake, j_brake));
         if (wanted < 0.0 && low < stop) wanted = plem_greater(wanted, -braking_speed(low, a_brake, j_brake));
