@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from plem.control.commands import ArmReaction, CommandHandle
+from plem.control.compiled import CONSTANTS
 from plem.control.events import EventKind
 from plem.control.modes import Mode
 from plem.control.motion import plan_stop
@@ -209,9 +210,10 @@ def test_conditions_combine_in_the_core_as_in_python(robot: Robot) -> None:
     rng = np.random.default_rng(7)
     for _ in range(8):   # 8 rounds of the 16 slots
         conditions: list[tuple[Condition, bool]] = []
-        while len(conditions) < 16:   # as long as a condition may be, with the gate
+        while len(conditions) < 16:   # as long as a condition may be with the gate, half of them 6-7 comparisons
             condition, truth = _expression(rng, atoms, 4)
-            if len(condition.terms) <= 14:
+            comparisons = sum(term.op < CONSTANTS["PLEM_TERM_AND"] for term in condition.terms)
+            if len(condition.terms) <= 14 and (comparisons >= 6 or len(conditions) % 2):
                 conditions.append((gate & condition, truth))
         armed = [(robot.on(condition, Record(), once=True), truth) for condition, truth in conditions]
         slots = [robot.runtime.reactions[handle.token].slot for handle, _ in armed]

@@ -128,12 +128,12 @@ REACTION = _checked("plem_reaction", [("token", "<u8"), ("motion", "<u8"), ("arm
                                       ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"]), ("target", "<f8", J)])
 #: The armed reactions as the core walks them (its own: Python only reserves the room).
 PROGRAM = _checked("plem_program", [
-    ("slot", _checked("plem_armed", [("motion", "<u8"), ("start", "<i2"), ("steps", "<i2"), ("was_true", "<i2"),
-                                     ("pad", "<i2")]), CONSTANTS["PLEM_REACTIONS"]),
-    ("step", _checked("plem_step", [("compare", "i1"), ("measure", "i1"), ("index", "<i2"), ("then", "<u4"),
-                                    ("threshold", "<f8")]),
-     CONSTANTS["PLEM_REACTIONS"] * CONSTANTS["PLEM_REACTION_TERMS"]),
-    ("uses", "<u4"), ("pad", "<i4")])
+    ("slot", _checked("plem_armed", [("motion", "<u8"), ("table", "<u8", 4), ("start", "<i2"), ("comparisons", "<i2"),
+                                     ("pad", "<i4")]), CONSTANTS["PLEM_REACTIONS"]),
+    ("comparison", _checked("plem_comparison", [("holds_if", "i1"), ("measure", "i1"), ("index", "<i2"), ("pad", "<i4"),
+                                                ("threshold", "<f8")]),
+     CONSTANTS["PLEM_REACTIONS"] * ((CONSTANTS["PLEM_REACTION_TERMS"] + 1) // 2)),
+    ("uses", "<u4"), ("bound", "<u4"), ("was_true", "<u4"), ("pad", "<i4")])
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
 RING = _checked("plem_ring", _RING_FIELDS)

@@ -621,15 +621,16 @@ static const field REACTION_FIELDS[] = {
     {NULL, 0, 0}};
 
 static const field ARMED_FIELDS[] = {
-    FIELD(plem_armed, motion), FIELD(plem_armed, start), FIELD(plem_armed, steps), FIELD(plem_armed, was_true),
+    FIELD(plem_armed, motion), FIELD(plem_armed, table), FIELD(plem_armed, start), FIELD(plem_armed, comparisons),
     {NULL, 0, 0}};
 
-static const field STEP_FIELDS[] = {
-    FIELD(plem_step, compare), FIELD(plem_step, measure), FIELD(plem_step, index), FIELD(plem_step, then),
-    FIELD(plem_step, threshold), {NULL, 0, 0}};
+static const field COMPARISON_FIELDS[] = {
+    FIELD(plem_comparison, holds_if), FIELD(plem_comparison, measure), FIELD(plem_comparison, index),
+    FIELD(plem_comparison, threshold), {NULL, 0, 0}};
 
 static const field PROGRAM_FIELDS[] = {
-    FIELD(plem_program, slot), FIELD(plem_program, step), FIELD(plem_program, uses), {NULL, 0, 0}};
+    FIELD(plem_program, slot), FIELD(plem_program, comparison), FIELD(plem_program, uses),
+    FIELD(plem_program, bound), FIELD(plem_program, was_true), {NULL, 0, 0}};
 
 static const field STREAM_FIELDS[] = {
     FIELD(plem_stream, session), FIELD(plem_stream, timeout_cycles), FIELD(plem_stream, last_cycle),
@@ -786,7 +787,7 @@ static PyObject *layout(PyObject *self, PyObject *unused) {
         {"plem_override", OVERRIDE_FIELDS, sizeof(plem_override)}, {"plem_stream", STREAM_FIELDS, sizeof(plem_stream)},
         {"plem_term", TERM_FIELDS, sizeof(plem_term)}, {"plem_reaction", REACTION_FIELDS, sizeof(plem_reaction)},
         {"plem_armed", ARMED_FIELDS, sizeof(plem_armed)},
-        {"plem_step", STEP_FIELDS, sizeof(plem_step)}, {"plem_program", PROGRAM_FIELDS, sizeof(plem_program)},
+        {"plem_comparison", COMPARISON_FIELDS, sizeof(plem_comparison)}, {"plem_program", PROGRAM_FIELDS, sizeof(plem_program)},
         {"plem_stream_block", STREAM_BLOCK_FIELDS, sizeof(plem_stream_block)},
         {"plem_command", COMMAND_FIELDS, sizeof(plem_command)}, {"plem_outcome", OUTCOME_FIELDS, sizeof(plem_outcome)},
         {"plem_event", EVENT_FIELDS, sizeof(plem_event)}, {"plem_arm", ARM_FIELDS, sizeof(plem_arm)},

@@ -360,31 +360,37 @@ typedef struct {
     double target[PLEM_MAX_JOINTS];  /* move: the joint target */
 } plem_reaction;
 
-/* An armed reaction as the cycle walks it. */
+/* A condition of PLEM_REACTION_TERMS terms compares at most this many quantities: each comparison but the first
+ * needs a binary combination. */
+#define PLEM_CONDITION_COMPARISONS ((PLEM_REACTION_TERMS + 1) / 2)
+
+/* An armed reaction as the cycle walks it: where its comparisons are in the program, and its condition as a truth
+ * table over them, worked out when armed. */
 typedef struct {
     uint64_t motion;                 /* the slot's motion, copied when armed */
-    int16_t start;                   /* its first step in the program */
-    int16_t steps;
-    int16_t was_true;                /* its condition last cycle: an action starts on a rise */
-    int16_t pad;
+    uint64_t table[4];               /* bit i of 256: the condition when comparison j's truth is bit j of i */
+    int16_t start;                   /* its first comparison in the program: the one its events report */
+    int16_t comparisons;
+    int32_t pad;
 } plem_armed;
 
-/* A comparison of an armed condition with the combinations that follow it in the postfix program. */
+/* One comparison of an armed condition. */
 typedef struct {
-    int8_t compare;                  /* enum plem_term_op: ABOVE, BELOW or EQUAL */
+    int8_t holds_if;                 /* bit 0: true when above the threshold, bit 1: below, bit 2: equal */
     int8_t measure;                  /* enum plem_measure */
     int16_t index;
-    uint32_t then;                   /* the combinations, 2 bits each from the lowest: 1 AND, 2 OR, 3 NOT, 0 none */
+    int32_t pad;
     double threshold;
-} plem_step;
+} plem_comparison;
 
-/* The armed reactions' conditions, checked when armed and laid end to end as steps (a cycle reads a few lines, not
- * a slot each); rebuilt whenever a reaction is armed or disarmed. `uses` has bit m set when a step compares
- * measure m. */
+/* The armed reactions' comparisons, laid end to end (a cycle reads a few lines, not a slot each); rebuilt
+ * whenever a reaction is armed or disarmed. `uses` has bit m set when a comparison reads measure m. */
 typedef struct {
     plem_armed slot[PLEM_REACTIONS];
-    plem_step step[PLEM_REACTIONS * PLEM_REACTION_TERMS];
+    plem_comparison comparison[PLEM_REACTIONS * PLEM_CONDITION_COMPARISONS];
     uint32_t uses;
+    uint32_t bound;                  /* bit k: armed slot k belongs to a motion */
+    uint32_t was_true;               /* bit k: slot k's condition last cycle (an action starts on a rise) */
     int32_t pad;
 } plem_program;
 
