@@ -132,7 +132,7 @@ PROGRAM = _checked("plem_program", [
                                      ("pad", "<i4")]), CONSTANTS["PLEM_REACTIONS"]),
     ("comparison", _checked("plem_comparison", [("holds_if", "i1"), ("measure", "i1"), ("index", "<i2"), ("pad", "<i4"),
                                                 ("threshold", "<f8")]),
-     CONSTANTS["PLEM_REACTIONS"] * ((CONSTANTS["PLEM_REACTION_TERMS"] + 1) // 2)),
+     CONSTANTS["PLEM_REACTIONS"] * CONSTANTS["PLEM_CONDITION_COMPARISONS"]),
     ("uses", "<u4"), ("bound", "<u4"), ("was_true", "<u4"), ("pad", "<i4")])
 #: The block a client streams samples through (plem.control.streaming).
 STREAM_BLOCK = _checked("plem_stream_block", _STREAM_BLOCK_FIELDS)
