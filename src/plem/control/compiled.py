@@ -128,8 +128,8 @@ REACTION = _checked("plem_reaction", [("token", "<u8"), ("motion", "<u8"), ("arm
                                       ("term", TERM, CONSTANTS["PLEM_REACTION_TERMS"]), ("target", "<f8", J)])
 #: The armed reactions as the core walks them (its own: Python only reserves the room).
 PROGRAM = _checked("plem_program", [
-    ("slot", _checked("plem_armed", [("motion", "<u8"), ("table", "<u8", 4), ("start", "<i2"), ("comparisons", "<i2"),
-                                     ("pad", "<i4")]), CONSTANTS["PLEM_REACTIONS"]),
+    ("slot", _checked("plem_armed", [("table", "<u8", 4), ("start", "<i2"), ("comparisons", "<i2"), ("pad", "<i4")]),
+     CONSTANTS["PLEM_REACTIONS"]),
     ("comparison", _checked("plem_comparison", [("holds_if", "i1"), ("measure", "i1"), ("index", "<i2"), ("pad", "<i4"),
                                                 ("threshold", "<f8")]),
      CONSTANTS["PLEM_REACTIONS"] * CONSTANTS["PLEM_CONDITION_COMPARISONS"]),

@@ -256,7 +256,7 @@ COLD static void set_armed(plem_arm *arm, int slot, int armed) {
     for (uint32_t left = arm->reacting; left; left &= left - 1) {
         int k = __builtin_ctz(left);
         const plem_reaction *r = &arm->reactions[k];
-        p->slot[k].motion = r->motion, p->slot[k].start = (int16_t)next;
+        p->slot[k].start = (int16_t)next;
         if (r->motion) p->bound |= 1u << k;
         for (int t = 0; t < r->terms; t++) {
             const plem_term *term = &r->term[t];
@@ -798,15 +798,20 @@ COLD static void fire(plem_arm *arm, const plem_slab *slab, int slot, double val
     }
 }
 
-/* The armed slots of `slots` whose motion is yet to start: armed before it, each watches from the motion's first
- * cycle. A bound slot whose motion ended or was refused is disarmed. */
+/* Whether reaction `slot` may act now: standing, or its motion is the one running. */
+static int in_its_motion(const plem_arm *arm, int slot) {
+    uint64_t motion = arm->reactions[slot].motion;   /* an armed slot's record stays as written */
+    return !motion || (arm->active && arm->active_token == motion);
+}
+
+/* The armed slots of `slots` (bound to motions) whose motion is yet to start: armed before it, each watches from
+ * the motion's first cycle. A bound slot whose motion ended or was refused is disarmed. */
 static uint32_t waiting(plem_arm *arm, uint32_t slots) {
     uint32_t yet = 0;
     for (; slots; slots &= slots - 1) {
         int slot = __builtin_ctz(slots);
-        uint64_t motion = arm->program.slot[slot].motion;
-        if (arm->active && arm->active_token == motion) continue;
-        if (motion <= arm->last_start) set_armed(arm, slot, 0);
+        if (in_its_motion(arm, slot)) continue;
+        if (arm->reactions[slot].motion <= arm->last_start) set_armed(arm, slot, 0);
         else yet |= 1u << slot;
     }
     return yet;
@@ -830,8 +835,7 @@ static void react(plem_arm *arm, const plem_slab *slab) {
     p->was_true = (p->was_true & ~live) | (now & live);
     for (; rose; rose &= rose - 1) {
         int slot = __builtin_ctz(rose);
-        uint64_t motion = p->slot[slot].motion;   /* an earlier action this cycle may have ended it */
-        if (!(arm->reacting >> slot & 1u) || (motion && !(arm->active && arm->active_token == motion))) continue;
+        if (!(arm->reacting >> slot & 1u) || !in_its_motion(arm, slot)) continue;   /* an earlier action ended it */
         const plem_comparison *first = &p->comparison[p->slot[slot].start];
         fire(arm, slab, slot, value_of(arm, &m, first), first->threshold);
     }

@@ -621,7 +621,7 @@ static const field REACTION_FIELDS[] = {
     {NULL, 0, 0}};
 
 static const field ARMED_FIELDS[] = {
-    FIELD(plem_armed, motion), FIELD(plem_armed, table), FIELD(plem_armed, start), FIELD(plem_armed, comparisons),
+    FIELD(plem_armed, table), FIELD(plem_armed, start), FIELD(plem_armed, comparisons),
     {NULL, 0, 0}};
 
 static const field COMPARISON_FIELDS[] = {

@@ -367,7 +367,6 @@ typedef struct {
 /* An armed reaction as the cycle walks it: where its comparisons are in the program, and its condition as a truth
  * table over them, worked out when armed. */
 typedef struct {
-    uint64_t motion;                 /* the slot's motion, copied when armed */
     uint64_t table[4];               /* bit i of 256: the condition when comparison j's truth is bit j of i */
     int16_t start;                   /* its first comparison in the program: the one its events report */
     int16_t comparisons;
